@@ -1,0 +1,38 @@
+"""The `cclog` command line. Each subcommand is a module in this package that defines
+`register(subparsers)`; the module list below is the only place that names them."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from ..errors import CclogError
+
+# One module per subcommand, in the order `cclog --help` lists them.
+COMMANDS: list[str] = []
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="cclog",
+        description="cclogfs: keep the robot log data that matters, compressed and checksummed.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name in COMMANDS:
+        importlib.import_module(f"{__name__}.{name}").register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except CclogError as err:
+        print(f"cclog: error: {err}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("cclog: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0
