@@ -1,0 +1,116 @@
+"""Log sources: ROS 1 and ROS 2 bags, MCAP files and JSON Lines, all as `SourceMessage`s.
+
+`open_source(path)` looks at the file (magic bytes, MCAP channel encodings) and picks a
+class from `FORMATS`; every class follows the `Source` protocol. Parsing is left to
+`rosbags` and `mcap`; this package only maps their messages to rosbridge JSON.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+from ..errors import SourceError
+from .base import Source, SourceMessage
+from .jsonl import JsonlSource, OnError, format_line, parse_line
+from .mcapjson import McapJsonSource, mcap_encodings
+from .rosbag import RosbagSource
+
+__all__ = [
+    "FORMATS",
+    "JsonlSource",
+    "McapJsonSource",
+    "RosbagSource",
+    "Source",
+    "SourceMessage",
+    "detect_format",
+    "format_line",
+    "open_source",
+    "parse_line",
+]
+
+FORMATS: dict[str, type[Source]] = {
+    "rosbag1": RosbagSource,
+    "rosbag2": RosbagSource,
+    "mcap-json": McapJsonSource,
+    "jsonl": JsonlSource,
+}
+
+_MAGIC_ROSBAG1 = b"#ROSBAG V2.0\n"
+_MAGIC_MCAP = b"\x89MCAP0\r\n"
+_MAGIC_SQLITE = b"SQLite format 3\x00"
+# rosbags picks its storage plugin by file name, so these must carry the right suffix.
+_SUFFIX = {"rosbag1": ".bag", "mcap": ".mcap", "sqlite3": ".db3"}
+
+
+def detect_format(path: str | Path) -> str:
+    """The key in FORMATS for `path` ("-" is standard input, read as JSONL)."""
+    if str(path) == "-":
+        return "jsonl"
+    p = Path(path)
+    if p.is_dir():
+        if (p / "metadata.yaml").is_file():
+            return "rosbag2"
+        raise SourceError(f"{p} is a directory without metadata.yaml, so not a ROS 2 bag.")
+    try:
+        with open(p, "rb") as f:
+            head = f.read(64)
+    except OSError as err:
+        raise SourceError(f"Cannot read {p}: {err.strerror or err}.") from err
+    if head.startswith(_MAGIC_ROSBAG1):
+        _need_suffix(p, "rosbag1", "a ROS 1 bag")
+        return "rosbag1"
+    if head.startswith(_MAGIC_SQLITE):
+        _need_suffix(p, "sqlite3", "a SQLite database (ROS 2 bag storage)")
+        return "rosbag2"
+    if head.startswith(_MAGIC_MCAP):
+        return _mcap_format(p)
+    if head.lstrip()[:1] == b"{" or (not head.strip() and p.suffix in (".jsonl", ".ndjson")):
+        return "jsonl"
+    raise SourceError(
+        f"{p} is of an unknown file type: not a ROS 1 bag, ROS 2 bag, MCAP or JSON Lines file."
+    )
+
+
+def _mcap_format(p: Path) -> str:
+    encodings = mcap_encodings(p)
+    if encodings <= {"json"}:
+        return "mcap-json"
+    if encodings == {"cdr"}:
+        _need_suffix(p, "mcap", "a ROS 2 MCAP file")
+        return "rosbag2"
+    raise SourceError(
+        f"{p} is an MCAP file with message encodings {sorted(encodings)}; "
+        "only all-'cdr' (ROS 2) or all-'json' files can be read."
+    )
+
+
+def _need_suffix(p: Path, kind: str, what: str) -> None:
+    if p.suffix != _SUFFIX[kind]:
+        raise SourceError(
+            f"{p} is {what} but its name does not end in {_SUFFIX[kind]}, which the bag "
+            "reader needs; rename it (or link it) with that suffix."
+        )
+
+
+def open_source(
+    path: str | Path,
+    topics: Iterable[str] | None = None,
+    *,
+    format: str | None = None,
+    on_error: OnError = "stop",
+    report: Callable[[SourceError], None] | None = None,
+) -> Source:
+    """Open a log for reading, choosing the reader by file type (or by `format`)."""
+    fmt = format or detect_format(path)
+    try:
+        cls = FORMATS[fmt]
+    except KeyError:
+        raise SourceError(
+            f"Unknown source format {fmt!r} for {path}; known: {', '.join(sorted(FORMATS))}."
+        ) from None
+    if cls is JsonlSource:
+        return JsonlSource(path, topics=topics, on_error=on_error, report=report)
+    if not Path(path).exists():
+        raise SourceError(f"{path} does not exist.")
+    return cls(path, topics=topics)

@@ -1,0 +1,46 @@
+"""What every log source yields, and the Protocol a source class implements."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from typing import NamedTuple, Protocol, runtime_checkable
+
+from ..errors import InvalidInputError
+
+
+class SourceMessage(NamedTuple):
+    """One message: `text` is its rosbridge JSON, `stamp_ns` its time in nanoseconds."""
+
+    topic: str
+    stamp_ns: int
+    text: str
+    msgtype: str
+
+
+@runtime_checkable
+class Source(Protocol):
+    """A readable log (bag, MCAP, JSONL); use as a context manager, iterate for messages."""
+
+    name: str
+
+    def __init__(self, path: str, *, topics: Iterable[str] | None = None) -> None: ...
+
+    def __enter__(self) -> Source: ...
+
+    def __exit__(self, *exc: object) -> None: ...
+
+    def __iter__(self) -> Iterator[SourceMessage]: ...
+
+    def topics(self) -> dict[str, str]:
+        """Topic -> message type of what the source holds ("" when not known up front)."""
+        ...
+
+
+def topic_filter(topics: Iterable[str] | None) -> frozenset[str] | None:
+    """The selected topics as a set, None meaning all; an empty selection is an error."""
+    if topics is None:
+        return None
+    wanted = frozenset(topics)
+    if not wanted:
+        raise InvalidInputError("The topic selection is empty; pass None to read every topic.")
+    return wanted
