@@ -1,0 +1,24 @@
+"""Exports of stored windows to formats other tools read: MCAP (JSON) and Parquet.
+
+Exporters take any iterable of windows (`Window`: what the store's `query()` returns)
+and know nothing of how they were chosen or stored.
+"""
+
+from __future__ import annotations
+
+from .base import ExportStats, Progress, Window
+from .jsonschema import message_schema, schema_of
+from .mcap import WINDOW_METADATA, export_mcap
+from .parquet import export_parquet, flatten
+
+__all__ = [
+    "WINDOW_METADATA",
+    "ExportStats",
+    "Progress",
+    "Window",
+    "export_mcap",
+    "export_parquet",
+    "flatten",
+    "message_schema",
+    "schema_of",
+]
