@@ -1,8 +1,43 @@
-"""Mirror of docs/FORMAT.md: every number the on-disk format defines lives here."""
+"""Mirror of docs/FORMAT.md: every number the on-disk format defines lives here.
+
+This module knows the *physical* layout only: how to build and check the bytes of a
+record header, a segment header, an index and the manifest. What the records mean is the
+store's business.
+"""
 
 from __future__ import annotations
 
+import json
+import re
+import struct
+from dataclasses import dataclass
 from enum import IntEnum
+
+import crcmod.predefined
+import xxhash
+
+FORMAT_VERSION = 1
+
+# -- checksums -----------------------------------------------------------------------------
+
+_crc32c_fn = crcmod.predefined.mkPredefinedCrcFun("crc-32c")
+
+
+def crc32c(data: bytes | memoryview) -> int:
+    return _crc32c_fn(data)
+
+
+def xxh3(data: bytes | memoryview) -> int:
+    return xxhash.xxh3_64_intdigest(data)
+
+
+# -- enums ---------------------------------------------------------------------------------
+
+
+class RecordKind(IntEnum):
+    """Record kinds. 0 is invalid; values never change."""
+
+    WINDOW = 1
 
 
 class CodecId(IntEnum):
@@ -12,3 +47,250 @@ class CodecId(IntEnum):
     ZSTD = 2
     LZMA = 3
     COLUMNAR = 4
+
+
+class Reason:
+    """The fixed set of reasons a record or file is rejected (LevelDB-style reporting)."""
+
+    TORN = "torn record"
+    ZERO_FILL = "zero fill"
+    BAD_MAGIC = "bad magic"
+    BAD_LENGTH = "bad record length"
+    HEADER_CRC = "header checksum mismatch"
+    PAYLOAD_HASH = "payload checksum mismatch"
+    SEQ_GAP = "sequence gap"
+    UNKNOWN_KIND = "unknown record kind"
+    UNSUPPORTED_VERSION = "unsupported record version"
+    BAD_SEGMENT_HEADER = "bad segment header"
+    DROPPED_SEGMENT = "segment after the torn tail"
+
+
+# -- limits --------------------------------------------------------------------------------
+
+MAX_NAME = 1024
+MAX_CONFIG = 4096
+MAX_META = 65536
+MAX_COUNT = 1 << 24
+MAX_RAW = 256 << 20
+MAX_ENC = MAX_RAW + (64 << 10)
+MAX_MANIFEST = 64 << 20
+
+# -- file names ----------------------------------------------------------------------------
+
+MANIFEST = "MANIFEST"
+LOCK = "LOCK"
+TMP_SUFFIX = ".tmp"
+SEGMENT_SUFFIX = ".seg"
+INDEX_SUFFIX = ".idx"
+_SEQ_NAME = re.compile(r"^(\d{20})\.(seg|idx)$")
+
+
+def segment_name(first_seq: int) -> str:
+    return f"{first_seq:020d}{SEGMENT_SUFFIX}"
+
+
+def index_name(first_seq: int) -> str:
+    return f"{first_seq:020d}{INDEX_SUFFIX}"
+
+
+def parse_seq_name(name: str) -> tuple[int, str] | None:
+    """(first_seq, "seg" | "idx") for a segment or index file name, else None."""
+    m = _SEQ_NAME.match(name)
+    return (int(m.group(1)), m.group(2)) if m else None
+
+
+# -- segment header ------------------------------------------------------------------------
+
+SEGMENT_MAGIC = b"CCLS"
+SEGMENT_HEADER = struct.Struct("<4sHHQqI")  # magic, version, flags, first_seq, created_ns, reserved
+SEGMENT_HEADER_SIZE = SEGMENT_HEADER.size + 4  # + crc
+
+
+def pack_segment_header(first_seq: int, created_ns: int) -> bytes:
+    body = SEGMENT_HEADER.pack(SEGMENT_MAGIC, FORMAT_VERSION, 0, first_seq, created_ns, 0)
+    return body + struct.pack("<I", crc32c(body))
+
+
+def unpack_segment_header(data: bytes) -> tuple[int, int] | None:
+    """(first_seq, created_ns), or None when the header is torn or damaged."""
+    if len(data) < SEGMENT_HEADER_SIZE:
+        return None
+    body = data[: SEGMENT_HEADER.size]
+    (crc,) = struct.unpack_from("<I", data, SEGMENT_HEADER.size)
+    magic, version, _flags, first_seq, created_ns, _ = SEGMENT_HEADER.unpack(body)
+    if magic != SEGMENT_MAGIC or version != FORMAT_VERSION or crc != crc32c(body):
+        return None
+    return first_seq, created_ns
+
+
+# -- record --------------------------------------------------------------------------------
+
+RECORD_MAGIC = b"CCLR"
+RECORD_VERSION = 1
+# magic kind version flags header_len seq start end count codec name_len config_len meta_len
+# raw_len enc_len payload_xxh3
+RECORD_FIXED = struct.Struct("<4sBBHIQqqIHHHIQQQ")
+RECORD_FIXED_SIZE = RECORD_FIXED.size  # 74
+MAX_HEADER = RECORD_FIXED_SIZE + MAX_NAME + MAX_CONFIG + MAX_META + 4
+
+
+@dataclass(frozen=True, slots=True)
+class RecordHeader:
+    """A record header as it is on disk (fields of the table in FORMAT.md)."""
+
+    kind: int
+    version: int
+    flags: int
+    header_len: int
+    seq: int
+    start_ns: int
+    end_ns: int
+    count: int
+    codec: int
+    name: str
+    config: bytes
+    meta: bytes
+    raw_len: int
+    enc_len: int
+    payload_xxh3: int
+
+    @property
+    def record_len(self) -> int:
+        return self.header_len + self.enc_len
+
+
+def pack_record(
+    *,
+    seq: int,
+    start_ns: int,
+    end_ns: int,
+    count: int,
+    codec: int,
+    name: bytes,
+    config: bytes,
+    meta: bytes,
+    raw_len: int,
+    payload: bytes,
+    kind: int = RecordKind.WINDOW,
+) -> bytes:
+    """The bytes of one record. Callers have validated every field against the limits."""
+    header_len = RECORD_FIXED_SIZE + len(name) + len(config) + len(meta) + 4
+    fixed = RECORD_FIXED.pack(
+        RECORD_MAGIC, kind, RECORD_VERSION, 0, header_len, seq, start_ns, end_ns, count,
+        codec, len(name), len(config), len(meta), raw_len, len(payload), xxh3(payload),
+    )  # fmt: skip
+    head = b"".join((fixed, name, config, meta))
+    return b"".join((head, struct.pack("<I", crc32c(head)), payload))
+
+
+class RecordError(Exception):
+    """A record fails a physical check; `reason` is a `Reason` string."""
+
+    def __init__(self, reason: str, detail: str = ""):
+        super().__init__(f"{reason}{': ' + detail if detail else ''}")
+        self.reason = reason
+
+
+def check_fixed(fixed: bytes, available: int) -> int:
+    """Check a record's fixed header before trusting it; return header_len.
+
+    `available` is how many bytes the file holds from the record's start. Raises
+    RecordError with the reason (torn, zero fill, bad magic, bad length).
+    """
+    if len(fixed) < RECORD_FIXED_SIZE:
+        if not fixed.strip(b"\0"):
+            raise RecordError(Reason.ZERO_FILL)
+        raise RecordError(Reason.TORN, f"{len(fixed)} of {RECORD_FIXED_SIZE} header bytes")
+    if fixed[:4] != RECORD_MAGIC:
+        if not fixed.strip(b"\0"):
+            raise RecordError(Reason.ZERO_FILL)
+        raise RecordError(Reason.BAD_MAGIC, repr(fixed[:4]))
+    (_m, _k, _v, _f, header_len, _s, _a, _b, count, _c, name_len, config_len, meta_len,
+     raw_len, enc_len, _h) = RECORD_FIXED.unpack_from(fixed)  # fmt: skip
+    if (
+        name_len > MAX_NAME
+        or config_len > MAX_CONFIG
+        or meta_len > MAX_META
+        or header_len != RECORD_FIXED_SIZE + name_len + config_len + meta_len + 4
+        or count > MAX_COUNT
+        or raw_len > MAX_RAW
+        or enc_len > MAX_ENC
+    ):
+        raise RecordError(Reason.BAD_LENGTH, f"header_len={header_len} enc_len={enc_len}")
+    if available < header_len + enc_len:
+        raise RecordError(Reason.TORN, f"{available} of {header_len + enc_len} bytes present")
+    return header_len
+
+
+def parse_header(head: bytes) -> RecordHeader:
+    """Parse and CRC-check a whole header (`check_fixed` already passed on it)."""
+    (magic, kind, version, flags, header_len, seq, start_ns, end_ns, count, codec, name_len,
+     config_len, meta_len, raw_len, enc_len, payload_xxh3) = RECORD_FIXED.unpack_from(head)  # fmt: skip
+    (crc,) = struct.unpack_from("<I", head, header_len - 4)
+    if crc != crc32c(memoryview(head)[: header_len - 4]):
+        raise RecordError(Reason.HEADER_CRC)
+    pos = RECORD_FIXED_SIZE
+    try:
+        name = head[pos : pos + name_len].decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise RecordError(Reason.BAD_LENGTH, "stream name is not UTF-8") from err
+    pos += name_len
+    config = head[pos : pos + config_len]
+    meta = head[pos + config_len : pos + config_len + meta_len]
+    return RecordHeader(
+        kind, version, flags, header_len, seq, start_ns, end_ns, count, codec, name,
+        bytes(config), bytes(meta), raw_len, enc_len, payload_xxh3,
+    )  # fmt: skip
+
+
+def check_payload(header: RecordHeader, payload: bytes | memoryview) -> None:
+    if len(payload) != header.enc_len:
+        raise RecordError(Reason.TORN, f"{len(payload)} of {header.enc_len} payload bytes")
+    if xxh3(payload) != header.payload_xxh3:
+        raise RecordError(Reason.PAYLOAD_HASH)
+
+
+# -- time index ----------------------------------------------------------------------------
+
+INDEX_MAGIC = b"CCLI"
+INDEX_HEADER = struct.Struct("<4sHHQQII")  # magic version flags first_seq segment_size count names_len
+# One entry per record; the layout mirrors the table in FORMAT.md.
+INDEX_ENTRY_FIELDS = [
+    ("stream", "<u4"),
+    ("count", "<u4"),
+    ("seq", "<u8"),
+    ("start", "<i8"),
+    ("end", "<i8"),
+    ("offset", "<u8"),
+    ("length", "<u8"),
+    ("raw_len", "<u8"),
+]
+
+# -- manifest ------------------------------------------------------------------------------
+
+MANIFEST_MAGIC = b"CCLM"
+MANIFEST_HEADER = struct.Struct("<4sHHI")  # magic version flags body_len
+
+
+def pack_manifest(body: dict) -> bytes:
+    text = json.dumps(body, separators=(",", ":"), sort_keys=True).encode()
+    head = MANIFEST_HEADER.pack(MANIFEST_MAGIC, FORMAT_VERSION, 0, len(text)) + text
+    return head + struct.pack("<I", crc32c(head))
+
+
+def unpack_manifest(data: bytes) -> dict:
+    """The manifest body; raises RecordError with a reason when the bytes are damaged."""
+    if len(data) < MANIFEST_HEADER.size + 4:
+        raise RecordError(Reason.TORN, f"{len(data)} bytes")
+    magic, version, _flags, body_len = MANIFEST_HEADER.unpack_from(data)
+    if magic != MANIFEST_MAGIC:
+        raise RecordError(Reason.BAD_MAGIC, repr(magic))
+    if version != FORMAT_VERSION:
+        raise RecordError(Reason.UNSUPPORTED_VERSION, f"version {version}")
+    if body_len > MAX_MANIFEST or len(data) != MANIFEST_HEADER.size + body_len + 4:
+        raise RecordError(Reason.BAD_LENGTH, f"body_len={body_len}, file is {len(data)} bytes")
+    end = MANIFEST_HEADER.size + body_len
+    (crc,) = struct.unpack_from("<I", data, end)
+    if crc != crc32c(data[:end]):
+        raise RecordError(Reason.HEADER_CRC)
+    return json.loads(data[MANIFEST_HEADER.size : end])

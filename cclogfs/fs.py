@@ -1,0 +1,167 @@
+"""The one small file-system layer every byte of store I/O goes through.
+
+Keeping it to a few calls on file descriptors (open, pread, pwrite, fsync, truncate,
+rename, unlink, fsync of a directory) lets tests record every operation and build the
+disk images a crash could leave, which monkeypatching `os` cannot do for `open().write()`.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+
+class FileSystem:
+    """The real file system (POSIX)."""
+
+    def open(self, path: str, *, write: bool = False, create: bool = False) -> int:
+        flags = os.O_RDWR if write else os.O_RDONLY
+        if create:
+            flags |= os.O_CREAT | os.O_EXCL
+        return os.open(path, flags | getattr(os, "O_CLOEXEC", 0), 0o644)
+
+    def close(self, fd: int) -> None:
+        os.close(fd)
+
+    def pread(self, fd: int, size: int, offset: int) -> bytes:
+        chunks, got = [], 0
+        while got < size:  # pread may return short reads for large sizes
+            chunk = os.pread(fd, size - got, offset + got)
+            if not chunk:
+                break
+            chunks.append(chunk)
+            got += len(chunk)
+        return chunks[0] if len(chunks) == 1 else b"".join(chunks)
+
+    def pwrite(self, fd: int, data: bytes, offset: int) -> None:
+        view = memoryview(data)
+        while view:
+            n = os.pwrite(fd, view, offset)
+            view, offset = view[n:], offset + n
+
+    def fsync(self, fd: int) -> None:
+        os.fsync(fd)
+
+    def truncate(self, fd: int, size: int) -> None:
+        os.ftruncate(fd, size)
+
+    def size(self, fd: int) -> int:
+        return os.fstat(fd).st_size
+
+    def rename(self, src: str, dst: str) -> None:
+        os.rename(src, dst)
+
+    def unlink(self, path: str) -> None:
+        os.unlink(path)
+
+    def fsync_dir(self, path: str) -> None:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+    def listdir(self, path: str) -> list[str]:
+        return sorted(os.listdir(path))
+
+    def mkdir(self, path: str) -> None:
+        os.makedirs(path, exist_ok=True)
+
+    def exists(self, path: str) -> bool:
+        return os.path.exists(path)
+
+    def lock(self, path: str) -> int | None:
+        """Take an exclusive lock on `path` (created if needed); None when another holds it."""
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            return None
+        return fd
+
+    def unlock(self, fd: int) -> None:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)
+
+    # Convenience built on the calls above.
+
+    def read_file(self, path: str) -> bytes:
+        fd = self.open(path)
+        try:
+            return self.pread(fd, self.size(fd), 0)
+        finally:
+            self.close(fd)
+
+    def write_file_atomic(self, path: str, data: bytes) -> None:
+        """Replace `path`: write a temp file, fsync it, rename it over, fsync the directory."""
+        tmp = path + ".tmp"
+        if self.exists(tmp):
+            self.unlink(tmp)
+        fd = self.open(tmp, write=True, create=True)
+        try:
+            self.pwrite(fd, data, 0)
+            self.fsync(fd)
+        finally:
+            self.close(fd)
+        self.rename(tmp, path)
+        self.fsync_dir(os.path.dirname(path) or ".")
+
+
+@dataclass
+class RecordingFileSystem(FileSystem):
+    """The real file system, plus a log of every operation that changes what is on disk.
+
+    Each entry is a tuple: ("create", path), ("write", path, offset, data),
+    ("fsync", path), ("truncate", path, size), ("rename", src, dst), ("unlink", path),
+    ("fsync_dir", path). `fail_fsync` makes fsyncs raise OSError (to test failure handling).
+    """
+
+    ops: list[tuple[Any, ...]] = field(default_factory=list)
+    fail_fsync: bool = False
+    _paths: dict[int, str] = field(default_factory=dict)
+
+    def open(self, path: str, *, write: bool = False, create: bool = False) -> int:
+        fd = super().open(path, write=write, create=create)
+        self._paths[fd] = path
+        if create:
+            self.ops.append(("create", path))
+        return fd
+
+    def close(self, fd: int) -> None:
+        self._paths.pop(fd, None)
+        super().close(fd)
+
+    def pwrite(self, fd: int, data: bytes, offset: int) -> None:
+        self.ops.append(("write", self._paths[fd], offset, bytes(data)))
+        super().pwrite(fd, data, offset)
+
+    def fsync(self, fd: int) -> None:
+        if self.fail_fsync:
+            raise OSError(5, "Input/output error (injected)")
+        super().fsync(fd)
+        self.ops.append(("fsync", self._paths[fd]))
+
+    def truncate(self, fd: int, size: int) -> None:
+        self.ops.append(("truncate", self._paths[fd], size))
+        super().truncate(fd, size)
+
+    def rename(self, src: str, dst: str) -> None:
+        self.ops.append(("rename", src, dst))
+        super().rename(src, dst)
+
+    def unlink(self, path: str) -> None:
+        self.ops.append(("unlink", path))
+        super().unlink(path)
+
+    def fsync_dir(self, path: str) -> None:
+        if self.fail_fsync:
+            raise OSError(5, "Input/output error (injected)")
+        super().fsync_dir(path)
+        self.ops.append(("fsync_dir", path))
+
+    def mark(self, label: str) -> None:
+        """Put a marker in the log (tests note where a put or a sync completed)."""
+        self.ops.append(("mark", label))

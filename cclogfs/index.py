@@ -1,0 +1,119 @@
+"""The time index of one segment: which records of which stream cover which times.
+
+Entries of a stream are sorted by (start, seq). With the running maximum of `end` (derived
+on load, never stored), "records overlapping [t0, t1]" is two binary searches and a scan of
+only the candidates between them, whatever the size of the segment.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .format import (
+    FORMAT_VERSION,
+    INDEX_ENTRY_FIELDS,
+    INDEX_HEADER,
+    INDEX_MAGIC,
+    MAX_NAME,
+    Reason,
+    RecordError,
+    xxh3,
+)
+
+ENTRY = np.dtype(INDEX_ENTRY_FIELDS)
+I64_MIN, I64_MAX = -(1 << 63), (1 << 63) - 1
+
+
+def overlap_slice(starts: np.ndarray, run_max_end: np.ndarray, t0: int, t1: int) -> slice:
+    """Candidates overlapping [t0, t1] among items sorted by start (a superset: filter by end)."""
+    hi = int(np.searchsorted(starts, t1, side="right"))
+    lo = int(np.searchsorted(run_max_end, t0, side="left"))
+    return slice(lo, max(lo, hi))
+
+
+@dataclass
+class StreamEntries:
+    """The entries of one stream in one segment, sorted by (start, seq)."""
+
+    entries: np.ndarray
+    run_max_end: np.ndarray
+
+    def overlapping(self, t0: int, t1: int) -> np.ndarray:
+        cand = self.entries[overlap_slice(self.entries["start"], self.run_max_end, t0, t1)]
+        return cand[cand["end"] >= t0]
+
+
+class SegmentIndex:
+    """Index of one segment: stream names and their sorted entries."""
+
+    def __init__(self, names: list[str], entries: np.ndarray):
+        self.names = names
+        order = np.lexsort((entries["seq"], entries["start"], entries["stream"]))
+        self.entries = entries[order]
+        self.streams: dict[str, StreamEntries] = {}
+        bounds = np.searchsorted(self.entries["stream"], np.arange(len(names) + 1))
+        for i, name in enumerate(names):
+            part = self.entries[bounds[i] : bounds[i + 1]]
+            if len(part):
+                self.streams[name] = StreamEntries(part, np.maximum.accumulate(part["end"]))
+
+    @classmethod
+    def build(cls, rows: Iterable[tuple[str, int, int, int, int, int, int, int]]) -> SegmentIndex:
+        """From (name, count, seq, start, end, offset, length, raw_len) rows in any order."""
+        ids: dict[str, int] = {}
+        table = [(ids.setdefault(r[0], len(ids)), *r[1:]) for r in rows]
+        return cls(list(ids), np.array(table, dtype=ENTRY) if table else np.zeros(0, ENTRY))
+
+    def __len__(self) -> int:
+        return len(self.entries)
+
+    def encode(self, first_seq: int, segment_size: int) -> bytes:
+        names = json.dumps(self.names).encode()
+        head = INDEX_HEADER.pack(
+            INDEX_MAGIC, FORMAT_VERSION, 0, first_seq, segment_size, len(self.entries), len(names)
+        )
+        body = head + names + self.entries.astype(ENTRY).tobytes()
+        return body + struct.pack("<Q", xxh3(body))
+
+    @classmethod
+    def decode(cls, data: bytes, first_seq: int, segment_size: int) -> SegmentIndex:
+        """Parse an index file, checking it describes this segment (raises RecordError)."""
+        if len(data) < INDEX_HEADER.size + 8:
+            raise RecordError(Reason.TORN, f"index of {len(data)} bytes")
+        magic, version, _flags, seq, size, count, names_len = INDEX_HEADER.unpack_from(data)
+        if magic != INDEX_MAGIC or version != FORMAT_VERSION:
+            raise RecordError(Reason.BAD_MAGIC, "not a version 1 index")
+        expect = INDEX_HEADER.size + names_len + count * ENTRY.itemsize + 8
+        if len(data) != expect or names_len > count * (MAX_NAME * 6 + 4) + 2:
+            raise RecordError(Reason.BAD_LENGTH, f"index is {len(data)} bytes, expected {expect}")
+        (digest,) = struct.unpack_from("<Q", data, len(data) - 8)
+        if digest != xxh3(memoryview(data)[:-8]):
+            raise RecordError(Reason.PAYLOAD_HASH, "index checksum")
+        if seq != first_seq or size != segment_size:
+            raise RecordError(Reason.BAD_LENGTH, "index describes another version of the segment")
+        pos = INDEX_HEADER.size
+        names = json.loads(data[pos : pos + names_len])
+        entries = np.frombuffer(data, ENTRY, count, pos + names_len).copy()
+        if len(entries) and int(entries["stream"].max()) >= len(names):
+            raise RecordError(Reason.BAD_LENGTH, "index entry names an unknown stream")
+        return cls(names, entries)
+
+    def stream_stats(self) -> dict[str, dict[str, int]]:
+        """Per stream: windows, messages, start_ns, end_ns, raw_bytes, stored_bytes."""
+        out = {}
+        for name, s in self.streams.items():
+            e = s.entries
+            out[name] = {
+                "windows": len(e),
+                "messages": int(e["count"].sum()),
+                "start_ns": int(e["start"].min()),
+                "end_ns": int(e["end"].max()),
+                "raw_bytes": int(e["raw_len"].sum()),
+                "stored_bytes": int(e["length"].sum()),
+            }
+        return out

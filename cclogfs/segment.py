@@ -1,0 +1,160 @@
+"""One segment file: its append buffer, record reads, and the scan recovery relies on."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .errors import CorruptionError
+from .format import (
+    MAX_HEADER,
+    RECORD_FIXED_SIZE,
+    SEGMENT_HEADER_SIZE,
+    Reason,
+    RecordError,
+    RecordHeader,
+    RecordKind,
+    RECORD_VERSION,
+    check_fixed,
+    check_payload,
+    parse_header,
+    unpack_segment_header,
+)
+from .fs import FileSystem
+from .index import SegmentIndex
+
+# Hand buffered records to the OS past this size even when no fsync is due, so the
+# writer's memory stays bounded whatever the sync policy.
+WRITE_BUFFER = 1 << 20
+
+
+@dataclass
+class Problem:
+    """Something a scan found: where, why, and how many bytes it cost."""
+
+    path: str
+    offset: int
+    reason: str
+    detail: str = ""
+    dropped_bytes: int = 0
+
+    def __str__(self) -> str:
+        dropped = f", {self.dropped_bytes} bytes dropped" if self.dropped_bytes else ""
+        detail = f" ({self.detail})" if self.detail else ""
+        return f"{self.path} at offset {self.offset}: {self.reason}{detail}{dropped}"
+
+
+@dataclass
+class ScanResult:
+    """The valid prefix of a segment: its index rows, where it ends, what stopped it."""
+
+    rows: list[tuple] = field(default_factory=list)
+    end: int = SEGMENT_HEADER_SIZE
+    next_seq: int = 0
+    problem: Problem | None = None
+    skipped: list[Problem] = field(default_factory=list)
+
+
+class Segment:
+    """A segment file. Only the active segment is appended to; `pending` holds records
+    not yet handed to the OS, and reads serve them from memory."""
+
+    def __init__(self, fs: FileSystem, path: str, first_seq: int, created_ns: int, fd: int,
+                 size: int):  # fmt: skip
+        self.fs, self.path, self.first_seq, self.created_ns = fs, path, first_seq, created_ns
+        self.fd = fd
+        self.size = size  # bytes handed to the OS
+        self.pending = bytearray()
+        self.rows: list[tuple] = []  # index rows of the records in this segment
+        self.next_seq = first_seq
+        self._index: SegmentIndex | None = None
+
+    @property
+    def end(self) -> int:
+        """Offset one past the last record, buffered ones included."""
+        return self.size + len(self.pending)
+
+    def append(self, record: bytes, row: tuple) -> None:
+        self.pending += record
+        self.rows.append(row)
+        self.next_seq += 1
+        self._index = None
+        if len(self.pending) >= WRITE_BUFFER:
+            self.flush()
+
+    def flush(self) -> None:
+        if self.pending:
+            self.fs.pwrite(self.fd, bytes(self.pending), self.size)
+            self.size += len(self.pending)
+            self.pending.clear()
+
+    def read(self, offset: int, length: int) -> bytes:
+        if offset >= self.size:
+            start = offset - self.size
+            return bytes(self.pending[start : start + length])
+        return self.fs.pread(self.fd, length, offset)
+
+    def index(self) -> SegmentIndex:
+        if self._index is None:
+            self._index = SegmentIndex.build(self.rows)
+        return self._index
+
+    def read_record(self, offset: int, length: int) -> tuple[RecordHeader, bytes]:
+        """Header and payload of the record at `offset`, every check passed."""
+        data = self.read(offset, length)
+        try:
+            header_len = check_fixed(data[:RECORD_FIXED_SIZE], len(data))
+            header = parse_header(data[:header_len])
+            if header.record_len != length:
+                raise RecordError(Reason.BAD_LENGTH, f"record is {header.record_len} bytes, index says {length}")
+            payload = data[header_len:length]
+            check_payload(header, payload)
+        except RecordError as err:
+            raise CorruptionError(
+                f"{self.path}: record at offset {offset} is damaged: {err}",
+                path=self.path, offset=offset, reason=err.reason,
+            ) from err  # fmt: skip
+        return header, payload
+
+
+def open_segment(fs: FileSystem, path: str, *, write: bool) -> tuple[Segment, bool]:
+    """Open a segment file; the flag says whether its segment header was intact."""
+    fd = fs.open(path, write=write)
+    size = fs.size(fd)
+    parsed = unpack_segment_header(fs.pread(fd, SEGMENT_HEADER_SIZE, 0))
+    first_seq, created_ns = parsed if parsed else (-1, 0)
+    return Segment(fs, path, first_seq, created_ns, fd, size), parsed is not None
+
+
+def scan(segment: Segment) -> ScanResult:
+    """Read every record from the start, checking all of it, up to the first that fails.
+
+    Records of unknown kind or version whose checksums hold are skipped and reported;
+    the first record that fails a check ends the valid prefix (recovery truncates there).
+    """
+    fs, fd, path = segment.fs, segment.fd, segment.path
+    size = fs.size(fd)
+    result = ScanResult(next_seq=segment.first_seq)
+    pos = SEGMENT_HEADER_SIZE
+    while pos < size:
+        try:
+            fixed = fs.pread(fd, RECORD_FIXED_SIZE, pos)
+            header_len = check_fixed(fixed, size - pos)
+            header = parse_header(fs.pread(fd, min(header_len, MAX_HEADER), pos))
+            check_payload(header, fs.pread(fd, header.enc_len, pos + header_len))
+            if header.seq != result.next_seq:
+                raise RecordError(Reason.SEQ_GAP, f"seq {header.seq}, expected {result.next_seq}")
+        except RecordError as err:
+            result.problem = Problem(path, pos, err.reason, str(err), size - pos)
+            break
+        if header.kind != RecordKind.WINDOW or header.version != RECORD_VERSION:
+            reason = Reason.UNKNOWN_KIND if header.kind != RecordKind.WINDOW else Reason.UNSUPPORTED_VERSION
+            result.skipped.append(Problem(path, pos, reason, f"kind {header.kind} version {header.version}"))
+        else:
+            result.rows.append(
+                (header.name, header.count, header.seq, header.start_ns, header.end_ns, pos,
+                 header.record_len, header.raw_len)
+            )  # fmt: skip
+        result.next_seq += 1
+        pos += header.record_len
+    result.end = pos
+    return result

@@ -1,0 +1,594 @@
+"""The segment store: a flat-namespace append log of compressed, checksummed windows.
+
+See docs/FORMAT.md for the layout and the durability contract this module implements.
+"""
+
+from __future__ import annotations
+
+import heapq
+import json
+import os
+import socket
+import threading
+import time
+import uuid
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .codecs import Codec, codec_from_config, codec_numeric_id, raw_size
+from .errors import (
+    CorruptionError,
+    InvalidInputError,
+    StoreError,
+    StoreFailedError,
+    StoreLockedError,
+)
+from .format import (
+    FORMAT_VERSION,
+    LOCK,
+    MANIFEST,
+    MAX_CONFIG,
+    MAX_META,
+    MAX_RAW,
+    SEGMENT_HEADER_SIZE,
+    TMP_SUFFIX,
+    Reason,
+    RecordError,
+    index_name,
+    pack_manifest,
+    pack_record,
+    pack_segment_header,
+    parse_seq_name,
+    unpack_manifest,
+)
+from .fs import FileSystem
+from .index import I64_MAX, I64_MIN, SegmentIndex, overlap_slice
+from .segment import Problem, Segment, open_segment, scan
+from .validate import check_stream_name, encode_messages
+
+__all__ = ["Receipt", "Recovery", "Store", "Window", "open_store"]
+
+
+@dataclass(frozen=True)
+class Receipt:
+    """What `put_window` stored. Durable once a later `sync()` (or group commit) completes."""
+
+    seq: int
+    name: str
+    start_ns: int
+    end_ns: int
+    count: int
+    raw_bytes: int
+    stored_bytes: int
+
+
+@dataclass
+class Recovery:
+    """What opening the store found and did."""
+
+    problems: list[Problem] = field(default_factory=list)  # truncated or dropped tails
+    skipped: list[Problem] = field(default_factory=list)  # intact records of unknown kind
+    sealed_on_open: list[str] = field(default_factory=list)
+    removed_files: list[str] = field(default_factory=list)
+
+    @property
+    def clean(self) -> bool:
+        return not (self.problems or self.skipped)
+
+
+class Window:
+    """One stored window, as a query returns it. Reads its record on first use."""
+
+    __slots__ = ("name", "seq", "start_ns", "end_ns", "count", "_segment", "_offset",
+                 "_length", "_record")  # fmt: skip
+
+    def __init__(self, name: str, seq: int, start_ns: int, end_ns: int, count: int,
+                 segment: Segment, offset: int, length: int):  # fmt: skip
+        self.name, self.seq, self.start_ns, self.end_ns, self.count = name, seq, start_ns, end_ns, count
+        self._segment, self._offset, self._length = segment, offset, length
+        self._record = None
+
+    def _read(self):
+        if self._record is None:
+            self._record = self._segment.read_record(self._offset, self._length)
+        return self._record
+
+    @property
+    def meta(self) -> dict[str, Any]:
+        return json.loads(self._read()[0].meta)
+
+    @property
+    def codec_config(self) -> dict[str, Any]:
+        return json.loads(self._read()[0].config)
+
+    @property
+    def stored_bytes(self) -> int:
+        return self._length
+
+    def messages(self) -> Iterator[tuple[int, str]]:
+        """(stamp_ns, JSON text) of each message, exactly as put."""
+        header, payload = self._read()
+        codec = codec_from_config(json.loads(header.config))
+        if codec_numeric_id(codec) != header.codec:
+            raise CorruptionError(
+                f"{self._segment.path}: record at offset {self._offset} names codec "
+                f"{header.codec} in its header but {codec.codec_id!r} in its config",
+                path=self._segment.path, offset=self._offset, reason=Reason.BAD_LENGTH,
+            )  # fmt: skip
+        stamps, texts = codec.decode(payload, count=header.count, raw_len=header.raw_len)
+        return zip(stamps, (t.decode("utf-8") for t in texts))
+
+    def __repr__(self) -> str:
+        return f"Window({self.name!r}, seq={self.seq}, {self.start_ns}..{self.end_ns}, count={self.count})"
+
+
+class Store:
+    """A store directory opened by `open_store`. Not for use from several threads at once
+    (the group-commit thread is internal and takes the store's lock)."""
+
+    def __init__(self, path: str, fs: FileSystem, readonly: bool, codec: Codec,
+                 stream_codecs: Mapping[str, Codec], sync_every_ms: float | None,
+                 sync_every_bytes: int | None, segment_bytes: int, segment_age_s: float):  # fmt: skip
+        self.path = path
+        self.fs = fs
+        self.readonly = readonly
+        self.codec = codec
+        self.stream_codecs = dict(stream_codecs)
+        self.sync_every_ms = sync_every_ms
+        self.sync_every_bytes = sync_every_bytes
+        self.segment_bytes = segment_bytes
+        self.segment_age_s = segment_age_s
+        self.recovery = Recovery()
+        self.manifest: dict[str, Any] = {}
+        self.sealed: list[Segment] = []  # in seq order
+        self.active: Segment | None = None  # writer: the segment appended to
+        self.unsealed: list[Segment] = []  # reader: what it saw past the manifest
+        self._lock = threading.RLock()
+        self._wake = threading.Condition(self._lock)
+        self._lock_fd: int | None = None
+        self._failed: BaseException | None = None
+        self._closed = False
+        self._unsynced_bytes = 0
+        self._unsynced_since: float | None = None
+        self._flusher: threading.Thread | None = None
+        self._sealed_by_stream: dict[str, tuple[np.ndarray, np.ndarray, list[Segment]]] | None = None
+
+    # -- context manager -------------------------------------------------------------------
+
+    def __enter__(self) -> Store:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _file(self, name: str) -> str:
+        return os.path.join(self.path, name)
+
+    # -- opening ---------------------------------------------------------------------------
+
+    def _create(self) -> None:
+        self.fs.mkdir(self.path)
+        self.manifest = {
+            "format_version": FORMAT_VERSION,
+            "store_id": uuid.uuid4().hex,
+            "created_ns": time.time_ns(),
+            "codec": self.codec.get_config(),
+            "segments": [],
+        }
+        self.fs.write_file_atomic(self._file(MANIFEST), pack_manifest(self.manifest))
+
+    def _load_manifest(self) -> None:
+        path = self._file(MANIFEST)
+        try:
+            self.manifest = unpack_manifest(self.fs.read_file(path))
+        except RecordError as err:
+            raise CorruptionError(f"{path} is damaged: {err}", path=path, offset=0,
+                                  reason=err.reason) from err  # fmt: skip
+        if self.manifest.get("format_version") != FORMAT_VERSION:
+            raise StoreError(f"{path}: format version {self.manifest.get('format_version')} "
+                             f"is not supported (this cclogfs reads version {FORMAT_VERSION})")  # fmt: skip
+
+    def _open(self, create: bool) -> None:
+        manifest_path = self._file(MANIFEST)
+        if not self.fs.exists(manifest_path):
+            if not self.fs.exists(self.path) or not self.fs.listdir(self.path) or (
+                self.fs.listdir(self.path) == [LOCK]
+            ):
+                if not create or self.readonly:
+                    raise StoreError(f"{self.path} is not a cclogfs store (no {MANIFEST}); "
+                                     "pass create=True to make one")  # fmt: skip
+            else:
+                raise StoreError(f"{self.path} holds files but no {MANIFEST}: not a cclogfs store, "
+                                 "or one whose manifest was lost (run `cclog fsck`)")  # fmt: skip
+        if not self.readonly:
+            self.fs.mkdir(self.path)
+            self._take_lock()
+        if not self.fs.exists(manifest_path):
+            self._create()
+        self._load_manifest()
+        if not self.readonly:
+            for name in self.fs.listdir(self.path):
+                if name.endswith(TMP_SUFFIX):  # a crash while replacing a file
+                    self.fs.unlink(self._file(name))
+                    self.recovery.removed_files.append(name)
+        self._open_segments()
+        if not self.readonly:
+            self._start_flusher()
+
+    def _take_lock(self) -> None:
+        path = self._file(LOCK)
+        fd = self.fs.lock(path)
+        if fd is None:
+            try:
+                holder = self.fs.read_file(path).decode(errors="replace").strip() or "unknown"
+            except OSError:
+                holder = "unknown"
+            raise StoreLockedError(f"{self.path} is locked by another writer ({holder}); "
+                                   "open it with readonly=True to read")  # fmt: skip
+        self._lock_fd = fd
+        info = json.dumps({"pid": os.getpid(), "host": socket.gethostname()}).encode()
+        self.fs.truncate(fd, 0)
+        self.fs.pwrite(fd, info, 0)
+
+    def _open_segments(self) -> None:
+        files = {}
+        for name in self.fs.listdir(self.path):
+            parsed = parse_seq_name(name)
+            if parsed and parsed[1] == "seg":
+                files[parsed[0]] = name
+        next_seq = 0
+        for info in self.manifest["segments"]:
+            name = files.pop(info["first_seq"], None)
+            if name is None:
+                raise CorruptionError(
+                    f"{self.path}: {MANIFEST} lists segment {info['first_seq']:020d}.seg, "
+                    "which is missing", path=self._file(MANIFEST), reason="missing segment",
+                )  # fmt: skip
+            seg, _ok = open_segment(self.fs, self._file(name), write=False)
+            seg.first_seq, seg.next_seq = info["first_seq"], info["end_seq"]
+            self.sealed.append(seg)
+            next_seq = info["end_seq"]
+        self._recover_tail(next_seq, [files[s] for s in sorted(files)])
+
+    def _recover_tail(self, next_seq: int, names: list[str]) -> None:
+        """Scan the unsealed segments; keep exactly their valid prefix (see FORMAT.md)."""
+        kept: list[Segment] = []
+        broken = False
+        for name in names:
+            path = self._file(name)
+            first_seq = parse_seq_name(name)[0]
+            if first_seq < next_seq:  # older than the manifest's end: not ours to touch
+                self.recovery.problems.append(Problem(path, 0, "stray segment", "ignored"))
+                continue
+            seg, header_ok = open_segment(self.fs, path, write=not self.readonly)
+            if broken or first_seq != next_seq:
+                reason = Reason.DROPPED_SEGMENT if broken else Reason.SEQ_GAP
+                self.recovery.problems.append(Problem(path, 0, reason, "", seg.size))
+                self._drop_segment(seg)
+                broken = True
+                continue
+            if not header_ok or seg.first_seq != first_seq:
+                # Created but its header never reached the disk: it cannot hold synced data.
+                self.recovery.problems.append(Problem(path, 0, Reason.BAD_SEGMENT_HEADER, "", seg.size))
+                self._drop_segment(seg)
+                broken = True
+                continue
+            result = scan(seg)
+            self.recovery.skipped.extend(result.skipped)
+            seg.rows, seg.next_seq = result.rows, result.next_seq
+            if result.problem:
+                self.recovery.problems.append(result.problem)
+                broken = True
+                if not self.readonly:
+                    self.fs.truncate(seg.fd, result.end)
+                    self.fs.fsync(seg.fd)
+                seg.size = result.end
+            kept.append(seg)
+            next_seq = seg.next_seq
+        if self.readonly:
+            self.unsealed = kept
+            return
+        for seg in kept[:-1]:  # a crash while sealing left it complete but unsealed
+            self._seal(seg)
+            self.recovery.sealed_on_open.append(os.path.basename(seg.path))
+        self.active = kept[-1] if kept else self._new_segment(next_seq)
+
+    def _drop_segment(self, seg: Segment) -> None:
+        self.fs.close(seg.fd)
+        if not self.readonly:
+            self.fs.unlink(seg.path)
+            self.fs.fsync_dir(self.path)
+            self.recovery.removed_files.append(os.path.basename(seg.path))
+
+    def _new_segment(self, first_seq: int) -> Segment:
+        path = self._file(f"{first_seq:020d}.seg")
+        created = time.time_ns()
+        fd = self.fs.open(path, write=True, create=True)
+        self.fs.pwrite(fd, pack_segment_header(first_seq, created), 0)
+        self.fs.fsync(fd)
+        self.fs.fsync_dir(self.path)
+        return Segment(self.fs, path, first_seq, created, fd, SEGMENT_HEADER_SIZE)
+
+    # -- writing ---------------------------------------------------------------------------
+
+    def _check_writable(self) -> None:
+        if self._closed:
+            raise StoreError(f"{self.path}: the store is closed")
+        if self.readonly:
+            raise StoreError(f"{self.path} was opened read-only")
+        if self._failed is not None:
+            raise StoreFailedError(
+                f"{self.path}: an earlier write or fsync failed ({self._failed}); the store "
+                "refuses further writes because what reached the disk is unknown; reopen it to recover"
+            ) from self._failed
+
+    def put_window(self, name: str, messages: Sequence[tuple[int, str]],
+                   meta: Mapping[str, Any] | None = None, *, codec: Any = None) -> Receipt:  # fmt: skip
+        """Store one window of messages (stamp_ns, JSON text) for stream `name`.
+
+        Everything is checked before anything is written: bad input raises
+        InvalidInputError and stores nothing.
+        """
+        name_bytes = check_stream_name(name)
+        stamps, texts = encode_messages(messages)
+        meta_bytes = b"{}" if meta is None else _encode_meta(meta)
+        chosen = codec_from_config(codec) if codec is not None else self.stream_codecs.get(name, self.codec)
+        config = json.dumps(chosen.get_config(), separators=(",", ":")).encode()
+        if len(config) > MAX_CONFIG:
+            raise InvalidInputError(f"codec config is {len(config)} bytes, over {MAX_CONFIG}")
+        raw_len = raw_size(stamps, texts)
+        if raw_len > MAX_RAW:
+            raise InvalidInputError(f"window for {name!r} is {raw_len} bytes, over the {MAX_RAW}-byte "
+                                    "record limit; split it into several windows")  # fmt: skip
+        payload = chosen.encode(stamps, texts)
+        with self._lock:
+            self._check_writable()
+            seg = self.active
+            seq = seg.next_seq
+            record = pack_record(
+                seq=seq, start_ns=stamps[0], end_ns=stamps[-1], count=len(stamps),
+                codec=codec_numeric_id(chosen), name=name_bytes, config=config, meta=meta_bytes,
+                raw_len=raw_len, payload=payload,
+            )  # fmt: skip
+            row = (name, len(stamps), seq, stamps[0], stamps[-1], seg.end, len(record), raw_len)
+            try:
+                seg.append(record, row)
+            except OSError as err:
+                self._failed = err
+                raise StoreFailedError(f"{seg.path}: write failed: {err}") from err
+            if self._unsynced_since is None:
+                self._unsynced_since = time.monotonic()
+            self._unsynced_bytes += len(record)
+            if self._commit_due():
+                self._commit()
+            return Receipt(seq, name, stamps[0], stamps[-1], len(stamps), raw_len, len(record))
+
+    def _commit_due(self) -> bool:
+        if self.sync_every_ms is not None and (
+            self.sync_every_ms == 0
+            or (time.monotonic() - self._unsynced_since) * 1000 >= self.sync_every_ms
+        ):
+            return True
+        return self.sync_every_bytes is not None and self._unsynced_bytes >= self.sync_every_bytes
+
+    def sync(self) -> None:
+        """Make every put before this call durable (one fsync for the whole group)."""
+        with self._lock:
+            self._check_writable()
+            self._commit()
+
+    def _commit(self) -> None:
+        seg = self.active
+        try:
+            seg.flush()
+            if self._unsynced_since is not None:
+                self.fs.fsync(seg.fd)
+        except OSError as err:
+            self._failed = err
+            raise StoreFailedError(f"{seg.path}: fsync failed: {err}; the store refuses further "
+                                   "writes (reopen it to recover)") from err  # fmt: skip
+        self._unsynced_bytes = 0
+        self._unsynced_since = None
+        age_s = (time.time_ns() - seg.created_ns) / 1e9
+        if seg.size >= self.segment_bytes or (seg.rows and age_s >= self.segment_age_s):
+            try:
+                self._seal(seg)
+                self.active = self._new_segment(seg.next_seq)
+            except OSError as err:
+                self._failed = err
+                raise StoreFailedError(f"{seg.path}: sealing failed: {err}") from err
+
+    def _seal(self, seg: Segment) -> None:
+        """Write the segment's index, then name it in the manifest (it is already synced)."""
+        index = seg.index()
+        self.fs.write_file_atomic(self._file(index_name(seg.first_seq)), index.encode(seg.first_seq, seg.size))
+        info = {"first_seq": seg.first_seq, "end_seq": seg.next_seq, "size": seg.size,
+                "streams": index.stream_stats()}  # fmt: skip
+        manifest = dict(self.manifest, segments=[*self.manifest["segments"], info])
+        self.fs.write_file_atomic(self._file(MANIFEST), pack_manifest(manifest))
+        self.manifest = manifest
+        self.sealed.append(seg)
+        self._sealed_by_stream = None
+
+    def _start_flusher(self) -> None:
+        if self.sync_every_ms:
+            self._flusher = threading.Thread(target=self._flush_loop, name="cclogfs-group-commit",
+                                             daemon=True)  # fmt: skip
+            self._flusher.start()
+
+    def _flush_loop(self) -> None:
+        """Commit a group once its oldest put is sync_every_ms old, even if no put follows."""
+        interval = self.sync_every_ms / 1000
+        with self._lock:
+            while not self._closed and self._failed is None:
+                if self._unsynced_since is None:
+                    self._wake.wait(interval)
+                    continue
+                due = self._unsynced_since + interval - time.monotonic()
+                if due > 0:
+                    self._wake.wait(due)
+                    continue
+                try:
+                    self._commit()
+                except StoreFailedError:
+                    return
+
+    def close(self) -> None:
+        """Commit what is buffered, seal nothing, release the lock. Idempotent."""
+        with self._lock:
+            if self._closed:
+                return
+            try:
+                if not self.readonly and self._failed is None:
+                    self._commit()
+            finally:
+                self._closed = True
+                self._wake.notify_all()
+                for seg in self._segments():
+                    self.fs.close(seg.fd)
+                if self._lock_fd is not None:
+                    self.fs.unlock(self._lock_fd)
+                    self._lock_fd = None
+        if self._flusher is not None:
+            self._flusher.join()
+
+    # -- reading ---------------------------------------------------------------------------
+
+    def _segments(self) -> list[Segment]:
+        tail = [self.active] if self.active else self.unsealed
+        return [*self.sealed, *tail]
+
+    def _sealed_index(self, seg: Segment) -> SegmentIndex:
+        """The sealed segment's index from its .idx file, rebuilt when missing or damaged."""
+        if seg._index is None:
+            path = self._file(index_name(seg.first_seq))
+            try:
+                seg._index = SegmentIndex.decode(self.fs.read_file(path), seg.first_seq, seg.size)
+            except (OSError, RecordError):
+                result = scan(seg)
+                if result.problem:
+                    raise CorruptionError(f"{seg.path}: cannot rebuild the time index: {result.problem}",
+                                          path=seg.path, offset=result.problem.offset,
+                                          reason=result.problem.reason)  # fmt: skip
+                seg._index = SegmentIndex.build(result.rows)
+                if not self.readonly and not self._closed:
+                    self.fs.write_file_atomic(path, seg._index.encode(seg.first_seq, seg.size))
+        return seg._index
+
+    def _sealed_candidates(self, name: str, t0: int, t1: int) -> list[Segment]:
+        """Sealed segments whose stream `name` may overlap [t0, t1], by binary search."""
+        if self._sealed_by_stream is None:
+            by_stream: dict[str, list[tuple[int, int, Segment]]] = {}
+            for seg, info in zip(self.sealed, self.manifest["segments"]):
+                for stream, st in info["streams"].items():
+                    by_stream.setdefault(stream, []).append((st["start_ns"], st["end_ns"], seg))
+            self._sealed_by_stream = {}
+            for stream, items in by_stream.items():
+                items.sort(key=lambda x: (x[0], x[2].first_seq))
+                starts = np.array([i[0] for i in items], dtype=np.int64)
+                run_max = np.maximum.accumulate(np.array([i[1] for i in items], dtype=np.int64))
+                self._sealed_by_stream[stream] = (starts, run_max, [i[2] for i in items])
+        found = self._sealed_by_stream.get(name)
+        if found is None:
+            return []
+        starts, run_max, segs = found
+        return segs[overlap_slice(starts, run_max, t0, t1)]
+
+    def stream_names(self) -> list[str]:
+        return sorted(self.streams())
+
+    def streams(self) -> dict[str, dict[str, int]]:
+        """Per stream: windows, messages, start_ns, end_ns, raw_bytes, stored_bytes."""
+        with self._lock:
+            per_segment = [info["streams"] for info in self.manifest["segments"]]
+            per_segment += [seg.index().stream_stats() for seg in self._segments()[len(self.sealed):]]
+        total: dict[str, dict[str, int]] = {}
+        for stats in per_segment:
+            for name, st in stats.items():
+                if name not in total:
+                    total[name] = dict(st)
+                    continue
+                t = total[name]
+                for key in ("windows", "messages", "raw_bytes", "stored_bytes"):
+                    t[key] += st[key]
+                t["start_ns"] = min(t["start_ns"], st["start_ns"])
+                t["end_ns"] = max(t["end_ns"], st["end_ns"])
+        return dict(sorted(total.items()))
+
+    def query(self, name: str | None = None, start_ns: int | None = None,
+              end_ns: int | None = None) -> Iterator[Window]:  # fmt: skip
+        """Windows of stream `name` (all streams when None) overlapping [start_ns, end_ns],
+        in (start_ns, seq) order. Includes this writer's puts not yet synced."""
+        t0 = I64_MIN if start_ns is None else int(start_ns)
+        t1 = I64_MAX if end_ns is None else int(end_ns)
+        with self._lock:
+            if self._closed:
+                raise StoreError(f"{self.path}: the store is closed")
+            names = [name] if name is not None else list(self.streams())
+            runs = []
+            for stream in names:
+                segs = self._sealed_candidates(stream, t0, t1)
+                pairs = [(s, self._sealed_index(s)) for s in segs]
+                pairs += [(s, s.index()) for s in self._segments()[len(self.sealed):]]
+                for seg, index in pairs:
+                    entries = index.streams.get(stream)
+                    if entries is not None:
+                        hits = entries.overlapping(t0, t1)
+                        if len(hits):
+                            runs.append([(int(e["start"]), int(e["seq"]), stream, e, seg) for e in hits])
+        for start, seq, stream, e, seg in heapq.merge(*runs, key=lambda r: (r[0], r[1])):
+            yield Window(stream, seq, start, int(e["end"]), int(e["count"]), seg,
+                         int(e["offset"]), int(e["length"]))  # fmt: skip
+
+    def disk_bytes(self) -> int:
+        """Bytes of every file in the store directory."""
+        return sum(os.path.getsize(self._file(n)) for n in self.fs.listdir(self.path))
+
+
+def _encode_meta(meta: Mapping[str, Any]) -> bytes:
+    if not isinstance(meta, Mapping):
+        raise InvalidInputError(f"meta must be a dict, got {type(meta).__name__}")
+    try:
+        data = json.dumps(dict(meta), separators=(",", ":"), allow_nan=False).encode()
+    except (TypeError, ValueError) as err:
+        raise InvalidInputError(f"meta is not JSON-serializable: {err}") from err
+    if len(data) > MAX_META:
+        raise InvalidInputError(f"meta is {len(data)} bytes as JSON, over the {MAX_META}-byte limit")
+    return data
+
+
+def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: bool = False,
+               codec: Any = "zstd", stream_codecs: Mapping[str, Any] | None = None,
+               sync_every_ms: float | None = 200, sync_every_bytes: int | None = 4 << 20,
+               segment_bytes: int = 64 << 20, segment_age_s: float = 3600.0,
+               fs: FileSystem | None = None) -> Store:  # fmt: skip
+    """Open (or with create=True make) the store at `path`; recovers after a crash.
+
+    codec: default codec (id or config dict) for new records; stream_codecs: per-stream
+    overrides. sync_every_ms / sync_every_bytes: the group-commit policy (see FORMAT.md).
+    """
+    if sync_every_ms is not None and sync_every_ms < 0:
+        raise InvalidInputError("sync_every_ms must be >= 0 or None")
+    if segment_bytes < 4096:
+        raise InvalidInputError("segment_bytes must be at least 4096")
+    store = Store(
+        os.fspath(path), fs or FileSystem(), readonly, codec_from_config(codec),
+        {k: codec_from_config(v) for k, v in (stream_codecs or {}).items()},
+        sync_every_ms, sync_every_bytes, segment_bytes, segment_age_s,
+    )  # fmt: skip
+    for name in store.stream_codecs:
+        check_stream_name(name)
+    try:
+        store._open(create)
+    except BaseException:
+        store._closed = True
+        for seg in store._segments():
+            store.fs.close(seg.fd)
+        if store._lock_fd is not None:
+            store.fs.unlock(store._lock_fd)
+        raise
+    return store
+

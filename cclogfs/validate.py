@@ -1,0 +1,78 @@
+"""Checks on what users hand to the store, done before anything is written."""
+
+from __future__ import annotations
+
+import json
+import operator
+import unicodedata
+from collections.abc import Sequence
+
+from .errors import InvalidInputError
+from .format import MAX_COUNT, MAX_NAME
+
+I64_MIN, I64_MAX = -(1 << 63), (1 << 63) - 1
+_decoder = json.JSONDecoder()
+
+
+def check_stream_name(name: object) -> bytes:
+    """A stream name as UTF-8 bytes. Names are data, never paths: `../x` is fine."""
+    if not isinstance(name, str):
+        raise InvalidInputError(f"stream name must be a str, got {type(name).__name__}")
+    if not name:
+        raise InvalidInputError("stream name must not be empty")
+    try:
+        data = name.encode("utf-8")
+    except UnicodeEncodeError as err:
+        raise InvalidInputError(f"stream name {name!r} is not valid UTF-8: {err.reason}") from err
+    if len(data) > MAX_NAME:
+        raise InvalidInputError(f"stream name is {len(data)} bytes as UTF-8, over the {MAX_NAME}-byte limit")
+    for ch in name:
+        if unicodedata.category(ch) == "Cc":
+            raise InvalidInputError(f"stream name {name!r} contains the control character {ch!r}")
+    return data
+
+
+def encode_messages(messages: Sequence[tuple[int, str]]) -> tuple[list[int], list[bytes]]:
+    """Stamps and UTF-8 texts of a window, every message checked (JSON, time order)."""
+    try:
+        count = len(messages)
+    except TypeError as err:
+        raise InvalidInputError("messages must be a sequence of (stamp_ns, json_text) pairs") from err
+    if count == 0:
+        raise InvalidInputError("a window needs at least one message")
+    if count > MAX_COUNT:
+        raise InvalidInputError(f"a window holds at most {MAX_COUNT} messages, got {count}")
+    stamps: list[int] = []
+    texts: list[bytes] = []
+    prev = I64_MIN
+    for i, item in enumerate(messages):
+        try:
+            stamp, text = item
+        except (TypeError, ValueError) as err:
+            raise InvalidInputError(f"message {i} is not a (stamp_ns, json_text) pair") from err
+        if isinstance(stamp, bool):
+            raise InvalidInputError(f"message {i}: stamp_ns must be an integer, got a bool")
+        try:
+            stamp = operator.index(stamp)
+        except TypeError as err:
+            raise InvalidInputError(f"message {i}: stamp_ns must be an integer, got {type(stamp).__name__}") from err
+        if not I64_MIN <= stamp <= I64_MAX:
+            raise InvalidInputError(f"message {i}: stamp_ns {stamp} does not fit in 64 bits")
+        if stamp < prev:
+            raise InvalidInputError(f"message {i}: stamp_ns {stamp} is before the previous message's {prev}; "
+                                    "times in a window must not decrease")  # fmt: skip
+        prev = stamp
+        if not isinstance(text, str):
+            raise InvalidInputError(f"message {i}: the JSON text must be a str, got {type(text).__name__}")
+        try:
+            _decoder.decode(text)
+        except json.JSONDecodeError as err:
+            raise InvalidInputError(f"message {i} is not well-formed JSON: {err}") from err
+        except RecursionError as err:
+            raise InvalidInputError(f"message {i} is nested too deeply to check") from err
+        try:
+            texts.append(text.encode("utf-8"))
+        except UnicodeEncodeError as err:
+            raise InvalidInputError(f"message {i} is not valid UTF-8 text: {err.reason}") from err
+        stamps.append(stamp)
+    return stamps, texts
