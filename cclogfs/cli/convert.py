@@ -1,0 +1,57 @@
+"""`cclog convert`: any log source (bag, MCAP, JSONL) to JSON Lines."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ..ingest import format_line, open_source
+from .progress import Progress
+
+EXAMPLES = """\
+examples:
+  cclog convert run.mcap -o run.jsonl                 # every topic of a ROS 2 bag
+  cclog convert run.bag -o odom.jsonl --topic /odom   # one topic of a ROS 1 bag
+  cclog convert rosbag2_dir/ -o - | head              # a ROS 2 bag directory, to stdout
+  cat raw.jsonl | cclog convert - -o clean.jsonl --on-error skip
+
+Each line is {"topic": ..., "stamp_ns": ..., "msg": {...}}: msg is the message as
+rosbridge JSON (docs/JSON.md), stamp_ns its header.stamp or else its log time.
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "convert",
+        help="convert a bag, MCAP or JSONL file to JSON Lines",
+        description="Read a ROS 1/ROS 2 bag, an MCAP file or JSON Lines and write JSON Lines.",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("source", help="bag file, ROS 2 bag directory, .mcap, .jsonl, or - (stdin)")
+    p.add_argument("-o", "--output", required=True, help="output .jsonl file, or - for stdout")
+    p.add_argument("--topic", action="append", metavar="T", help="keep only topic T (repeatable)")
+    p.add_argument(
+        "--on-error",
+        choices=("stop", "skip"),
+        default="stop",
+        help="a malformed JSONL input line stops the run (default) or is skipped with a warning",
+    )
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    def warn(err: Exception) -> None:
+        print(f"cclog convert: skipped: {err}", file=sys.stderr)
+
+    with open_source(args.source, args.topic, on_error=args.on_error, report=warn) as src:
+        out = sys.stdout if args.output == "-" else open(args.output, "w", encoding="utf-8")
+        try:
+            with Progress("convert") as progress:
+                for m in src:
+                    out.write(format_line(m.topic, m.stamp_ns, m.text))
+                    progress()
+        finally:
+            if out is not sys.stdout:
+                out.close()
+    return 0

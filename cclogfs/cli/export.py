@@ -1,0 +1,59 @@
+"""`cclog export`: a store's windows to MCAP or to Hive-partitioned Parquet."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from ..export import export_mcap, export_parquet
+from ..store import open_store
+from .cat import add_selection, selected_windows
+from .progress import Progress
+
+EXAMPLES = """\
+examples:
+  cclog export robot.store --mcap anomalies.mcap       # open in Foxglove or `mcap cat`
+  cclog export robot.store --parquet lake/ --robot tb3-01
+  cclog export robot.store --parquet lake/ --topic /odom --start 2015-05-21
+  duckdb -c "SELECT robot, count(*), avg(\\"twist.twist.linear.x\\")
+             FROM read_parquet('lake/**/*.parquet', hive_partitioning=true) GROUP BY robot"
+
+Whole windows are exported: --start/--end choose the windows that overlap the range.
+Parquet goes to DIR/robot=NAME/stream=STREAM/date=YYYY-MM-DD/part-*.parquet.
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "export",
+        help="export stored windows to MCAP or Parquet",
+        description="Export the windows of a store to an MCAP file or a Parquet data set.",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    add_selection(p)
+    to = p.add_mutually_exclusive_group(required=True)
+    to.add_argument("--mcap", metavar="OUT.mcap", help="write one MCAP file (JSON channels)")
+    to.add_argument("--parquet", metavar="DIR", help="write Hive-partitioned Parquet under DIR")
+    p.add_argument("--robot", help="robot name for the Parquet partition (default: store name)")
+    p.add_argument("--replace", action="store_true", help="replace this robot's earlier Parquet export")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    with open_store(args.store, readonly=True) as store, Progress("export") as progress:
+        windows = selected_windows(store, args)
+        if args.mcap:
+            stats = export_mcap(windows, args.mcap, progress=progress)
+        else:
+            robot = args.robot or os.path.basename(os.path.normpath(args.store))
+            stats = export_parquet(
+                windows, args.parquet, robot=robot, replace=args.replace, progress=progress
+            )
+    print(
+        f"exported {stats.windows} windows, {stats.messages} messages of "
+        f"{len(stats.streams)} streams to {len(stats.files)} files",
+        file=sys.stderr,
+    )
+    return 0

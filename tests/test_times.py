@@ -1,0 +1,38 @@
+"""parse_time: nanoseconds, seconds and ISO-8601 all name the same instant."""
+
+from __future__ import annotations
+
+import pytest
+
+from cclogfs.errors import InvalidInputError
+from cclogfs.times import parse_time
+
+T = 1432235695834049087
+
+
+@pytest.mark.parametrize(
+    "text, ns",
+    [
+        ("1432235695834049087", T),
+        ("1432235695834049087ns", T),
+        ("1432235695.834049087", T),
+        ("1432235695.834049087s", T),
+        ("2015-05-21T19:14:55.834049087Z", T),
+        ("2015-05-21T21:14:55.834049087+02:00", T),
+        ("2015-05-21 19:14:55.834049087", T),  # no zone: UTC
+        ("2015-05-21T19:14:55.834Z", 1432235695834000000),
+        ("2015-05-21", 1432166400000000000),
+        ("12s", 12_000_000_000),
+        ("0.5", 500_000_000),
+        (" 928.8 ", 928_800_000_000),
+        ("0", 0),
+    ],
+)
+def test_forms(text, ns):
+    assert parse_time(text) == ns
+
+
+@pytest.mark.parametrize("text", ["", "abc", "-5", "1e9", "12 s", "2015-13-01", "2015-05-21T25:00Z"])
+def test_rejected_with_explanation(text):
+    with pytest.raises(InvalidInputError, match=r"Time .* (not understood|not a valid ISO-8601)"):
+        parse_time(text)
