@@ -37,7 +37,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     to.add_argument("--mcap", metavar="OUT.mcap", help="write one MCAP file (JSON channels)")
     to.add_argument("--parquet", metavar="DIR", help="write Hive-partitioned Parquet under DIR")
     p.add_argument("--robot", help="robot name for the Parquet partition (default: store name)")
-    p.add_argument("--replace", action="store_true", help="replace this robot's earlier Parquet export")
+    p.add_argument(
+        "--replace", action="store_true", help="replace this robot's earlier Parquet export"
+    )
     p.set_defaults(func=run)
 
 

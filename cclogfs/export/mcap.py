@@ -20,7 +20,11 @@ from .base import ExportStats, Progress, Window
 from .jsonschema import message_schema
 
 WINDOW_METADATA = "cclogfs.window"
-_COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+_COMPRESSION = {
+    "zstd": CompressionType.ZSTD,
+    "lz4": CompressionType.LZ4,
+    "none": CompressionType.NONE,
+}
 
 
 def export_mcap(

@@ -30,7 +30,9 @@ _DAY_NS = 86_400_000_000_000
 _EPOCH = dt.date(1970, 1, 1)
 
 
-def flatten(obj: dict[str, Any], prefix: str = "", out: dict[str, Any] | None = None) -> dict[str, Any]:
+def flatten(
+    obj: dict[str, Any], prefix: str = "", out: dict[str, Any] | None = None
+) -> dict[str, Any]:
     """Nested objects as one level with dotted keys; lists and scalars are leaves."""
     if out is None:
         out = {}

@@ -89,7 +89,8 @@ def ros2_msgtype(cls: type) -> str:
     """The ROS type name (nav_msgs/msg/Odometry) of an rclpy message class."""
     parts = cls.__module__.split(".")
     if len(parts) < 2 or parts[1] not in ("msg", "srv", "action"):
-        raise InvalidInputError(f"{cls.__module__}.{cls.__qualname__} is not a ROS 2 message class.")
+        name = f"{cls.__module__}.{cls.__qualname__}"
+        raise InvalidInputError(f"{name} is not a ROS 2 message class.")
     return f"{parts[0]}/{parts[1]}/{cls.__name__}"
 
 
