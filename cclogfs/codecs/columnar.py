@@ -4,7 +4,7 @@ Texts that share their literal text (keys, punctuation, whitespace; see `shapes`
 group: the literals are stored once and each value slot becomes a column (`columns`).
 Texts without a shape, and any group whose columns do not render back to the exact
 texts, are stored verbatim in the same payload. The body is compressed with one zstd
-frame (with its content checksum, so a flipped byte is an error, never a wrong text).
+frame; an xxh32 of the frame in the header makes any flipped byte an error, not a text.
 The payload layout is specified in docs/CODEC_COLUMNAR.md.
 """
 
@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+import xxhash
 import zstandard
 
 from ..errors import CodecError
@@ -146,7 +147,7 @@ class ColumnarCodec(Codec):
         state = getattr(self._local, "state", None)
         if state is None:  # zstd contexts and the shape cache are not thread-safe
             state = (
-                zstandard.ZstdCompressor(level=self.level, write_checksum=True),
+                zstandard.ZstdCompressor(level=self.level),
                 zstandard.ZstdDecompressor(),
                 ShapeMatcher(),
             )
@@ -157,6 +158,10 @@ class ColumnarCodec(Codec):
         count = len(stamps)
         if len(texts) != count:
             raise CodecError(f"a window needs one stamp per text, got {count} and {len(texts)}")
+        try:
+            stamp_words = np.array(stamps, dtype="<i8")
+        except OverflowError as err:
+            raise CodecError("a window stamp does not fit in a signed 64-bit integer") from err
         compressor, _, matcher = self._state()
         strs: list[str | None] = []
         for t in texts:
@@ -182,14 +187,15 @@ class ColumnarCodec(Codec):
         raw_indices = np.flatnonzero(ids == RAW_GROUP).tolist()
         body = bytearray(U32.pack(len(bodies)))
         body += ids.tobytes()
-        body += _shuffle(_zigzag_delta(np.array(stamps, dtype="<i8"), 1))
+        body += _shuffle(_zigzag_delta(stamp_words, 1))
         for data in bodies:
             body += data
         _write_blob([texts[i] for i in raw_indices], [len(texts[i]) for i in raw_indices], body)
         raw_len = 4 + 12 * count + sum(map(len, texts))
         if len(body) > BODY_FACTOR * raw_len + BODY_SLACK:  # pragma: no cover - cannot happen
             raise CodecError("columnar body would exceed its decoding bound")
-        return HEADER.pack(self.version, len(body)) + compressor.compress(bytes(body))
+        frame = compressor.compress(bytes(body))
+        return HEADER.pack(self.version, len(body), xxhash.xxh32_intdigest(frame)) + frame
 
     def decode(self, data: bytes, *, count: int, raw_len: int) -> tuple[list[int], list[bytes]]:
         text_budget = raw_len - 4 - 12 * count
@@ -197,12 +203,15 @@ class ColumnarCodec(Codec):
             raise CodecError(f"a window of {count} messages cannot have a raw size of {raw_len}")
         if len(data) < HEADER.size:
             raise CodecError("columnar payload is shorter than its header")
-        version, body_len = HEADER.unpack_from(data, 0)
+        version, body_len, checksum = HEADER.unpack_from(data, 0)
+        frame = memoryview(data)[HEADER.size :]
+        if xxhash.xxh32_intdigest(frame) != checksum:
+            raise CodecError("columnar payload fails its xxh32 checksum")
         if version not in FORMAT_VERSIONS:
             raise CodecError(f"columnar payload has format version {version}, not one of {FORMAT_VERSIONS}")
         if body_len > BODY_FACTOR * raw_len + BODY_SLACK:
             raise CodecError(f"columnar payload claims a {body_len}-byte body for a {raw_len}-byte window")
-        body = self._decompress(memoryview(data)[HEADER.size :], body_len)
+        body = self._decompress(frame, body_len)
         reader = Reader(body)
         n_groups = reader.u32("group count")
         if n_groups > min(count, MAX_GROUPS):

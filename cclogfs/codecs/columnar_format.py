@@ -9,7 +9,7 @@ from enum import IntEnum
 FORMAT_VERSIONS = (1,)
 LATEST_VERSION = 1
 
-HEADER = struct.Struct("<BI")  # format version, body length (before zstd)
+HEADER = struct.Struct("<BII")  # format version, body length (before zstd), xxh32 of the frame
 GROUP_HEADER = struct.Struct("<II")  # messages in the group, value slots per message
 U32 = struct.Struct("<I")
 
