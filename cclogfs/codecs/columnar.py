@@ -55,6 +55,32 @@ __all__ = ["ColumnarCodec"]
 # A float slot after three float slots is coded as a quaternion's w when at least this
 # share of its rows has x^2 + y^2 + z^2 + w^2 within 1e-6 of 1.
 _QUATERNION_SHARE = 0.9
+# A string slot with at most this many distinct values splits its group (see _split_by_label).
+_MAX_LABELS = 8
+
+
+def _split_by_label(
+    indices: list[int], rows: list[tuple[str, ...]]
+) -> list[tuple[list[int], list[tuple[str, ...]]]]:
+    """Split a group by its first string slot with a few values (a frame id, say).
+
+    /tf interleaves transforms of different frames; apart, each frame's values form a
+    smooth series that delta coding shrinks, together they alternate and do not.
+    """
+    if len(rows) < 2 * _MAX_LABELS:
+        return [(indices, rows)]
+    for j, token in enumerate(rows[0]):
+        if token[:1] != '"':
+            continue
+        labels = {row[j] for row in rows}
+        if 1 < len(labels) <= _MAX_LABELS:
+            parts: dict[str, tuple[list[int], list]] = {}
+            for i, row in zip(indices, rows):
+                part = parts.setdefault(row[j], ([], []))
+                part[0].append(i)
+                part[1].append(row)
+            return list(parts.values())
+    return [(indices, rows)]
 
 
 def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]]) -> bytes:
@@ -172,7 +198,12 @@ class ColumnarCodec(Codec):
         groups, _ = matcher.group(strs)
         ids = np.full(count, RAW_GROUP, dtype="<u2")
         bodies = []
-        for literals, (indices, rows) in groups.items():
+        parts = [
+            (literals, part)
+            for literals, (indices, rows) in groups.items()
+            for part in _split_by_label(indices, rows)
+        ]
+        for literals, (indices, rows) in parts:
             if len(bodies) == MAX_GROUPS:
                 break
             data = _encode_group(literals, rows)
