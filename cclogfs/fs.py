@@ -134,6 +134,16 @@ class RecordingFileSystem(FileSystem):
         self._paths.pop(fd, None)
         super().close(fd)
 
+    def lock(self, path: str) -> int | None:
+        fd = super().lock(path)
+        if fd is not None:
+            self._paths[fd] = path
+        return fd
+
+    def unlock(self, fd: int) -> None:
+        self._paths.pop(fd, None)
+        super().unlock(fd)
+
     def pwrite(self, fd: int, data: bytes, offset: int) -> None:
         self.ops.append(("write", self._paths[fd], offset, bytes(data)))
         super().pwrite(fd, data, offset)

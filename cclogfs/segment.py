@@ -125,6 +125,24 @@ def open_segment(fs: FileSystem, path: str, *, write: bool) -> tuple[Segment, bo
     return Segment(fs, path, first_seq, created_ns, fd, size), parsed is not None
 
 
+class _ChunkReader:
+    """Reads a file through a large buffer: one pread serves many small records."""
+
+    CHUNK = 4 << 20
+
+    def __init__(self, fs: FileSystem, fd: int, size: int):
+        self.fs, self.fd, self.size = fs, fd, size
+        self.buf, self.buf_pos = b"", 0
+
+    def read(self, offset: int, n: int) -> bytes:
+        start = offset - self.buf_pos
+        if start < 0 or start + n > len(self.buf):
+            if n > self.CHUNK:  # a big payload: read it alone
+                return self.fs.pread(self.fd, n, offset)
+            self.buf, self.buf_pos, start = self.fs.pread(self.fd, self.CHUNK, offset), offset, 0
+        return self.buf[start : start + n]
+
+
 def scan(segment: Segment) -> ScanResult:
     """Read every record from the start, checking all of it, up to the first that fails.
 
@@ -133,14 +151,14 @@ def scan(segment: Segment) -> ScanResult:
     """
     fs, fd, path = segment.fs, segment.fd, segment.path
     size = fs.size(fd)
+    reader = _ChunkReader(fs, fd, size)
     result = ScanResult(next_seq=segment.first_seq)
     pos = SEGMENT_HEADER_SIZE
     while pos < size:
         try:
-            fixed = fs.pread(fd, RECORD_FIXED_SIZE, pos)
-            header_len = check_fixed(fixed, size - pos)
-            header = parse_header(fs.pread(fd, min(header_len, MAX_HEADER), pos))
-            check_payload(header, fs.pread(fd, header.enc_len, pos + header_len))
+            header_len = check_fixed(reader.read(pos, RECORD_FIXED_SIZE), size - pos)
+            header = parse_header(reader.read(pos, min(header_len, MAX_HEADER)))
+            check_payload(header, reader.read(pos + header_len, header.enc_len))
             if header.seq != result.next_seq:
                 raise RecordError(Reason.SEQ_GAP, f"seq {header.seq}, expected {result.next_seq}")
         except RecordError as err:

@@ -131,7 +131,8 @@ class Store:
 
     def __init__(self, path: str, fs: FileSystem, readonly: bool, codec: Codec,
                  stream_codecs: Mapping[str, Codec], sync_every_ms: float | None,
-                 sync_every_bytes: int | None, segment_bytes: int, segment_age_s: float):  # fmt: skip
+                 sync_every_bytes: int | None, segment_bytes: int, segment_age_s: float,
+                 segment_records: int):  # fmt: skip
         self.path = path
         self.fs = fs
         self.readonly = readonly
@@ -141,6 +142,7 @@ class Store:
         self.sync_every_bytes = sync_every_bytes
         self.segment_bytes = segment_bytes
         self.segment_age_s = segment_age_s
+        self.segment_records = segment_records
         self.recovery = Recovery()
         self.manifest: dict[str, Any] = {}
         self.sealed: list[Segment] = []  # in seq order
@@ -155,6 +157,7 @@ class Store:
         self._unsynced_since: float | None = None
         self._flusher: threading.Thread | None = None
         self._sealed_by_stream: dict[str, tuple[np.ndarray, np.ndarray, list[Segment]]] | None = None
+        self._codec_headers: dict[int, tuple[Codec, bytes, int]] = {}
 
     # -- context manager -------------------------------------------------------------------
 
@@ -336,9 +339,7 @@ class Store:
         stamps, texts = encode_messages(messages)
         meta_bytes = b"{}" if meta is None else _encode_meta(meta)
         chosen = codec_from_config(codec) if codec is not None else self.stream_codecs.get(name, self.codec)
-        config = json.dumps(chosen.get_config(), separators=(",", ":")).encode()
-        if len(config) > MAX_CONFIG:
-            raise InvalidInputError(f"codec config is {len(config)} bytes, over {MAX_CONFIG}")
+        config, codec_number = self._codec_header(chosen)
         raw_len = raw_size(stamps, texts)
         if raw_len > MAX_RAW:
             raise InvalidInputError(f"window for {name!r} is {raw_len} bytes, over the {MAX_RAW}-byte "
@@ -350,7 +351,7 @@ class Store:
             seq = seg.next_seq
             record = pack_record(
                 seq=seq, start_ns=stamps[0], end_ns=stamps[-1], count=len(stamps),
-                codec=codec_numeric_id(chosen), name=name_bytes, config=config, meta=meta_bytes,
+                codec=codec_number, name=name_bytes, config=config, meta=meta_bytes,
                 raw_len=raw_len, payload=payload,
             )  # fmt: skip
             row = (name, len(stamps), seq, stamps[0], stamps[-1], seg.end, len(record), raw_len)
@@ -362,9 +363,23 @@ class Store:
             if self._unsynced_since is None:
                 self._unsynced_since = time.monotonic()
             self._unsynced_bytes += len(record)
-            if self._commit_due():
+            # A full segment is committed (and so sealed) at once, not at the next group
+            # commit: the limits bound what recovery must scan.
+            if self._commit_due() or seg.end >= self.segment_bytes or len(seg.rows) >= self.segment_records:
                 self._commit()
             return Receipt(seq, name, stamps[0], stamps[-1], len(stamps), raw_len, len(record))
+
+    def _codec_header(self, codec: Codec) -> tuple[bytes, int]:
+        """The config bytes and number that go in each record, cached per codec object."""
+        cached = self._codec_headers.get(id(codec))
+        if cached is None or cached[0] is not codec:
+            config = json.dumps(codec.get_config(), separators=(",", ":")).encode()
+            if len(config) > MAX_CONFIG:
+                raise InvalidInputError(f"codec config is {len(config)} bytes, over {MAX_CONFIG}")
+            cached = (codec, config, int(codec_numeric_id(codec)))
+            if codec is self.codec or codec in self.stream_codecs.values():
+                self._codec_headers[id(codec)] = cached
+        return cached[1], cached[2]
 
     def _commit_due(self) -> bool:
         if self.sync_every_ms is not None and (
@@ -393,7 +408,8 @@ class Store:
         self._unsynced_bytes = 0
         self._unsynced_since = None
         age_s = (time.time_ns() - seg.created_ns) / 1e9
-        if seg.size >= self.segment_bytes or (seg.rows and age_s >= self.segment_age_s):
+        if (seg.size >= self.segment_bytes or len(seg.rows) >= self.segment_records
+                or (seg.rows and age_s >= self.segment_age_s)):  # fmt: skip
             try:
                 self._seal(seg)
                 self.active = self._new_segment(seg.next_seq)
@@ -501,7 +517,7 @@ class Store:
         return sorted(self.streams())
 
     def streams(self) -> dict[str, dict[str, int]]:
-        """Per stream: windows, messages, start_ns, end_ns, raw_bytes, stored_bytes."""
+        """Per stream: windows, messages, start_ns, end_ns, raw_bytes, stored_bytes, json_bytes."""
         with self._lock:
             per_segment = [info["streams"] for info in self.manifest["segments"]]
             per_segment += [seg.index().stream_stats() for seg in self._segments()[len(self.sealed):]]
@@ -516,6 +532,8 @@ class Store:
                     t[key] += st[key]
                 t["start_ns"] = min(t["start_ns"], st["start_ns"])
                 t["end_ns"] = max(t["end_ns"], st["end_ns"])
+        for t in total.values():  # the messages' own JSON, without the framing's lengths and stamps
+            t["json_bytes"] = t["raw_bytes"] - 4 * t["windows"] - 12 * t["messages"]
         return dict(sorted(total.items()))
 
     def query(self, name: str | None = None, start_ns: int | None = None,
@@ -564,20 +582,22 @@ def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: 
                codec: Any = "zstd", stream_codecs: Mapping[str, Any] | None = None,
                sync_every_ms: float | None = 200, sync_every_bytes: int | None = 4 << 20,
                segment_bytes: int = 64 << 20, segment_age_s: float = 3600.0,
-               fs: FileSystem | None = None) -> Store:  # fmt: skip
+               segment_records: int = 16384, fs: FileSystem | None = None) -> Store:  # fmt: skip
     """Open (or with create=True make) the store at `path`; recovers after a crash.
 
     codec: default codec (id or config dict) for new records; stream_codecs: per-stream
     overrides. sync_every_ms / sync_every_bytes: the group-commit policy (see FORMAT.md).
+    segment_bytes / segment_records / segment_age_s: when the active segment is sealed; they
+    bound what recovery has to scan after a crash.
     """
     if sync_every_ms is not None and sync_every_ms < 0:
         raise InvalidInputError("sync_every_ms must be >= 0 or None")
-    if segment_bytes < 4096:
-        raise InvalidInputError("segment_bytes must be at least 4096")
+    if segment_bytes < 4096 or segment_records < 1:
+        raise InvalidInputError("segment_bytes must be at least 4096 and segment_records at least 1")
     store = Store(
         os.fspath(path), fs or FileSystem(), readonly, codec_from_config(codec),
         {k: codec_from_config(v) for k, v in (stream_codecs or {}).items()},
-        sync_every_ms, sync_every_bytes, segment_bytes, segment_age_s,
+        sync_every_ms, sync_every_bytes, segment_bytes, segment_age_s, segment_records,
     )  # fmt: skip
     for name in store.stream_codecs:
         check_stream_name(name)

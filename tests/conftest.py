@@ -23,3 +23,4 @@ def shared_data_file(name: str) -> Path:
 @pytest.fixture
 def shared_data():
     return shared_data_file
+import sys, os; sys.path.insert(0, os.path.dirname(__file__))

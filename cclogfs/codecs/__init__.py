@@ -8,6 +8,7 @@ from typing import Any
 from ..errors import CodecError, UnknownCodecError
 from ..format import CodecId
 from .base import ByteCodec, Codec, frame, raw_size, unframe
+from .columnar import ColumnarCodec
 from .simple import LzmaCodec, NoneCodec, ZstdCodec
 
 __all__ = [
@@ -58,3 +59,4 @@ def codec_from_config(config: dict[str, Any] | str) -> Codec:
 register(NoneCodec, CodecId.NONE)
 register(ZstdCodec, CodecId.ZSTD)
 register(LzmaCodec, CodecId.LZMA)
+register(ColumnarCodec, CodecId.COLUMNAR)

@@ -1,0 +1,297 @@
+"""The columnar codec: messages of one shape become one template plus typed columns.
+
+Texts that share their literal text (keys, punctuation, whitespace; see `shapes`) form a
+group: the literals are stored once and each value slot becomes a column (`columns`).
+Texts without a shape, and any group whose columns do not render back to the exact
+texts, are stored verbatim in the same payload. The body is compressed with one zstd
+frame; an xxh32 of the frame in the header makes any flipped byte an error, not a text.
+The payload layout is specified in docs/CODEC_COLUMNAR.md.
+"""
+
+from __future__ import annotations
+
+import io
+import threading
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import xxhash
+import zstandard
+
+from ..errors import CodecError
+from .base import Codec
+from .columnar_format import (
+    BODY_FACTOR,
+    BODY_SLACK,
+    FORMAT_VERSIONS,
+    GROUP_HEADER,
+    HEADER,
+    LATEST_VERSION,
+    MAX_GROUPS,
+    RAW_GROUP,
+    U32,
+    ColumnKind,
+)
+from .columns import (
+    Reader,
+    _read_blob,
+    _shuffle,
+    _undo_zigzag_delta,
+    _unshuffle,
+    _utf8,
+    _write_blob,
+    _zigzag_delta,
+    classify,
+    quaternion_prediction,
+    read_column,
+    slot_floats,
+    write_column,
+)
+from .shapes import ShapeMatcher
+
+__all__ = ["ColumnarCodec"]
+
+# A float slot after three float slots is coded as a quaternion's w when at least this
+# share of its rows has x^2 + y^2 + z^2 + w^2 within 1e-6 of 1.
+_QUATERNION_SHARE = 0.9
+# A string slot with at most this many distinct values splits its group (see _split_by_label).
+_MAX_LABELS = 8
+
+
+def _split_by_label(
+    indices: list[int], rows: list[tuple[str, ...]]
+) -> list[tuple[list[int], list[tuple[str, ...]]]]:
+    """Split a group by its first string slot with a few values (a frame id, say).
+
+    /tf interleaves transforms of different frames; apart, each frame's values form a
+    smooth series that delta coding shrinks, together they alternate and do not.
+    """
+    if len(rows) < 2 * _MAX_LABELS:
+        return [(indices, rows)]
+    for j, token in enumerate(rows[0]):
+        if token[:1] != '"':
+            continue
+        labels = {row[j] for row in rows}
+        if 1 < len(labels) <= _MAX_LABELS:
+            parts: dict[str, tuple[list[int], list]] = {}
+            for i, row in zip(indices, rows):
+                part = parts.setdefault(row[j], ([], []))
+                part[0].append(i)
+                part[1].append(row)
+            return list(parts.values())
+    return [(indices, rows)]
+
+
+def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]]) -> bytes:
+    """One group: header, literals, kinds, then each column's data."""
+    n = len(rows)
+    kinds, values = [], []
+    floats: list[np.ndarray | str | None] = []  # what slot_floats takes, per slot
+    for tokens in zip(*rows):
+        kind, vals = classify(tokens)
+        fl = vals if kind in (ColumnKind.FLOAT, ColumnKind.CONST) else None
+        if kind is ColumnKind.FLOAT and len(floats) >= 3:
+            xyz = [slot_floats(f, n) for f in floats[-3:]]
+            if all(f is not None for f in xyz):
+                x, y, z = xyz
+                with np.errstate(all="ignore"):
+                    near_unit = np.abs(x * x + y * y + z * z + vals * vals - 1.0) < 1e-6
+                if near_unit.mean() >= _QUATERNION_SHARE:
+                    kind = ColumnKind.QUAT_W
+                    vals = vals.view("<u8") ^ quaternion_prediction(x, y, z).view("<u8")
+        kinds.append(kind)
+        values.append(vals)
+        floats.append(fl)
+    out = bytearray(GROUP_HEADER.pack(n, len(kinds)))
+    _write_blob([lit.encode() for lit in literals], [len(lit) for lit in literals], out)
+    out += bytes(kinds)
+    for kind, vals in zip(kinds, values):
+        write_column(kind, vals, out)
+    return bytes(out)
+
+
+def _decode_group(reader: Reader, n: int, budget: int) -> list[str]:
+    """The texts of one group; `budget` bounds the characters they may add up to."""
+    count, slots = GROUP_HEADER.unpack(reader.take(GROUP_HEADER.size, "group header"))
+    if count != n:
+        raise CodecError(f"columnar payload is corrupt: a group holds {count} messages, ids say {n}")
+    if 5 * slots > len(reader.view) - reader.pos:  # each slot needs a literal length and a kind
+        raise CodecError(f"columnar payload is corrupt: a group claims {slots} value slots")
+    counts, blob = _read_blob(reader, slots + 1, "literals")
+    text = _utf8(blob, "literals")
+    if int(counts.sum(dtype=np.uint64)) != len(text):
+        raise CodecError("columnar payload is corrupt: literal lengths do not add up")
+    ends = np.cumsum(counts, dtype=np.int64).tolist()
+    literals = [text[a:b] for a, b in zip([0] + ends[:-1], ends)]
+    kinds = reader.take(slots, "column kinds").tolist()
+    pieces = [literals[0].replace("%", "%%")]
+    plain = [literals[0]]  # the template text, for groups where no slot varies
+    static, varying = len(text), []
+    floats: list[np.ndarray | str | None] = []
+    for kind, literal in zip(kinds, literals[1:]):
+        rendered, fl = read_column(kind, reader, n, floats)
+        floats.append(rendered if isinstance(rendered, str) else fl)
+        if isinstance(rendered, str):
+            pieces.append(rendered.replace("%", "%%"))
+            plain.append(rendered)
+            static += len(rendered)
+        else:
+            pieces.append("%s")
+            varying.append(rendered)
+        pieces.append(literal.replace("%", "%%"))
+        plain.append(literal)
+    # Checked before rendering: n copies of the template must fit in what the header allows.
+    if static * n > budget:
+        raise CodecError("columnar payload is corrupt: a template renders beyond the window size")
+    if not varying:
+        return ["".join(plain)] * n
+    fmt = "".join(pieces)
+    return [fmt % row for row in zip(*varying)]
+
+
+class ColumnarCodec(Codec):
+    """Template + typed columns per JSON shape, zstd over the body; byte-exact."""
+
+    codec_id = "columnar"
+
+    def __init__(self, version: int = LATEST_VERSION, level: int = 3):
+        if version not in FORMAT_VERSIONS:
+            raise CodecError(
+                f"columnar codec version {version!r} is unknown; this build writes {FORMAT_VERSIONS}"
+            )
+        if not isinstance(level, int) or not -7 <= level <= 22:
+            raise CodecError(f"columnar zstd level must be an integer in -7..22, got {level!r}")
+        self.version = version
+        self.level = level
+        self._local = threading.local()
+
+    def get_config(self) -> dict[str, Any]:
+        return {"id": self.codec_id, "version": self.version, "level": self.level}
+
+    def _state(self) -> tuple[zstandard.ZstdCompressor, zstandard.ZstdDecompressor, ShapeMatcher]:
+        state = getattr(self._local, "state", None)
+        if state is None:  # zstd contexts and the shape cache are not thread-safe
+            state = (
+                zstandard.ZstdCompressor(level=self.level),
+                zstandard.ZstdDecompressor(),
+                ShapeMatcher(),
+            )
+            self._local.state = state
+        return state
+
+    def encode(self, stamps: Sequence[int], texts: Sequence[bytes]) -> bytes:
+        count = len(stamps)
+        if len(texts) != count:
+            raise CodecError(f"a window needs one stamp per text, got {count} and {len(texts)}")
+        try:
+            stamp_words = np.array(stamps, dtype="<i8")
+        except OverflowError as err:
+            raise CodecError("a window stamp does not fit in a signed 64-bit integer") from err
+        compressor, _, matcher = self._state()
+        strs: list[str | None] = []
+        for t in texts:
+            try:
+                strs.append(t.decode("utf-8"))
+            except UnicodeDecodeError:
+                strs.append(None)
+        groups, _ = matcher.group(strs)
+        ids = np.full(count, RAW_GROUP, dtype="<u2")
+        bodies = []
+        parts = [
+            (literals, part)
+            for literals, (indices, rows) in groups.items()
+            for part in _split_by_label(indices, rows)
+        ]
+        for literals, (indices, rows) in parts:
+            if len(bodies) == MAX_GROUPS:
+                break
+            data = _encode_group(literals, rows)
+            # The group is kept only if decoding its bytes gives back every text exactly.
+            try:
+                rendered = _decode_group(Reader(data), len(rows), len(data) * 64 + (1 << 20))
+            except CodecError:
+                continue
+            if rendered == [strs[i] for i in indices]:
+                ids[indices] = len(bodies)
+                bodies.append(data)
+        raw_indices = np.flatnonzero(ids == RAW_GROUP).tolist()
+        body = bytearray(U32.pack(len(bodies)))
+        body += ids.tobytes()
+        body += _shuffle(_zigzag_delta(stamp_words, 1))
+        for data in bodies:
+            body += data
+        _write_blob([texts[i] for i in raw_indices], [len(texts[i]) for i in raw_indices], body)
+        raw_len = 4 + 12 * count + sum(map(len, texts))
+        if len(body) > BODY_FACTOR * raw_len + BODY_SLACK:  # pragma: no cover - cannot happen
+            raise CodecError("columnar body would exceed its decoding bound")
+        frame = compressor.compress(bytes(body))
+        return HEADER.pack(self.version, len(body), xxhash.xxh32_intdigest(frame)) + frame
+
+    def decode(self, data: bytes, *, count: int, raw_len: int) -> tuple[list[int], list[bytes]]:
+        text_budget = raw_len - 4 - 12 * count
+        if count < 0 or text_budget < 0:
+            raise CodecError(f"a window of {count} messages cannot have a raw size of {raw_len}")
+        if len(data) < HEADER.size:
+            raise CodecError("columnar payload is shorter than its header")
+        version, body_len, checksum = HEADER.unpack_from(data, 0)
+        frame = memoryview(data)[HEADER.size :]
+        if xxhash.xxh32_intdigest(frame) != checksum:
+            raise CodecError("columnar payload fails its xxh32 checksum")
+        if version not in FORMAT_VERSIONS:
+            raise CodecError(f"columnar payload has format version {version}, not one of {FORMAT_VERSIONS}")
+        if body_len > BODY_FACTOR * raw_len + BODY_SLACK:
+            raise CodecError(f"columnar payload claims a {body_len}-byte body for a {raw_len}-byte window")
+        body = self._decompress(frame, body_len)
+        reader = Reader(body)
+        n_groups = reader.u32("group count")
+        if n_groups > min(count, MAX_GROUPS):
+            raise CodecError(f"columnar payload is corrupt: {n_groups} groups for {count} messages")
+        ids = reader.array("<u2", count, "group ids")
+        valid = (ids < n_groups) | (ids == RAW_GROUP)
+        if not valid.all():
+            raise CodecError("columnar payload is corrupt: a message names a group that does not exist")
+        words = _unshuffle(reader.array("u1", 8 * count, "stamps"), count)
+        stamps = _undo_zigzag_delta(words, 1).tolist()
+        order = np.argsort(ids, kind="stable")
+        sizes = np.bincount(ids[ids != RAW_GROUP], minlength=n_groups).tolist()
+        out: list[bytes] = [b""] * count
+        pos, total = 0, 0
+        for g in range(n_groups):
+            if sizes[g] == 0:
+                raise CodecError(f"columnar payload is corrupt: group {g} has no messages")
+            texts = _decode_group(reader, sizes[g], text_budget)
+            for i, text in zip(order[pos : pos + sizes[g]].tolist(), texts):
+                encoded = text.encode("utf-8")
+                total += len(encoded)
+                out[i] = encoded
+            if total > text_budget:
+                raise CodecError("columnar payload renders more text than the window holds")
+            pos += sizes[g]
+        raw_positions = order[pos:].tolist()
+        lengths, blob = _read_blob(reader, len(raw_positions), "raw texts")
+        if int(lengths.sum(dtype=np.uint64)) != len(blob):
+            raise CodecError("columnar payload is corrupt: raw text lengths do not add up")
+        start = 0
+        for i, length in zip(raw_positions, lengths.tolist()):
+            out[i] = bytes(blob[start : start + length])
+            start += length
+        total += len(blob)
+        if reader.pos != len(body):
+            raise CodecError("columnar payload is corrupt: bytes are left over after the last group")
+        if total != text_budget:
+            raise CodecError(
+                f"columnar payload decodes to {total} bytes of text, the header says {text_budget}"
+            )
+        return stamps, out
+
+    def _decompress(self, data: memoryview, body_len: int) -> bytes:
+        # Read as a stream, at most body_len + 1 bytes: a forged frame size is never trusted.
+        try:
+            with self._state()[1].stream_reader(io.BytesIO(data), read_across_frames=False) as r:
+                body = r.read(body_len + 1)
+        except zstandard.ZstdError as err:
+            raise CodecError(f"columnar payload does not decompress: {err}") from err
+        if len(body) != body_len:
+            raise CodecError(f"columnar payload decompresses to other than the {body_len} bytes stated")
+        return body

@@ -1,0 +1,38 @@
+"""Mirror of docs/CODEC_COLUMNAR.md: the numbers of the columnar codec's payload format."""
+
+from __future__ import annotations
+
+import struct
+from enum import IntEnum
+
+# Payload versions this code decodes; the encoder writes the one its config names.
+FORMAT_VERSIONS = (1,)
+LATEST_VERSION = 1
+
+HEADER = struct.Struct("<BII")  # format version, body length (before zstd), xxh32 of the frame
+GROUP_HEADER = struct.Struct("<II")  # messages in the group, value slots per message
+U32 = struct.Struct("<I")
+
+# Group id of messages stored as plain text (no shape, or the shape did not reproduce them).
+RAW_GROUP = 0xFFFF
+MAX_GROUPS = 0xFFFE
+
+# A body is at most this many times raw_len (plus BODY_SLACK): an int column spends 8
+# bytes on a value the text wrote in 1 digit. The decoder refuses larger claims.
+BODY_FACTOR = 9
+BODY_SLACK = 1024
+
+# Base64 strings shorter than this stay text: decoding them saves too little.
+MIN_BASE64_CHARS = 64
+
+
+class ColumnKind(IntEnum):
+    """How one value slot of a shape is stored. Values never change; 0 is invalid."""
+
+    CONST = 1  # one token for every message
+    TEXT = 2  # tokens verbatim: u32 char count each, then u32 byte count + UTF-8 blob
+    INT = 3  # i64, delta + zigzag, byte-shuffled
+    FLOAT = 4  # f64 bits, second-order delta + zigzag, byte-shuffled; rendered as repr
+    BOOL = 5  # u8 0/1: false/true
+    BASE64 = 6  # decoded bytes: u32 length each, then the bytes; rendered as "base64"
+    QUAT_W = 7  # f64 bits XOR sqrt(1 - x^2 - y^2 - z^2) of the three slots before

@@ -1,0 +1,242 @@
+"""Typed value columns of the columnar codec: classify tokens, write them, read them back.
+
+Every kind is chosen only when re-rendering its values gives each token back exactly
+(`str(int)`, `repr(float)`, ...); anything else stays TEXT, which stores tokens verbatim.
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+import math
+import re
+from typing import Any
+
+import numpy as np
+
+from ..errors import CodecError
+from .columnar_format import MIN_BASE64_CHARS, U32, ColumnKind
+
+__all__ = [
+    "Reader",
+    "classify",
+    "quaternion_prediction",
+    "read_column",
+    "slot_floats",
+    "write_column",
+]
+
+_I64_MIN, _I64_MAX = -(1 << 63), (1 << 63) - 1
+_BASE64 = re.compile(r'"(?:[A-Za-z0-9+/]{4})*(?:[A-Za-z0-9+/]{2}==|[A-Za-z0-9+/]{3}=)?"')
+_NONFINITE = {"NaN": math.nan, "Infinity": math.inf, "-Infinity": -math.inf}
+
+
+class Reader:
+    """Reads a body front to back; every length is checked before anything is allocated."""
+
+    def __init__(self, data: bytes):
+        self.view = memoryview(data)
+        self.pos = 0
+
+    def take(self, n: int, what: str) -> memoryview:
+        if n < 0 or n > len(self.view) - self.pos:
+            raise CodecError(
+                f"columnar payload is corrupt: {what} at body offset {self.pos} needs {n} "
+                f"bytes, {len(self.view) - self.pos} are left"
+            )
+        self.pos += n
+        return self.view[self.pos - n : self.pos]
+
+    def u32(self, what: str) -> int:
+        return U32.unpack(self.take(4, what))[0]
+
+    def array(self, dtype: str, n: int, what: str) -> np.ndarray:
+        size = np.dtype(dtype).itemsize
+        return np.frombuffer(self.take(size * n, what), dtype=dtype)
+
+
+def _float_text(value: float) -> str:
+    """A float the way json.dumps writes it."""
+    if value != value:
+        return "NaN"
+    if value in (math.inf, -math.inf):
+        return "Infinity" if value > 0 else "-Infinity"
+    return repr(value)
+
+
+def _render_floats(values: np.ndarray) -> list[str]:
+    if np.isfinite(values).all():
+        return list(map(float.__repr__, values.tolist()))
+    return list(map(_float_text, values.tolist()))
+
+
+def _as_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
+    try:
+        values = [_NONFINITE[t] if t in _NONFINITE else float(t) for t in tokens]
+    except ValueError:
+        return None
+    arr = np.array(values, dtype=np.float64)
+    return arr if _render_floats(arr) == list(tokens) else None
+
+
+def classify(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
+    """The most compact kind that reproduces every token, and the values to store."""
+    first = tokens[0]
+    if tokens.count(first) == len(tokens):
+        return ColumnKind.CONST, first
+    if first[:1] == '"':
+        if len(first) >= MIN_BASE64_CHARS + 2 and all(map(_BASE64.fullmatch, tokens)):
+            return ColumnKind.BASE64, [base64.b64decode(t[1:-1]) for t in tokens]
+        return ColumnKind.TEXT, tokens
+    if all(t in ("true", "false") for t in tokens):
+        return ColumnKind.BOOL, np.array([t == "true" for t in tokens], dtype=np.uint8)
+    try:
+        ints = list(map(int, tokens))
+    except ValueError:
+        ints = None
+    if ints is not None:
+        if list(map(str, ints)) == list(tokens) and _I64_MIN <= min(ints) and max(ints) <= _I64_MAX:
+            return ColumnKind.INT, np.array(ints, dtype=np.int64)
+        return ColumnKind.TEXT, tokens
+    floats = _as_floats(tokens)
+    if floats is not None:
+        return ColumnKind.FLOAT, floats
+    return ColumnKind.TEXT, tokens
+
+
+def slot_floats(entry: np.ndarray | str | None, n: int) -> np.ndarray | None:
+    """Float values of a slot: its column, or a CONST token repeated, or None.
+
+    Constants are converted only here, when a quaternion needs them: most slots of a
+    message are constants, and converting each would cost more than the whole group.
+    """
+    if entry is None or isinstance(entry, np.ndarray):
+        return entry
+    arr = _as_floats((entry,))
+    return None if arr is None else np.full(n, arr[0])
+
+
+def quaternion_prediction(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """sqrt(1 - x^2 - y^2 - z^2), with 0.0 wherever that is not a finite number.
+
+    Every step is a correctly rounded IEEE operation, so encoder and decoder compute the
+    same bits on any platform; non-finite results (whose NaN bits differ by CPU) become 0.
+    """
+    with np.errstate(all="ignore"):
+        pred = np.sqrt(1.0 - x * x - y * y - z * z)
+    pred[~np.isfinite(pred)] = 0.0
+    return pred
+
+
+def _shuffle(words: np.ndarray) -> bytes:
+    """Byte planes of 8-byte words: byte 0 of every value, then byte 1, ..."""
+    return words.view(np.uint8).reshape(len(words), 8).T.tobytes()
+
+
+def _unshuffle(planes: np.ndarray, n: int) -> np.ndarray:
+    return planes.reshape(8, n).T.copy().view("<u8").reshape(n)
+
+
+def _zigzag_delta(words: np.ndarray, order: int) -> np.ndarray:
+    d = words.astype("<i8", copy=True)
+    for _ in range(order):
+        d[1:] = np.diff(d)  # wraps modulo 2**64, which undo_delta reverses exactly
+    return ((d << 1) ^ (d >> 63)).view("<u8")
+
+
+def _undo_zigzag_delta(z: np.ndarray, order: int) -> np.ndarray:
+    d = ((z >> 1) ^ (np.uint64(0) - (z & 1))).view("<i8")
+    for _ in range(order):
+        d = np.cumsum(d, dtype="<i8")
+    return d
+
+
+def _write_blob(parts: list[bytes], counts: list[int], out: bytearray) -> None:
+    blob = b"".join(parts)
+    out += np.array(counts, dtype="<u4").tobytes()
+    out += U32.pack(len(blob))
+    out += blob
+
+
+def write_column(kind: ColumnKind, values: Any, out: bytearray) -> None:
+    """Append one column's data (not its kind byte) to out."""
+    if kind is ColumnKind.CONST:
+        data = values.encode()
+        out += U32.pack(len(data)) + data
+    elif kind is ColumnKind.TEXT:
+        _write_blob([t.encode() for t in values], [len(t) for t in values], out)
+    elif kind is ColumnKind.INT:
+        out += _shuffle(_zigzag_delta(values, 1))
+    elif kind is ColumnKind.FLOAT:
+        out += _shuffle(_zigzag_delta(values.view("<i8"), 2))
+    elif kind is ColumnKind.QUAT_W:
+        out += _shuffle(values)  # the residual bits, computed by the caller
+    elif kind is ColumnKind.BOOL:
+        out += values.tobytes()
+    elif kind is ColumnKind.BASE64:
+        _write_blob(values, [len(v) for v in values], out)
+    else:  # pragma: no cover - classify only returns the kinds above
+        raise CodecError(f"columnar codec cannot write column kind {kind!r}")
+
+
+def _read_blob(reader: Reader, n: int, what: str) -> tuple[np.ndarray, memoryview]:
+    counts = reader.array("<u4", n, f"{what} lengths")
+    blob = reader.take(reader.u32(f"{what} size"), what)
+    return counts, blob
+
+
+def read_column(
+    kind: int, reader: Reader, n: int, floats: list[np.ndarray | None]
+) -> tuple[list[str] | str, np.ndarray | None]:
+    """(rendered tokens, or one token for CONST; float values or None) of one column.
+
+    `floats` holds, for the slots read so far, what `slot_floats` takes (QUAT_W needs three).
+    """
+    if kind == ColumnKind.CONST:
+        data = reader.take(reader.u32("constant size"), "constant")
+        return _utf8(data, "constant"), None
+    if kind == ColumnKind.TEXT:
+        counts, blob = _read_blob(reader, n, "text column")
+        text = _utf8(blob, "text column")
+        if int(counts.sum(dtype=np.uint64)) != len(text):
+            raise CodecError("columnar payload is corrupt: text column lengths do not add up")
+        ends = np.cumsum(counts, dtype=np.int64).tolist()
+        return [text[a:b] for a, b in zip([0] + ends[:-1], ends)], None
+    if kind == ColumnKind.INT:
+        ints = _undo_zigzag_delta(_unshuffle(reader.array("u1", 8 * n, "int column"), n), 1)
+        return list(map(str, ints.tolist())), None
+    if kind == ColumnKind.FLOAT:
+        words = _undo_zigzag_delta(_unshuffle(reader.array("u1", 8 * n, "float column"), n), 2)
+        values = words.view("<f8")
+        return _render_floats(values), values
+    if kind == ColumnKind.QUAT_W:
+        xyz = [slot_floats(f, n) for f in floats[-3:]]
+        if len(xyz) < 3 or any(f is None for f in xyz):
+            raise CodecError("columnar payload is corrupt: a quaternion column lacks x, y, z")
+        x, y, z = xyz
+        residual = _unshuffle(reader.array("u1", 8 * n, "quaternion column"), n)
+        values = (residual ^ quaternion_prediction(x, y, z).view("<u8")).view("<f8")
+        return _render_floats(values), values
+    if kind == ColumnKind.BOOL:
+        flags = reader.array("u1", n, "bool column")
+        if (flags > 1).any():
+            raise CodecError("columnar payload is corrupt: a bool column holds a value above 1")
+        return [("false", "true")[f] for f in flags.tolist()], None
+    if kind == ColumnKind.BASE64:
+        counts, blob = _read_blob(reader, n, "base64 column")
+        if int(counts.sum(dtype=np.uint64)) != len(blob):
+            raise CodecError("columnar payload is corrupt: base64 column lengths do not add up")
+        ends = np.cumsum(counts, dtype=np.int64).tolist()
+        data = bytes(blob)
+        return [
+            '"' + binascii.b2a_base64(data[a:b], newline=False).decode("ascii") + '"'
+            for a, b in zip([0] + ends[:-1], ends)
+        ], None
+    raise CodecError(f"columnar payload is corrupt: unknown column kind {kind}")
+
+
+def _utf8(data: memoryview, what: str) -> str:
+    try:
+        return str(data, "utf-8")
+    except UnicodeDecodeError as err:
+        raise CodecError(f"columnar payload is corrupt: {what} is not UTF-8") from err

@@ -1,0 +1,51 @@
+"""`cclog info` and `cclog fsck` through the CLI entry point."""
+
+import json
+
+import cclogfs
+from cclogfs.cli import main
+
+
+def build(path, n=60):
+    with cclogfs.open_store(path, create=True, segment_bytes=4096, sync_every_bytes=1) as store:
+        for i in range(n):
+            store.put_window("/odom" if i % 3 else "/tf", [(i * 100 + k, json.dumps({"i": i, "k": k})) for k in range(10)])
+
+
+def test_info_json_matches_store(tmp_path, capsys):
+    build(tmp_path / "s")
+    assert main(["info", str(tmp_path / "s"), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["streams"]["/odom"]["windows"] == 40 and info["streams"]["/tf"]["messages"] == 200
+    assert info["streams"]["/odom"]["codec"]["id"] == "zstd"
+    assert main(["info", str(tmp_path / "s")]) == 0
+    assert "/odom" in capsys.readouterr().out
+
+
+def test_fsck_clean_then_damaged(tmp_path, capsys):
+    build(tmp_path / "s")
+    assert main(["fsck", str(tmp_path / "s"), "--deep"]) == 0
+    out = capsys.readouterr().out
+    assert "clean" in out and "60 records" in out and "60 windows decoded" in out
+    seg = tmp_path / "s" / "00000000000000000000.seg"
+    data = bytearray(seg.read_bytes())
+    data[200] ^= 1
+    seg.write_bytes(bytes(data))
+    assert main(["fsck", str(tmp_path / "s")]) == 1
+    out = capsys.readouterr().out
+    assert "00000000000000000000.seg@" in out and "DAMAGED" in out
+    assert "intact and readable through the index" in out
+
+
+def test_fsck_reports_torn_tail_as_warning(tmp_path, capsys):
+    build(tmp_path / "s", n=3)
+    with open(tmp_path / "s" / "00000000000000000000.seg", "ab") as f:
+        f.write(b"CCLR\x01")
+    assert main(["fsck", str(tmp_path / "s")]) == 0
+    assert "torn record" in capsys.readouterr().out
+
+
+def test_errors_are_one_line_and_exit_nonzero(tmp_path, capsys):
+    assert main(["info", str(tmp_path / "missing")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("cclog: error:") and "not a cclogfs store" in err and err.count("\n") == 1

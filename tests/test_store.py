@@ -1,0 +1,194 @@
+"""The store's library API: puts, queries, validation, locking, failure handling."""
+
+import json
+import os
+
+import pytest
+
+import cclogfs
+from cclogfs.errors import (
+    InvalidInputError,
+    StoreError,
+    StoreFailedError,
+    StoreLockedError,
+    UnknownCodecError,
+)
+from cclogfs.fs import RecordingFileSystem
+
+
+def msgs(t0, n, step=10, tag="x"):
+    return [(t0 + i * step, json.dumps({"tag": tag, "i": i, "v": i * 0.1})) for i in range(n)]
+
+
+def test_put_query_exact_round_trip(tmp_path):
+    texts = ['{"a": 1.0}', '{"a":1e0 , "b" :[ ]}', '"\\u00e9\u00e9"', "  null ", '{"x": NaN}']
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        store.put_window("/odom", list(zip(range(5), texts)), meta={"score": 3.1})
+        (w,) = store.query("/odom")
+        assert list(w.messages()) == list(zip(range(5), texts))
+        assert (w.name, w.seq, w.start_ns, w.end_ns, w.count, w.meta) == ("/odom", 0, 0, 4, 5, {"score": 3.1})
+
+
+@pytest.mark.parametrize("codec", ["none", "zstd", {"id": "lzma", "preset": 1}])
+def test_codecs_per_store_per_stream_per_put(tmp_path, codec):
+    with cclogfs.open_store(tmp_path / "s", create=True, codec=codec, stream_codecs={"/tf": "none"}) as store:
+        store.put_window("/odom", msgs(0, 20))
+        store.put_window("/tf", msgs(0, 20))
+        store.put_window("/odom", msgs(500, 20), codec="lzma")
+        got = {(w.name, w.seq): w.codec_config["id"] for w in store.query()}
+    want_id = codec if isinstance(codec, str) else codec["id"]
+    assert got == {("/odom", 0): want_id, ("/tf", 1): "none", ("/odom", 2): "lzma"}
+
+
+def test_query_time_overlap_and_order(tmp_path):
+    with cclogfs.open_store(tmp_path / "s", create=True, segment_bytes=4096) as store:
+        for k in range(40):  # interleaved streams, several sealed segments
+            store.put_window(f"/s{k % 2}", msgs(k * 100, 5, step=20))
+            store.sync()
+        assert len(store.sealed) >= 2
+        ws = list(store.query("/s0", 1000, 1500))
+        assert [w.start_ns for w in ws] == [1000, 1200, 1400]
+        ws = list(store.query(None, 1050, 1150))  # 1000..1080 touches 1050; 1100..1180 too
+        assert [(w.name, w.start_ns) for w in ws] == [("/s0", 1000), ("/s1", 1100)]
+        assert [w.start_ns for w in store.query(None)] == sorted(w.start_ns for w in store.query(None))
+        assert list(store.query("/nope")) == []
+        assert list(store.query("/s0", 10**9, 2 * 10**9)) == []
+
+
+def test_long_window_overlapping_many_short_ones(tmp_path):
+    # The running max of end makes a long early window visible to a late query.
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        store.put_window("/a", [(0, "1"), (10_000, "2")])
+        for k in range(1, 50):
+            store.put_window("/a", [(k * 100, "3")])
+        assert [w.start_ns for w in store.query("/a", 9_000, 9_500)] == [0]
+
+
+def test_flat_namespace_names_are_data(tmp_path):
+    names = ["../../etc/passwd", "/odom", "a/b/../c", "\u00e9t\u00e9", "x" * 1024, "CON", ".", "MANIFEST"]
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        for i, name in enumerate(names):
+            store.put_window(name, [(i, "{}")])
+    assert sorted(os.listdir(tmp_path)) == ["s"]
+    files = sorted(os.listdir(tmp_path / "s"))
+    assert files == ["00000000000000000000.seg", "LOCK", "MANIFEST"]
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        assert sorted(store.streams()) == sorted(names)
+
+
+@pytest.mark.parametrize(
+    "name, match",
+    [("", "must not be empty"), ("a\x00b", "control character"), ("a\nb", "control character"),
+     ("x" * 1025, "over the 1024-byte limit"), ("\ud800", "not valid UTF-8"), (b"/odom", "must be a str")],
+)  # fmt: skip
+def test_bad_stream_names(tmp_path, name, match):
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        with pytest.raises(InvalidInputError, match=match):
+            store.put_window(name, [(0, "{}")])
+
+
+@pytest.mark.parametrize(
+    "messages, match",
+    [([], "at least one message"), ([(0, "{")], "message 0 is not well-formed JSON"),
+     ([(0, "{}"), (1, "{} x")], "message 1 is not well-formed JSON"),
+     ([(5, "1"), (4, "2")], "message 1: stamp_ns 4 is before"), ([(0.5, "1")], "must be an integer"),
+     ([(True, "1")], "got a bool"), ([(1 << 63, "1")], "does not fit in 64 bits"),
+     ([(0, b"{}")], "must be a str"), ([(0, '"\ud800"')], "not valid UTF-8"), ([(0,)], "not a")],
+)  # fmt: skip
+def test_bad_windows_store_nothing(tmp_path, messages, match):
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        store.put_window("/ok", [(0, "{}")])
+        with pytest.raises(InvalidInputError, match=match):
+            store.put_window("/odom", messages)
+        with pytest.raises(InvalidInputError, match="meta"):
+            store.put_window("/odom", [(0, "{}")], meta={"x": object()})
+        with pytest.raises(UnknownCodecError):
+            store.put_window("/odom", [(0, "{}")], codec="bogus")
+        assert [w.seq for w in store.query()] == [0]
+        assert store.put_window("/odom", [(1, "{}")]).seq == 1  # no sequence number was used up
+
+
+def test_one_writer_many_readers(tmp_path):
+    path = tmp_path / "s"
+    with cclogfs.open_store(path, create=True, sync_every_ms=None, sync_every_bytes=None) as writer:
+        writer.put_window("/a", [(0, "1")])
+        writer.sync()
+        writer.put_window("/a", [(1, "2")])  # buffered, not yet handed to the OS
+        with pytest.raises(StoreLockedError, match=f"pid.*{os.getpid()}"):
+            cclogfs.open_store(path)
+        with cclogfs.open_store(path, readonly=True) as reader:
+            assert [w.seq for w in reader.query()] == [0]
+            with pytest.raises(StoreError, match="read-only"):
+                reader.put_window("/a", [(2, "3")])
+        assert [w.seq for w in writer.query()] == [0, 1]  # the writer sees its own puts
+    with cclogfs.open_store(path) as again:
+        assert [w.seq for w in again.query()] == [0, 1]
+
+
+def test_missing_and_foreign_directories(tmp_path):
+    with pytest.raises(StoreError, match="not a cclogfs store"):
+        cclogfs.open_store(tmp_path / "nope")
+    (tmp_path / "junk").mkdir()
+    (tmp_path / "junk" / "file.txt").write_text("hi")
+    with pytest.raises(StoreError, match="holds files but no MANIFEST"):
+        cclogfs.open_store(tmp_path / "junk", create=True)
+
+
+def test_failed_fsync_refuses_further_writes(tmp_path):
+    fs = RecordingFileSystem()
+    store = cclogfs.open_store(tmp_path / "s", create=True, fs=fs, sync_every_ms=None)
+    store.put_window("/a", [(0, "1")])
+    store.sync()
+    fs.fail_fsync = True
+    store.put_window("/a", [(1, "2")])
+    with pytest.raises(StoreFailedError, match="fsync failed"):
+        store.sync()
+    with pytest.raises(StoreFailedError, match="refuses further writes"):
+        store.put_window("/a", [(2, "3")])
+    store.close()
+    with cclogfs.open_store(tmp_path / "s") as store:
+        assert [w.seq for w in store.query()][:1] == [0]
+
+
+def test_group_commit_policy(tmp_path):
+    fs = RecordingFileSystem()
+
+    def fsyncs():
+        return sum(op[0] == "fsync" for op in fs.ops)
+
+    with cclogfs.open_store(tmp_path / "a", create=True, fs=fs, sync_every_ms=None,
+                            sync_every_bytes=2000) as store:  # fmt: skip
+        base = fsyncs()
+        for i in range(40):
+            store.put_window("/a", msgs(i * 100, 3))
+        per_group = fsyncs() - base
+        assert 1 <= per_group < 40  # grouped, not one per put
+    fs.ops.clear()
+    with cclogfs.open_store(tmp_path / "b", create=True, fs=fs, sync_every_ms=0) as store:
+        base = fsyncs()
+        for i in range(10):
+            store.put_window("/a", msgs(i * 100, 3))
+        assert fsyncs() - base == 10
+
+
+def test_time_based_group_commit_without_further_puts(tmp_path):
+    import time
+
+    fs = RecordingFileSystem()
+    with cclogfs.open_store(tmp_path / "s", create=True, fs=fs, sync_every_ms=20,
+                            sync_every_bytes=None) as store:  # fmt: skip
+        store.put_window("/a", [(0, "1")])
+        deadline = time.monotonic() + 5
+        while not any(op[0] == "fsync" and op[1].endswith(".seg") for op in fs.ops[-3:]):
+            assert time.monotonic() < deadline, "the group-commit thread never synced"
+            time.sleep(0.01)
+
+
+def test_closed_store(tmp_path):
+    store = cclogfs.open_store(tmp_path / "s", create=True)
+    store.close()
+    store.close()
+    with pytest.raises(StoreError, match="closed"):
+        store.put_window("/a", [(0, "1")])
+    with pytest.raises(StoreError, match="closed"):
+        list(store.query())
