@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Ingest speed: messages per second from a bag and from JSON Lines, medians of N runs.
 
-    python bench/ingest_speed.py [--runs 5] [--jsonl-copies 6]
+    python -m bench ingest_speed [--runs 5] [--jsonl-copies 6]   (or python bench/ingest_speed.py)
 
 Measured on ../shared/data/nav2_turtlebot.mcap (8,197 messages, all topics). Each figure
 is printed beside a baseline measured in the same run, so the ratio holds on any machine:
