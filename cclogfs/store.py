@@ -329,14 +329,17 @@ class Store:
             ) from self._failed
 
     def put_window(self, name: str, messages: Sequence[tuple[int, str]],
-                   meta: Mapping[str, Any] | None = None, *, codec: Any = None) -> Receipt:  # fmt: skip
+                   meta: Mapping[str, Any] | None = None, *, codec: Any = None,
+                   check_json: bool = True) -> Receipt:  # fmt: skip
         """Store one window of messages (stamp_ns, JSON text) for stream `name`.
 
         Everything is checked before anything is written: bad input raises
-        InvalidInputError and stores nothing.
+        InvalidInputError and stores nothing. `check_json=False` skips only the JSON parse,
+        for texts a parser has just checked (a JSONL or bag source); the text is still
+        stored and returned byte for byte.
         """
         name_bytes = check_stream_name(name)
-        stamps, texts = encode_messages(messages)
+        stamps, texts = encode_messages(messages, check_json=check_json)
         meta_bytes = b"{}" if meta is None else _encode_meta(meta)
         chosen = codec_from_config(codec) if codec is not None else self.stream_codecs.get(name, self.codec)
         config, codec_number = self._codec_header(chosen)

@@ -32,7 +32,7 @@ def check_stream_name(name: object) -> bytes:
     return data
 
 
-def encode_messages(messages: Sequence[tuple[int, str]]) -> tuple[list[int], list[bytes]]:
+def encode_messages(messages: Sequence[tuple[int, str]], *, check_json: bool = True) -> tuple[list[int], list[bytes]]:
     """Stamps and UTF-8 texts of a window, every message checked (JSON, time order)."""
     try:
         count = len(messages)
@@ -64,12 +64,13 @@ def encode_messages(messages: Sequence[tuple[int, str]]) -> tuple[list[int], lis
         prev = stamp
         if not isinstance(text, str):
             raise InvalidInputError(f"message {i}: the JSON text must be a str, got {type(text).__name__}")
-        try:
-            _decoder.decode(text)
-        except json.JSONDecodeError as err:
-            raise InvalidInputError(f"message {i} is not well-formed JSON: {err}") from err
-        except RecursionError as err:
-            raise InvalidInputError(f"message {i} is nested too deeply to check") from err
+        if check_json:
+            try:
+                _decoder.decode(text)
+            except json.JSONDecodeError as err:
+                raise InvalidInputError(f"message {i} is not well-formed JSON: {err}") from err
+            except RecursionError as err:
+                raise InvalidInputError(f"message {i} is nested too deeply to check") from err
         try:
             texts.append(text.encode("utf-8"))
         except UnicodeEncodeError as err:

@@ -1,0 +1,130 @@
+"""The pipeline: messages from a source, through a window policy, into the store.
+
+With the CLI, this is the only place that knows both the classifier and the store. A
+*window policy* is any object with `push(topic, stamp_ns, text) -> [window]` and
+`flush() -> [window]`, where a window has `.topic`, `.messages` and `.meta`:
+`KeepAll` keeps every message (the paper's collect mode), the classifier's `SmartLogger`
+keeps only logging windows around anomalies (smart mode).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple, Protocol
+
+from .store import Store
+
+
+class Chunk(NamedTuple):
+    """A window to store: messages of one topic and the window's metadata."""
+
+    topic: str
+    messages: list[tuple[int, str]]
+    meta: dict
+
+
+class WindowPolicy(Protocol):
+    def push(self, topic: str, stamp_ns: int, text: str) -> list[Any]: ...
+
+    def flush(self) -> list[Any]: ...
+
+
+class KeepAll:
+    """Every message kept, cut per topic into windows of `chunk` messages or `chunk_s` seconds."""
+
+    def __init__(self, *, chunk: int = 200, chunk_s: float | None = None):
+        if chunk < 1:
+            raise ValueError("chunk must be at least 1 message")
+        self.chunk = chunk
+        self.chunk_ns = None if chunk_s is None else int(chunk_s * 1e9)
+        self.open: dict[str, list[tuple[int, str]]] = {}
+
+    def push(self, topic: str, stamp_ns: int, text: str) -> list[Chunk]:
+        buf = self.open.setdefault(topic, [])
+        out = []
+        if buf and self.chunk_ns is not None and stamp_ns - buf[0][0] >= self.chunk_ns:
+            out.append(self._close(topic))
+            buf = self.open.setdefault(topic, [])
+        buf.append((stamp_ns, text))
+        if len(buf) >= self.chunk:
+            out.append(self._close(topic))
+        return out
+
+    def _close(self, topic: str) -> Chunk:
+        return Chunk(topic, self.open.pop(topic), {"kind": "all"})
+
+    def flush(self) -> list[Chunk]:
+        return [self._close(t) for t in list(self.open) if self.open[t]]
+
+
+def monotonic_runs(messages: list[tuple[int, str]]) -> Iterator[list[tuple[int, str]]]:
+    """Split where a stamp goes backwards (header stamps of some topics do): the store keeps
+    each window's messages in time order, and a split keeps every message, in put order."""
+    start = 0
+    for i in range(1, len(messages)):
+        if messages[i][0] < messages[i - 1][0]:
+            yield messages[start:i]
+            start = i
+    yield messages[start:]
+
+
+@dataclass
+class RecordStats:
+    """What a recording run saw and kept."""
+
+    messages_in: int = 0
+    json_bytes_in: int = 0
+    messages_kept: int = 0
+    json_bytes_kept: int = 0
+    windows: int = 0
+    records: int = 0
+    seconds: float = 0.0
+    topics_in: dict[str, int] = field(default_factory=dict)
+    topics_kept: dict[str, int] = field(default_factory=dict)
+    interrupted: bool = False
+
+
+def store_window(store: Store, window: Any, stats: RecordStats, *, check_json: bool = True) -> None:
+    """Put one window (several records when its stamps go backwards)."""
+    runs = list(monotonic_runs(window.messages))
+    for k, part in enumerate(runs):
+        meta = window.meta if len(runs) == 1 else {**window.meta, "split": [k, len(runs)]}
+        store.put_window(window.topic, part, meta, check_json=check_json)
+        stats.records += 1
+    stats.windows += 1
+    n = len(window.messages)
+    stats.messages_kept += n
+    stats.json_bytes_kept += sum(len(t) for _, t in window.messages)
+    stats.topics_kept[window.topic] = stats.topics_kept.get(window.topic, 0) + n
+
+
+def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
+           trusted_json: bool = False, progress: Callable[[RecordStats], None] | None = None,
+           stats: RecordStats | None = None) -> RecordStats:  # fmt: skip
+    """Feed messages (objects with .topic, .stamp_ns, .text) through `policy` into `store`.
+
+    On any exit, Ctrl-C included, the policy's open windows are flushed into the store, so
+    nothing already seen is lost; the caller closes (and so syncs) the store.
+    `trusted_json`: the source already parsed every text (JSONL, bags), skip the re-check.
+    """
+    stats = stats or RecordStats()
+    started = time.perf_counter()
+    check = not trusted_json
+    try:
+        for m in messages:
+            stats.messages_in += 1
+            stats.json_bytes_in += len(m.text)
+            stats.topics_in[m.topic] = stats.topics_in.get(m.topic, 0) + 1
+            for window in policy.push(m.topic, m.stamp_ns, m.text):
+                store_window(store, window, stats, check_json=check)
+            if progress is not None and stats.messages_in % 4096 == 0:
+                progress(stats)
+    except KeyboardInterrupt:
+        stats.interrupted = True
+    finally:
+        for window in policy.flush():
+            store_window(store, window, stats, check_json=check)
+        stats.seconds = time.perf_counter() - started
+    return stats
