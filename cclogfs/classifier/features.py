@@ -235,7 +235,7 @@ class DefaultFeatures:
     def __init__(
         self,
         *,
-        deriv_s: float = 0.2,
+        deriv_s: float = 0.05,
         match_s: float = 0.5,
         short_s: float = 1.0,
         long_s: float = 8.0,
