@@ -80,17 +80,7 @@ class OneClassModel:
         X = X[np.isfinite(X).all(axis=1)]
         if X.ndim != 2 or len(X) < 20:
             raise ModelError(f"Training needs at least 20 finite nominal vectors, got {len(X)}.")
-        rng = np.random.default_rng(self.random_state)
-        blocks = np.arange(len(X)) // self.block
-        n_blocks = int(blocks[-1]) + 1
-        n_hold = max(1, int(round(n_blocks * self.holdout))) if n_blocks > 1 else 0
-        held = np.isin(blocks, rng.choice(n_blocks, n_hold, replace=False))
-        if not held.any() or held.all():  # too little data for blocks: hold out every 4th
-            held = np.arange(len(X)) % 4 == 0
-        train, hold = X[~held], X[held]
-        if len(train) > self.max_train:  # evenly spaced in time keeps rare manoeuvres
-            train = train[np.linspace(0, len(train) - 1, self.max_train).round().astype(int)]
-
+        train, hold = self.split(X)
         self.mean_ = train.mean(axis=0)
         self.scale_ = np.maximum(train.std(axis=0), self.min_scale)
         self.n_features_in_ = X.shape[1]
@@ -115,6 +105,20 @@ class OneClassModel:
         self.n_train_ = len(train)
         self.model_id_ = self._digest()[:16]
         return self
+
+    def split(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(training rows, held-out rows) of X, as `fit` uses them (deterministic)."""
+        rng = np.random.default_rng(self.random_state)
+        blocks = np.arange(len(X)) // self.block
+        n_blocks = int(blocks[-1]) + 1
+        n_hold = max(1, int(round(n_blocks * self.holdout))) if n_blocks > 1 else 0
+        held = np.isin(blocks, rng.choice(n_blocks, n_hold, replace=False))
+        if not held.any() or held.all():  # too little data for blocks: hold out every 4th
+            held = np.arange(len(X)) % 4 == 0
+        train, hold = X[~held], X[held]
+        if len(train) > self.max_train:  # evenly spaced in time keeps rare manoeuvres
+            train = train[np.linspace(0, len(train) - 1, self.max_train).round().astype(int)]
+        return train, hold
 
     def _fit_svm(self, train: np.ndarray, nu: float, gamma: float, hold: np.ndarray) -> None:
         from sklearn.svm import OneClassSVM
