@@ -111,11 +111,10 @@ class WindowBuilder:
         w = self.window
         if w is None:
             self.ring.append((stamp_ns, text))
+            self._trim_ring(stamp_ns)
             if anomalous:
                 self._open(stamp_ns, out)
                 self._trigger(stamp_ns, score)
-            else:
-                self._trim_ring(stamp_ns)
         elif not w.closing:
             self._add(self.trigger_topic, [(stamp_ns, text)], out)
             w.last_ns = stamp_ns
@@ -168,8 +167,9 @@ class WindowBuilder:
         return out
 
     def _trim_ring(self, now_ns: int) -> None:
+        """Keep the newest message and the `before` messages (or seconds) before it."""
         if self.before_ns is None:
-            while len(self.ring) > self.before:
+            while len(self.ring) > self.before + 1:
                 self.ring.popleft()
         else:
             while self.ring and self.ring[0][0] < now_ns - self.before_ns:
