@@ -1,0 +1,235 @@
+"""Entry points for the pipeline and CLI: train, detect, build logging windows, collect."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Iterable, Iterator
+
+import numpy as np
+
+from ..errors import InvalidInputError, ModelError
+from .features import OdomArrays, make_features, odom_row, parse_odometry
+from .model import OneClassModel
+from .summary import SUMMARY_TOPIC, SummaryBuilder
+from .windows import LoggedWindow, WindowBuilder
+
+__all__ = ["Detector", "SmartLogger", "collect", "event_masks", "load_dataset", "parse_labels", "train"]
+
+# Noise floors of the default features (m/s, rad/s, m/s^2, ...): standardizing by a spread
+# smaller than this would make sensor noise look anomalous on a robot other than the one
+# the model was trained on.
+DEFAULT_FLOORS = np.array(
+    [0.1, 0.3, 0.5, 0.5, 1.0, 5.0, 0.05, 0.05, 0.1, 0.1, 0.2, 0.05, 0.05]
+)
+
+
+def _as_odom(source) -> OdomArrays:
+    return source if isinstance(source, OdomArrays) else parse_odometry(source)
+
+
+def parse_labels(labels) -> list[dict]:
+    if labels is None:
+        return []
+    try:
+        events = labels["events"] if isinstance(labels, dict) else labels
+        return [{"start_ns": int(e["start_ns"]), "end_ns": int(e["end_ns"]),
+                 "kind": str(e.get("kind", ""))} for e in events]  # fmt: skip
+    except (KeyError, TypeError, ValueError) as err:
+        raise InvalidInputError(
+            f"Labels must be {{'events': [{{'start_ns', 'end_ns', 'kind'}}]}}: bad field {err}."
+        ) from err
+
+
+def event_masks(features, stamp_ns: np.ndarray, labels) -> tuple[np.ndarray, np.ndarray]:
+    """(inside, touched): messages inside a labelled event, and messages whose feature
+    vector depends on one (inside, or within the feature window after it)."""
+    inside = np.zeros(len(stamp_ns), dtype=bool)
+    touched = np.zeros(len(stamp_ns), dtype=bool)
+    for e in parse_labels(labels):
+        a = np.searchsorted(stamp_ns, e["start_ns"], side="left")
+        b = np.searchsorted(stamp_ns, e["end_ns"], side="right")
+        inside[a:b] = True
+        if hasattr(features, "horizon_ns"):
+            c = np.searchsorted(stamp_ns, e["end_ns"] + features.horizon_ns, side="right")
+        else:  # window of messages
+            c = b + features.span - 1
+        touched[a:c] = True
+    return inside, touched
+
+
+def train(
+    sources: Iterable, *, labels=None, features: dict | str | None = "default", **params
+) -> OneClassModel:
+    """A model trained on odometry runs (OdomArrays, or lists of JSON texts/dicts).
+
+    `labels`: None, one {"events": [...]} for all runs (stamps are absolute), or a list
+    with one per run. Vectors that depend on an event are left out of the nominal set; the
+    ones inside events select nu/gamma. `params` go to OneClassModel.
+    """
+    fs = make_features(features)
+    sources = [_as_odom(s) for s in sources]
+    per_run = labels if isinstance(labels, list) else [labels] * len(sources)
+    if len(per_run) != len(sources):
+        raise InvalidInputError(f"Got {len(per_run)} label sets for {len(sources)} runs.")
+    nominal, anomalous = [], []
+    for odom, lab in zip(sources, per_run):
+        X, valid = fs.batch(odom)
+        inside, touched = event_masks(fs, odom.stamp_ns, lab)
+        nominal.append(X[valid & ~touched])
+        anomalous.append(X[valid & inside])
+    if fs.id == "default":
+        params.setdefault("min_scale", DEFAULT_FLOORS)
+        params.setdefault("one_sided", True)
+    model = OneClassModel(feature_config=fs.get_config(), **params)
+    Xa = np.concatenate(anomalous)
+    return model.fit(np.concatenate(nominal), Xa if len(Xa) else None)
+
+
+class Detector:
+    """Scores odometry with a model: whole runs (`score_batch`) or live (`update`)."""
+
+    def __init__(self, model: OneClassModel):
+        self.model = model
+        self.features = make_features(model.feature_config)
+        if self.features.dim != model.n_features_in_:
+            raise ModelError(
+                f"Model {model.model_id_} expects {model.n_features_in_} features, but its "
+                f"feature set {model.feature_config} gives {self.features.dim}."
+            )
+        self.reset()
+
+    def reset(self) -> None:
+        self._stream = self.features.stream()
+
+    def score_batch(self, odom) -> tuple[np.ndarray, np.ndarray]:
+        """(scores, anomalous) per message; NaN score and False where no vector exists."""
+        odom = _as_odom(odom)
+        X, valid = self.features.batch(odom)
+        scores = np.full(len(odom), np.nan)
+        if valid.any():
+            scores[valid] = self.model.score(X[valid])
+        return scores, np.nan_to_num(scores, nan=-np.inf) > 0
+
+    def update_row(self, stamp_ns: int, row) -> tuple[float, bool]:
+        """Score of the newest message given as (stamp, 13 raw values)."""
+        got = self._stream.push(stamp_ns, row)
+        if got is None or not got[1]:
+            return math.nan, False
+        score = float(self.model.score(got[0][None, :])[0])
+        return score, score > 0
+
+    def update(self, msg: dict | str | bytes) -> tuple[float, bool]:
+        """Score of one live odometry message (rosbridge dict or JSON text)."""
+        return self.update_row(*odom_row(msg))
+
+
+class SmartLogger:
+    """Turns a stream of (topic, stamp_ns, json_text) into LoggedWindows to store.
+
+    Odometry on `odom_topic` is scored; windows come from WindowBuilder (same keyword
+    arguments); per-minute summaries come out as windows on `/cclog/summary`.
+    """
+
+    def __init__(self, detector: Detector, *, odom_topic: str = "/odom",
+                 summary_period_s: float | None = 60.0, **window_args):  # fmt: skip
+        self.detector = detector
+        self.odom_topic = odom_topic
+        self.windows = WindowBuilder(trigger_topic=odom_topic,
+                                     model_id=detector.model.model_id_, **window_args)  # fmt: skip
+        self.summary = SummaryBuilder(period_s=summary_period_s) if summary_period_s else None
+        self.scored = 0
+        self.anomalies = 0
+
+    def push(self, topic: str, stamp_ns: int, text: str) -> list[LoggedWindow]:
+        """One message; returns the windows (and summaries) that closed."""
+        if topic != self.odom_topic:
+            return self.windows.push(topic, stamp_ns, text)
+        head, row = odom_row(text)
+        score, flag = self.detector.update_row(head, row)
+        return self._odom(stamp_ns, text, row, score, flag)
+
+    def _odom(self, stamp_ns, text, row, score, flag) -> list[LoggedWindow]:
+        self.scored += 1
+        self.anomalies += flag
+        out = self.windows.push(self.odom_topic, stamp_ns, text, anomalous=flag, score=score)
+        if self.summary is not None:
+            recs = self.summary.update(stamp_ns, row[0], row[1], math.hypot(row[7], row[8]), flag)
+            out += [self._summary_window(r) for r in recs]
+        return out
+
+    def flush(self) -> list[LoggedWindow]:
+        """End of input: close the open window and the current summary period."""
+        out = self.windows.flush()
+        if self.summary is not None:
+            out += [self._summary_window(r) for r in self.summary.flush()]
+        return out
+
+    @staticmethod
+    def _summary_window(rec: tuple[int, str]) -> LoggedWindow:
+        return LoggedWindow(SUMMARY_TOPIC, [rec], {"kind": "summary"})
+
+    def run(self, stream: Iterable[tuple[str, int, str]]) -> Iterator[LoggedWindow]:
+        """Live mode over an iterable: yields windows as they close, then the flush."""
+        for topic, stamp_ns, text in stream:
+            yield from self.push(topic, stamp_ns, text)
+        yield from self.flush()
+
+    def replay(self, messages: list[tuple[str, int, str]]) -> list[LoggedWindow]:
+        """A recorded run at once: odometry parsed and scored in batch (same results as
+        `run`, from a fresh detector), then the window logic in one pass."""
+        odom_at = [i for i, m in enumerate(messages) if m[0] == self.odom_topic]
+        odom = parse_odometry(messages[i][2] for i in odom_at)
+        scores, flags = self.detector.score_batch(odom)
+        out: list[LoggedWindow] = []
+        j = 0
+        raw = odom.raw.tolist()
+        for i, (topic, stamp_ns, text) in enumerate(messages):
+            if j < len(odom_at) and odom_at[j] == i:
+                out += self._odom(stamp_ns, text, raw[j], float(scores[j]), bool(flags[j]))
+                j += 1
+            else:
+                out += self.windows.push(topic, stamp_ns, text)
+        return out + self.flush()
+
+
+def collect(source, out_dir: str | Path, *, features: dict | str | None = "default",
+            labels=None) -> dict:  # fmt: skip
+    """Write a run's feature vectors as a labelled dataset (as in the paper): one `.npy`
+    per vector under `nominal/` or `anomalous/`, and `dataset.json` with the feature
+    config. Vectors that depend on an event but are not inside it are skipped."""
+    fs = make_features(features)
+    odom = _as_odom(source)
+    X, valid = fs.batch(odom)
+    inside, touched = event_masks(fs, odom.stamp_ns, labels)
+    out = Path(out_dir)
+    meta_path = out / "dataset.json"
+    if meta_path.exists():
+        meta = json.loads(meta_path.read_text())
+        if meta.get("feature_config") != fs.get_config():
+            raise InvalidInputError(f"{meta_path} holds vectors of other features: {meta}.")
+    else:
+        meta = {"feature_config": fs.get_config(), "nominal": 0, "anomalous": 0}
+    for kind, mask in (("nominal", valid & ~touched), ("anomalous", valid & inside)):
+        (out / kind).mkdir(parents=True, exist_ok=True)
+        for i in np.nonzero(mask)[0]:
+            np.save(out / kind / f"{meta[kind]:08d}_{odom.stamp_ns[i]}.npy", X[i], allow_pickle=False)
+            meta[kind] += 1
+    meta_path.write_text(json.dumps(meta, indent=1))
+    return meta
+
+
+def load_dataset(path: str | Path) -> tuple[dict, np.ndarray, np.ndarray]:
+    """(feature_config, nominal vectors, anomalous vectors) of a collected dataset."""
+    path = Path(path)
+    try:
+        meta = json.loads((path / "dataset.json").read_text())
+    except (OSError, ValueError) as err:
+        raise InvalidInputError(f"{path} is not a collected dataset: {err}.") from err
+    dim = make_features(meta["feature_config"]).dim
+    arrays = []
+    for kind in ("nominal", "anomalous"):
+        files = sorted((path / kind).glob("*.npy"))
+        arrays.append(np.array([np.load(f, allow_pickle=False) for f in files]).reshape(-1, dim))
+    return meta["feature_config"], arrays[0], arrays[1]

@@ -1,0 +1,93 @@
+"""Detection quality: the paper's per-message Table 1 and per-event figures for windows."""
+
+from __future__ import annotations
+
+from typing import Iterable
+
+import numpy as np
+
+from .api import parse_labels
+from .windows import LoggedWindow
+
+__all__ = ["event_table", "format_event_table", "format_message_table", "message_table",
+           "window_spans"]  # fmt: skip
+
+
+def _inside(stamp_ns: np.ndarray, spans: Iterable[tuple[int, int]]) -> np.ndarray:
+    """Mask of stamps inside any closed span [start, end]."""
+    mask = np.zeros(len(stamp_ns), dtype=bool)
+    for a, b in spans:
+        mask[np.searchsorted(stamp_ns, a, "left") : np.searchsorted(stamp_ns, b, "right")] = True
+    return mask
+
+
+def _ratio(a: float, b: float) -> float:
+    return float(a / b) if b else float("nan")
+
+
+def message_table(stamp_ns: np.ndarray, flags: np.ndarray, labels) -> dict:
+    """Table 1 of the paper: a message is anomalous when inside a labelled event."""
+    truth = _inside(np.asarray(stamp_ns), [(e["start_ns"], e["end_ns"]) for e in parse_labels(labels)])
+    flags = np.asarray(flags, dtype=bool)
+    tp, fp = int(np.sum(flags & truth)), int(np.sum(flags & ~truth))
+    fn, tn = int(np.sum(~flags & truth)), int(np.sum(~flags & ~truth))
+    return {"total": len(flags), "tp": tp, "fp": fp, "fn": fn, "tn": tn,
+            "precision": _ratio(tp, tp + fp), "recall": _ratio(tp, tp + fn)}  # fmt: skip
+
+
+def window_spans(windows: Iterable[LoggedWindow], topic: str = "/odom") -> list[tuple[int, int]]:
+    """(start_ns, end_ns) of each stored window of `topic`, parts joined by window_id."""
+    spans: dict[str, list[int]] = {}
+    for w in windows:
+        if w.topic != topic or not w.messages:
+            continue
+        key = w.meta.get("window_id", id(w))
+        s = spans.setdefault(key, [w.start_ns, w.end_ns])
+        s[0], s[1] = min(s[0], w.start_ns), max(s[1], w.end_ns)
+    return sorted((a, b) for a, b in spans.values())
+
+
+def event_table(stamp_ns: np.ndarray, spans: list[tuple[int, int]], labels) -> dict:
+    """Per-event figures: an event is recalled when every message in it was kept; a false
+    window touches no event; false windows per 10 minutes of run time."""
+    stamp_ns = np.asarray(stamp_ns)
+    events = parse_labels(labels)
+    kept = _inside(stamp_ns, spans)
+    recalled = 0
+    for e in events:
+        sel = _inside(stamp_ns, [(e["start_ns"], e["end_ns"])])
+        recalled += bool(sel.any() and kept[sel].all())
+    false = sum(
+        1 for a, b in spans if not any(a <= e["end_ns"] and e["start_ns"] <= b for e in events)
+    )
+    minutes = (stamp_ns[-1] - stamp_ns[0]) / 60e9 if len(stamp_ns) > 1 else 0.0
+    return {
+        "events": len(events), "recalled": recalled, "event_recall": _ratio(recalled, len(events)),
+        "windows": len(spans), "false_windows": false,
+        "window_precision": _ratio(len(spans) - false, len(spans)),
+        "false_per_10min": _ratio(false * 10, minutes), "minutes": minutes,
+        "kept_fraction": _ratio(int(kept.sum()), len(stamp_ns)),
+    }  # fmt: skip
+
+
+def _fmt(v) -> str:
+    return f"{100 * v:.1f}%" if isinstance(v, float) and v <= 1 and v == v else str(v)
+
+
+def format_message_table(t: dict) -> str:
+    """The per-message table laid out like the paper's Table 1."""
+    rows = [("Total Events", t["total"]), ("True Positives", t["tp"]),
+            ("False Positives", t["fp"]), ("False Negatives", t["fn"]),
+            ("True Negatives", t["tn"]), ("Precision", _fmt(t["precision"])),
+            ("Recall", _fmt(t["recall"]))]  # fmt: skip
+    return "\n".join(f"{k:<16} {v:>8}" for k, v in rows)
+
+
+def format_event_table(t: dict) -> str:
+    """Per-event figures, one per line."""
+    rows = [("Events", t["events"]), ("Events recalled", f"{t['recalled']} ({_fmt(t['event_recall'])})"),
+            ("Windows stored", t["windows"]), ("False windows", t["false_windows"]),
+            ("Window precision", _fmt(t["window_precision"])),
+            ("False / 10 min", f"{t['false_per_10min']:.2f}"),
+            ("Messages kept", _fmt(t["kept_fraction"]))]  # fmt: skip
+    return "\n".join(f"{k:<17} {v:>12}" for k, v in rows)

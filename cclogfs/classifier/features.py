@@ -1,0 +1,430 @@
+"""Odometry parsing and feature extraction (batch and live give the same vectors).
+
+Two feature sets share one interface (`get_config`, `batch`, `stream`):
+
+- `paper`: the CC-Log paper's raw concatenation of pose position, orientation, linear and
+  angular twist over the last `window` messages (every `stride`-th one); 500/2 gives the
+  paper's 3,250 features.
+- `default`: per-second motion quantities that do not depend on where the robot is, which
+  way it faces or how fast odometry is published (see `DefaultFeatures`).
+"""
+
+from __future__ import annotations
+
+import json
+from collections import deque
+from dataclasses import dataclass
+from typing import Any, Iterable, Protocol
+
+import numpy as np
+
+from ..errors import InvalidInputError
+
+__all__ = [
+    "DefaultFeatures",
+    "FeatureSet",
+    "OdomArrays",
+    "PaperFeatures",
+    "make_features",
+    "odom_row",
+    "parse_odometry",
+]
+
+NS = 1_000_000_000
+# Per message: position xyz, orientation xyzw, linear twist xyz, angular twist xyz.
+RAW_WIDTH = 13
+
+
+@dataclass
+class OdomArrays:
+    """A run of odometry messages as arrays: stamps (int64 ns) and a (n, 13) float64 block."""
+
+    stamp_ns: np.ndarray
+    raw: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.stamp_ns)
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.raw[:, 0:3]
+
+    @property
+    def orientation(self) -> np.ndarray:
+        return self.raw[:, 3:7]
+
+    @property
+    def linear(self) -> np.ndarray:
+        return self.raw[:, 7:10]
+
+    @property
+    def angular(self) -> np.ndarray:
+        return self.raw[:, 10:13]
+
+    def take(self, index: Any) -> OdomArrays:
+        """Rows selected by a slice, mask or index array."""
+        return OdomArrays(self.stamp_ns[index], self.raw[index])
+
+    @classmethod
+    def concat(cls, parts: Iterable[OdomArrays]) -> OdomArrays:
+        parts = list(parts)
+        if not parts:
+            return cls(np.empty(0, np.int64), np.empty((0, RAW_WIDTH)))
+        return cls(
+            np.concatenate([p.stamp_ns for p in parts]), np.concatenate([p.raw for p in parts])
+        )
+
+
+def odom_row(msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
+    """One nav_msgs/Odometry (rosbridge dict or JSON text) as (stamp_ns, 13 floats)."""
+    try:
+        if not isinstance(msg, dict):
+            msg = json.loads(msg)
+        stamp = msg["header"]["stamp"]
+        pose = msg["pose"]["pose"]
+        p, q = pose["position"], pose["orientation"]
+        twist = msg["twist"]["twist"]
+        v, w = twist["linear"], twist["angular"]
+        return int(stamp["sec"]) * NS + int(stamp["nanosec"]), (
+            p["x"], p["y"], p["z"], q["x"], q["y"], q["z"], q["w"],
+            v["x"], v["y"], v["z"], w["x"], w["y"], w["z"],
+        )  # fmt: skip
+    except (KeyError, TypeError, ValueError) as err:
+        raise InvalidInputError(
+            f"The message is not a nav_msgs/Odometry in rosbridge JSON (missing or bad field: {err})."
+        ) from err
+
+
+def parse_odometry(messages: Iterable[dict | str | bytes]) -> OdomArrays:
+    """Many odometry messages (dicts or JSON texts) as one OdomArrays."""
+    stamps: list[int] = []
+    rows: list[tuple[float, ...]] = []
+    for i, msg in enumerate(messages):
+        try:
+            stamp, row = odom_row(msg)
+        except InvalidInputError as err:
+            raise InvalidInputError(f"Odometry message {i}: {err}") from err
+        stamps.append(stamp)
+        rows.append(row)
+    raw = np.array(rows, dtype=np.float64).reshape(len(rows), RAW_WIDTH)
+    return OdomArrays(np.array(stamps, dtype=np.int64), raw)
+
+
+class FeatureStream(Protocol):
+    def push(self, stamp_ns: int, row: Any) -> tuple[np.ndarray, bool] | None: ...
+
+
+class FeatureSet(Protocol):
+    """What a feature set offers: its config, whole-run extraction and live extraction."""
+
+    id: str
+    version: int
+    params: dict
+    dim: int
+
+    def get_config(self) -> dict: ...
+
+    def batch(self, odom: OdomArrays) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def stream(self) -> FeatureStream: ...
+
+
+class PaperFeatures:
+    """The paper's features: raw values of the last `window` messages, every `stride`-th."""
+
+    id = "paper"
+    version = 1
+
+    def __init__(self, *, window: int = 500, stride: int = 2):
+        if window < 1 or stride < 1 or stride > window:
+            raise InvalidInputError(f"Paper features need 1 <= stride <= window, got {window}/{stride}.")
+        self.params = {"window": int(window), "stride": int(stride)}
+        self.count = window // stride
+        self.span = stride * (self.count - 1) + 1
+        self.dim = self.count * RAW_WIDTH
+
+    def get_config(self) -> dict:
+        return {"id": self.id, "version": self.version, "params": dict(self.params)}
+
+    def batch(self, odom: OdomArrays) -> tuple[np.ndarray, np.ndarray]:
+        """(X, valid): row i is NaN and invalid until `span` messages have been seen."""
+        n = len(odom)
+        X = np.full((n, self.dim), np.nan)
+        first = self.span - 1
+        if n > first:
+            rows = np.arange(first, n)
+            offsets = self.params["stride"] * np.arange(self.count - 1, -1, -1)
+            X[first:] = odom.raw[rows[:, None] - offsets].reshape(len(rows), self.dim)
+        return X, np.arange(n) >= first
+
+    def stream(self) -> _PaperStream:
+        return _PaperStream(self)
+
+
+class _PaperStream:
+    def __init__(self, fs: PaperFeatures):
+        self.stride = fs.params["stride"]
+        self.rows: deque = deque(maxlen=fs.span)
+
+    def push(self, stamp_ns: int, row: Any) -> tuple[np.ndarray, bool] | None:
+        """(vector, True) once the window is full, else None."""
+        self.rows.append(np.asarray(row, dtype=np.float64))
+        if len(self.rows) < self.rows.maxlen:
+            return None
+        return np.concatenate(list(self.rows)[:: self.stride]), True
+
+
+# Feature names of the default set, in column order.
+DEFAULT_NAMES = (
+    "speed",  # |linear twist| now, m/s
+    "yaw_rate",  # |angular twist z| now, rad/s
+    "accel_max",  # max |dv/dt| over the short window, m/s^2
+    "brake_max",  # max deceleration along the body x axis, m/s^2 (abrupt stops)
+    "ang_accel_max",  # max |dw/dt|, rad/s^2 (sudden twisting)
+    "jerk_max",  # max |d(accel)/dt|, m/s^3
+    "pose_twist_mismatch",  # max |pose displacement - integrated twist| / time, m/s
+    "yaw_twist_mismatch",  # max |pose yaw change - integrated yaw rate| / time, rad/s
+    "path_speed",  # twist path length / time over the long window, m/s
+    "net_speed",  # pose net displacement / time over the long window, m/s
+    "turn_rate",  # integral of |w| / time over the long window, rad/s
+    "wasted_motion",  # path - net displacement, per second (back and forth, oscillation)
+    "wasted_turn",  # turning that cancels out, per second (yaw oscillation)
+)
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def _window_max(x: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """Row i: max of x[start[i] : i+1] (column-wise), by a sparse table (exact, vectorized)."""
+    n = len(x)
+    if n == 0:
+        return x.copy()
+    idx = np.arange(n)
+    length = idx - start + 1
+    level = np.floor(np.log2(length)).astype(np.int64)
+    out = np.empty_like(x)
+    table = x
+    for k in range(int(level.max()) + 1):
+        if k:
+            half = 1 << (k - 1)
+            nxt = table.copy()
+            nxt[: n - half] = np.maximum(table[: n - half], table[half:])
+            table = nxt
+        rows = np.nonzero(level == k)[0]
+        if len(rows):
+            out[rows] = np.maximum(table[start[rows]], table[rows - (1 << k) + 1])
+    return out
+
+
+class DefaultFeatures:
+    """Motion features invariant to position, heading and message rate.
+
+    Derivatives use the actual stamps over a baseline of at least `deriv_s` seconds (so
+    jitter and rate change little); windows are in seconds. Messages whose stamp does not
+    advance, or with non-finite values, repeat the previous vector. A gap longer than
+    `gap_s` restarts everything, and vectors are valid once `warmup_s` of data follow a
+    (re)start.
+    """
+
+    id = "default"
+    version = 1
+    names = DEFAULT_NAMES
+
+    def __init__(
+        self,
+        *,
+        deriv_s: float = 0.05,
+        match_s: float = 0.5,
+        short_s: float = 1.0,
+        long_s: float = 8.0,
+        gap_s: float = 1.0,
+        warmup_s: float = 1.0,
+    ):
+        values = dict(deriv_s=deriv_s, match_s=match_s, short_s=short_s, long_s=long_s,
+                      gap_s=gap_s, warmup_s=warmup_s)  # fmt: skip
+        for name, value in values.items():
+            if not value > 0:
+                raise InvalidInputError(f"Feature parameter {name} must be > 0, got {value!r}.")
+        self.params = {k: float(v) for k, v in values.items()}
+        self.dim = len(DEFAULT_NAMES)
+        ns = {k: int(round(v * NS)) for k, v in self.params.items()}
+        self._deriv, self._match = ns["deriv_s"], ns["match_s"]
+        self._short, self._long = ns["short_s"], ns["long_s"]
+        self._gap, self._warmup = ns["gap_s"], ns["warmup_s"]
+        # How far back the newest vector looks: a window plus the baseline of its oldest row.
+        self.horizon_ns = max(self._short + self._deriv * 2, self._short + self._match, self._long)
+
+    def get_config(self) -> dict:
+        return {"id": self.id, "version": self.version, "params": dict(self.params)}
+
+    def batch(self, odom: OdomArrays) -> tuple[np.ndarray, np.ndarray]:
+        """(X, valid) for a whole run: one vector per message."""
+        n = len(odom)
+        X = np.full((n, self.dim), np.nan)
+        valid = np.zeros(n, dtype=bool)
+        t = odom.stamp_ns
+        if n == 0:
+            return X, valid
+        # Same rule as the live stream: accept a finite message whose stamp passes every
+        # earlier finite one (a rejected finite stamp never raises that maximum).
+        finite = np.isfinite(odom.raw).all(axis=1)
+        prev_max = np.maximum.accumulate(np.where(finite, t, np.iinfo(np.int64).min))
+        accepted = finite.copy()
+        accepted[1:] &= t[1:] > prev_max[:-1]
+        acc_idx = np.nonzero(accepted)[0]
+        if len(acc_idx) == 0:
+            return X, valid
+        ta = t[acc_idx]
+        breaks = np.nonzero(np.diff(ta) > self._gap)[0] + 1
+        bounds = np.concatenate([[0], breaks, [len(ta)]])
+        Xa = np.empty((len(ta), self.dim))
+        va = np.empty(len(ta), dtype=bool)
+        for a, b in zip(bounds[:-1], bounds[1:]):
+            sel = acc_idx[a:b]
+            Xa[a:b], va[a:b] = self._segment(t[sel], odom.raw[sel], int(t[sel[0]]))
+        # Every message gets the vector of the newest accepted message at or before it.
+        owner = np.searchsorted(acc_idx, np.arange(n), side="right") - 1
+        has = owner >= 0
+        X[has] = Xa[owner[has]]
+        valid[has] = va[owner[has]]
+        return X, valid
+
+    def stream(self) -> _DefaultStream:
+        return _DefaultStream(self)
+
+    def _segment(self, t: np.ndarray, raw: np.ndarray, seg_start: int, last_only: bool = False):
+        """Vectors of one gap-free run with strictly increasing stamps `t` (int64 ns)."""
+        n = len(t)
+        pos = raw[:, 0:2]
+        qx, qy, qz, qw = raw[:, 3], raw[:, 4], raw[:, 5], raw[:, 6]
+        yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+        vx, vy, wz = raw[:, 7], raw[:, 8], raw[:, 12]
+        speed = np.hypot(vx, vy)
+
+        # Step integrals between consecutive messages (trapezoid, mid-step heading).
+        dt = np.diff(t) * 1e-9
+        dyaw = _wrap(np.diff(yaw))
+        mid = yaw[:-1] + 0.5 * dyaw
+        mvx, mvy = 0.5 * (vx[1:] + vx[:-1]), 0.5 * (vy[1:] + vy[:-1])
+        mw = 0.5 * (wz[1:] + wz[:-1])
+        c, s = np.cos(mid), np.sin(mid)
+        steps = np.column_stack([
+            (c * mvx - s * mvy) * dt,  # twist-integrated world x
+            (s * mvx + c * mvy) * dt,  # twist-integrated world y
+            mw * dt,  # twist-integrated yaw
+            dyaw,  # pose yaw change, unwrapped by summing wrapped steps
+            np.hypot(mvx, mvy) * dt,  # path length
+            np.abs(mw) * dt,  # total turning
+        ])  # fmt: skip
+        cum = np.zeros((n, steps.shape[1]))
+        np.cumsum(steps, axis=0, out=cum[1:])
+
+        def back(lag: int, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            """Baseline rows at least `lag` ns back (clamped to the run start), and the times."""
+            k = np.maximum(np.searchsorted(t, t[rows] - lag, side="right") - 1, 0)
+            span = (t[rows] - t[k]) * 1e-9
+            return k, np.where(span > 0, span, np.inf)
+
+        if last_only:  # only rows inside the newest vector's short window matter
+            first = int(np.searchsorted(t, t[-1] - self._short, side="left"))
+            rows = np.arange(first, n)
+        else:
+            rows = np.arange(n)
+        k, span = back(self._deriv, rows)
+        ax = (vx[rows] - vx[k]) / span
+        accel = np.hypot(ax, (vy[rows] - vy[k]) / span)
+        alpha = np.abs((wz[rows] - wz[k]) / span)
+        # Jerk needs the acceleration at the baseline row too: computed the same way.
+        k2, span2 = back(self._deriv, k)
+        ax_k = (vx[k] - vx[k2]) / span2
+        jerk = np.abs((ax - ax_k) / span)
+        m, mspan = back(self._match, rows)
+        dpose = pos[rows] - pos[m]
+        dtw = cum[rows, 0:2] - cum[m, 0:2]
+        mis_lin = np.hypot(dpose[:, 0] - dtw[:, 0], dpose[:, 1] - dtw[:, 1]) / mspan
+        mis_yaw = np.abs((cum[rows, 3] - cum[m, 3]) - (cum[rows, 2] - cum[m, 2])) / mspan
+        inst = np.column_stack([accel, -ax, alpha, jerk, mis_lin, mis_yaw])
+
+        if last_only:
+            out_rows = np.array([n - 1])
+            short = inst.max(axis=0, keepdims=True)
+        else:
+            out_rows = rows
+            start = np.searchsorted(t, t - self._short, side="left")
+            short = _window_max(inst, start)
+        j = np.searchsorted(t, t[out_rows] - self._long, side="left")
+        T = (t[out_rows] - t[j]) * 1e-9
+        T = np.where(T > 0, T, np.inf)
+        dcum = cum[out_rows] - cum[j]
+        path = dcum[:, 4] / T
+        net = np.hypot(*(pos[out_rows] - pos[j]).T) / T
+        turn = dcum[:, 5] / T
+        X = np.column_stack([
+            speed[out_rows], np.abs(wz[out_rows]), short,
+            path, net, turn, np.maximum(path - net, 0.0),
+            np.maximum(turn - np.abs(dcum[:, 2]) / T, 0.0),
+        ])  # fmt: skip
+        valid = t[out_rows] - seg_start >= self._warmup
+        return X, valid
+
+
+class _DefaultStream:
+    """Live extraction: keeps only the messages the newest vector depends on."""
+
+    def __init__(self, fs: DefaultFeatures):
+        self.fs = fs
+        self.t: deque[int] = deque()
+        self.rows: deque[np.ndarray] = deque()
+        self.seg_start = 0
+        self.last: tuple[np.ndarray, bool] | None = None
+
+    def push(self, stamp_ns: int, row: Any) -> tuple[np.ndarray, bool] | None:
+        """Vector and validity after this message (None before the first usable message)."""
+        row = np.asarray(row, dtype=np.float64)
+        if not np.isfinite(row).all() or (self.t and stamp_ns <= self.t[-1]):
+            return self.last
+        if self.t and stamp_ns - self.t[-1] > self.fs._gap:
+            self.t.clear()
+            self.rows.clear()
+        if not self.t:
+            self.seg_start = stamp_ns
+        self.t.append(stamp_ns)
+        self.rows.append(row)
+        # Keep exactly one message at or before the horizon, as baseline of the oldest row.
+        bound = stamp_ns - self.fs.horizon_ns
+        while len(self.t) > 1 and self.t[1] <= bound:
+            self.t.popleft()
+            self.rows.popleft()
+        X, valid = self.fs._segment(
+            np.fromiter(self.t, np.int64, len(self.t)), np.array(self.rows), self.seg_start, True
+        )
+        self.last = (X[0], bool(valid[0]))
+        return self.last
+
+
+FEATURE_SETS = {"default": DefaultFeatures, "paper": PaperFeatures}
+
+
+def make_features(config: dict | str | None = None) -> DefaultFeatures | PaperFeatures:
+    """A feature set from its config dict ({"id", "version", "params"}) or id."""
+    if config is None:
+        config = "default"
+    if isinstance(config, str):
+        config = {"id": config}
+    fid = config.get("id")
+    if fid not in FEATURE_SETS:
+        raise InvalidInputError(
+            f"Unknown feature set {fid!r}; known: {', '.join(sorted(FEATURE_SETS))}."
+        )
+    cls = FEATURE_SETS[fid]
+    version = config.get("version", cls.version)
+    if version != cls.version:
+        raise InvalidInputError(
+            f"Feature set {fid!r} version {version} is not supported (this is version {cls.version})."
+        )
+    try:
+        return cls(**config.get("params", {}))
+    except TypeError as err:
+        raise InvalidInputError(f"Bad parameters for feature set {fid!r}: {err}.") from err

@@ -1,0 +1,254 @@
+"""Logging windows around anomalies: pure logic, no I/O.
+
+The trigger topic (odometry) decides. A ring keeps the last `before` messages (or
+`before_s` seconds); an anomalous message opens a window with that context, and the
+window stays open until `after` messages (or `after_s` seconds) have passed since the last
+anomalous one. The window is then held until `before` more messages have passed: if an
+anomaly comes first, its context would overlap (or touch) the window, so the two merge
+and no message is logged twice. Other topics are logged over the window's time span
+[first, last trigger-topic stamp]. Latched topics (e.g. /tf_static) are kept and added to
+every window so each window can be read alone. A window longer than `max_part` messages
+of a topic is emitted in parts that share its window_id.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+from ..errors import InvalidInputError
+
+__all__ = ["LoggedWindow", "WindowBuilder"]
+
+MAX_TRIGGERS_IN_META = 100
+
+
+@dataclass
+class LoggedWindow:
+    """Messages of one topic to store as one unit, with the window's metadata."""
+
+    topic: str
+    messages: list[tuple[int, str]]
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def start_ns(self) -> int:
+        return self.messages[0][0]
+
+    @property
+    def end_ns(self) -> int:
+        return self.messages[-1][0]
+
+
+@dataclass
+class _Open:
+    window_id: str
+    start_ns: int
+    last_ns: int
+    parts: dict[str, list[tuple[int, str]]] = field(default_factory=dict)
+    part_no: dict[str, int] = field(default_factory=dict)
+    triggers: list[int] = field(default_factory=list)
+    n_triggers: int = 0
+    peak_score: float = -math.inf
+    peak_ns: int = 0
+    left: int = 0  # trigger-topic messages still to log after the last anomaly
+    until_ns: int = 0  # or: log up to this stamp
+    closing: bool = False
+
+
+class WindowBuilder:
+    """Feed (topic, stamp_ns, text) in arrival order; get LoggedWindows as they close."""
+
+    def __init__(
+        self,
+        *,
+        trigger_topic: str = "/odom",
+        topics: set[str] | list[str] | None = None,
+        latched: tuple[str, ...] = ("/tf_static",),
+        before: int = 100,
+        after: int = 100,
+        before_s: float | None = None,
+        after_s: float | None = None,
+        max_part: int = 10_000,
+        max_pending: int = 100_000,
+        model_id: str = "",
+    ):
+        if before < 0 or after < 0 or max_part < 1:
+            raise InvalidInputError("Window sizes need before >= 0, after >= 0, max_part >= 1.")
+        self.trigger_topic = trigger_topic
+        self.topics = None if topics is None else set(topics) | {trigger_topic}
+        self.latched_topics = set(latched)
+        self.before, self.after = before, after
+        self.before_ns = None if before_s is None else int(before_s * 1e9)
+        self.after_ns = None if after_s is None else int(after_s * 1e9)
+        self.max_part = max_part
+        self.max_pending = max_pending
+        self.model_id = model_id
+        self.ring: deque[tuple[int, str]] = deque()  # trigger-topic context, not yet logged
+        self.pending: dict[str, deque[tuple[int, str]]] = {}  # other topics, not yet logged
+        self.latched: dict[str, dict[str, int]] = {}  # topic -> text -> stamp
+        self.window: _Open | None = None
+        self.windows_emitted = 0
+
+    # -- input ------------------------------------------------------------------------
+
+    def push(
+        self, topic: str, stamp_ns: int, text: str, *, anomalous: bool = False,
+        score: float = math.nan,
+    ) -> list[LoggedWindow]:  # fmt: skip
+        """One message; `anomalous`/`score` matter only on the trigger topic."""
+        if topic in self.latched_topics:
+            kept = self.latched.setdefault(topic, {})
+            if text not in kept and len(kept) < 64:
+                kept[text] = stamp_ns
+            return []
+        if self.topics is not None and topic not in self.topics:
+            return []
+        if topic != self.trigger_topic:
+            return self._push_other(topic, stamp_ns, text)
+        out: list[LoggedWindow] = []
+        w = self.window
+        if w is None:
+            self.ring.append((stamp_ns, text))
+            self._trim_ring(stamp_ns)
+            if anomalous:
+                self._open(stamp_ns, out)
+                self._trigger(stamp_ns, score)
+        elif not w.closing:
+            self._add(self.trigger_topic, [(stamp_ns, text)], out)
+            w.last_ns = stamp_ns
+            self._take_pending(stamp_ns, out)
+            if anomalous:
+                self._trigger(stamp_ns, score)
+            else:
+                w.left -= 1
+                if (w.left <= 0) if self.after_ns is None else (stamp_ns >= w.until_ns):
+                    w.closing = True
+        else:
+            self.ring.append((stamp_ns, text))
+            if anomalous:  # its context reaches back into the held window: merge
+                w.closing = False
+                self._add(self.trigger_topic, list(self.ring), out)
+                self.ring.clear()
+                w.last_ns = stamp_ns
+                self._take_pending(stamp_ns, out)
+                self._trigger(stamp_ns, score)
+            elif (
+                len(self.ring) > self.before
+                if self.before_ns is None
+                else stamp_ns - w.last_ns > self.before_ns
+            ):
+                self._close(out)
+                self._trim_ring(stamp_ns)
+        return out
+
+    def flush(self) -> list[LoggedWindow]:
+        """End of input: emit the open window, if any."""
+        out: list[LoggedWindow] = []
+        if self.window is not None:
+            self._close(out)
+        return out
+
+    # -- internals --------------------------------------------------------------------
+
+    def _push_other(self, topic: str, stamp_ns: int, text: str) -> list[LoggedWindow]:
+        w = self.window
+        out: list[LoggedWindow] = []
+        if w is not None and not w.closing and w.start_ns <= stamp_ns <= w.last_ns:
+            self._add(topic, [(stamp_ns, text)], out)
+            return out
+        q = self.pending.setdefault(topic, deque())
+        q.append((stamp_ns, text))
+        if len(q) > self.max_pending:
+            q.popleft()
+        if w is None:
+            self._trim_pending(topic)
+        return out
+
+    def _trim_ring(self, now_ns: int) -> None:
+        """Keep the newest message and the `before` messages (or seconds) before it."""
+        if self.before_ns is None:
+            while len(self.ring) > self.before + 1:
+                self.ring.popleft()
+        else:
+            while self.ring and self.ring[0][0] < now_ns - self.before_ns:
+                self.ring.popleft()
+        for topic in self.pending:
+            self._trim_pending(topic)
+
+    def _trim_pending(self, topic: str) -> None:
+        """Drop other-topic messages older than any window could start."""
+        if not self.ring:
+            return
+        q, oldest = self.pending[topic], self.ring[0][0]
+        while q and q[0][0] < oldest:
+            q.popleft()
+
+    def _open(self, stamp_ns: int, out: list[LoggedWindow]) -> None:
+        start = self.ring[0][0]
+        self.window = _Open(window_id=f"w{start}", start_ns=start, last_ns=stamp_ns)
+        self._add(self.trigger_topic, list(self.ring), out)
+        self.ring.clear()
+        for q in self.pending.values():
+            while q and q[0][0] < start:
+                q.popleft()
+        self._take_pending(stamp_ns, out)
+
+    def _trigger(self, stamp_ns: int, score: float) -> None:
+        w = self.window
+        w.n_triggers += 1
+        if len(w.triggers) < MAX_TRIGGERS_IN_META:
+            w.triggers.append(stamp_ns)
+        if score > w.peak_score or w.n_triggers == 1:
+            w.peak_score, w.peak_ns = score, stamp_ns
+        w.left = self.after
+        if self.after_ns is not None:
+            w.until_ns = stamp_ns + self.after_ns
+
+    def _take_pending(self, upto_ns: int, out: list[LoggedWindow]) -> None:
+        for topic, q in self.pending.items():
+            batch = []
+            while q and q[0][0] <= upto_ns:
+                batch.append(q.popleft())
+            if batch:
+                self._add(topic, batch, out)
+
+    def _add(self, topic: str, msgs: list[tuple[int, str]], out: list[LoggedWindow]) -> None:
+        # A part goes out only when a message beyond it exists, so the final part is never empty.
+        part = self.window.parts.setdefault(topic, [])
+        part.extend(msgs)
+        while len(part) > self.max_part:
+            out.append(self._emit(topic, final=False))
+            part = self.window.parts[topic]
+
+    def _meta(self, final: bool) -> dict:
+        w = self.window
+        return {
+            "window_id": w.window_id, "start_ns": w.start_ns,
+            "end_ns": w.last_ns if final else None, "final": final,
+            "trigger_topic": self.trigger_topic, "triggers": list(w.triggers),
+            "n_triggers": w.n_triggers,
+            "peak_score": None if math.isnan(w.peak_score) else w.peak_score,
+            "peak_ns": w.peak_ns, "model_id": self.model_id,
+        }  # fmt: skip
+
+    def _emit(self, topic: str, *, final: bool) -> LoggedWindow:
+        w = self.window
+        msgs = sorted(w.parts[topic][: self.max_part], key=lambda m: m[0])
+        w.parts[topic] = w.parts[topic][self.max_part :]
+        part = w.part_no.get(topic, 0)
+        w.part_no[topic] = part + 1
+        return LoggedWindow(topic, msgs, self._meta(final) | {"part": part})
+
+    def _close(self, out: list[LoggedWindow]) -> None:
+        w = self.window
+        self._take_pending(w.last_ns, out)
+        for topic in list(w.parts):
+            if w.parts[topic]:
+                out.append(self._emit(topic, final=True))
+        for topic, kept in self.latched.items():
+            msgs = sorted(((s, t) for t, s in kept.items()), key=lambda m: m[0])
+            out.append(LoggedWindow(topic, msgs, self._meta(True) | {"part": 0, "latched": True}))
+        self.window = None
+        self.windows_emitted += 1

@@ -1,0 +1,100 @@
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from cclogfs.classifier import (Detector, OneClassModel, SmartLogger, collect, event_table,
+                                format_event_table, format_message_table, load_dataset,
+                                message_table, parse_odometry, train, window_spans)
+from cclogfs.classifier.features import NS
+from cclogfs.classifier.testing import inject, odom_texts, read_odometry
+from cclogfs.errors import InvalidInputError, ModelError
+
+
+@pytest.fixture(scope="module")
+def halves():
+    from conftest import shared_data_file
+
+    odom = parse_odometry(read_odometry(shared_data_file("nav2_turtlebot.mcap")))
+    t = odom.stamp_ns
+    mid = t[0] + (t[-1] - t[0]) // 2
+    return odom.take(t < mid), odom.take(t >= mid)
+
+
+@pytest.fixture(scope="module")
+def model(halves):
+    return train([halves[0]])
+
+
+def test_live_scores_equal_batch_scores(model, halves):
+    test = halves[1]
+    scores, flags = Detector(model).score_batch(test)
+    live = Detector(model)
+    got = np.array([live.update(text)[0] for text in odom_texts(test)])
+    np.testing.assert_allclose(got, scores, atol=1e-9, equal_nan=True)
+
+
+def test_injected_anomalies_found_and_clean_run_quiet(model, halves):
+    test = halves[1]
+    _, flags = Detector(model).score_batch(test)
+    assert not flags.any()
+    start = int(test.stamp_ns[np.argmax(np.hypot(test.raw[:, 7], test.raw[:, 8]) > 0.3)]) + 5 * NS
+    for kind in ("accel", "pose_jump", "stop", "twist"):
+        run, event = inject(test, kind, start, 0.4)
+        scores, flags = Detector(model).score_batch(run)
+        table = message_table(run.stamp_ns, flags, {"events": [event]})
+        assert table["tp"] > 0, kind
+        assert flags[run.stamp_ns < event["start_ns"]].sum() == 0, kind
+
+
+def test_smart_logger_live_equals_replay_and_windows_cover_event(model, halves):
+    run, event = inject(halves[1], "spin", int(halves[1].stamp_ns[300]), 4.0)
+    stream = [("/odom", int(s), x) for s, x in zip(run.stamp_ns, odom_texts(run))]
+    stream.insert(5, ("/tf_static", int(run.stamp_ns[5]), '{"transforms": []}'))
+    live = list(SmartLogger(Detector(model), before_s=4, after_s=4).run(stream))
+    batch = SmartLogger(Detector(model), before_s=4, after_s=4).replay(stream)
+    assert [(w.topic, w.messages, w.meta) for w in live] == [(w.topic, w.messages, w.meta) for w in batch]
+    spans = window_spans(live)
+    table = event_table(run.stamp_ns, spans, {"events": [event]})
+    assert table["recalled"] == 1 and table["false_windows"] == 0
+    assert 0 < table["kept_fraction"] < 0.5
+    assert {w.topic for w in live} == {"/odom", "/tf_static", "/cclog/summary"}
+    assert "Events recalled" in format_event_table(table)
+
+
+def test_paper_table_layout():
+    stamps = np.arange(10) * NS
+    flags = np.array([0, 1, 1, 0, 0, 0, 1, 0, 0, 0], bool)
+    t = message_table(stamps, flags, {"events": [{"start_ns": 1 * NS, "end_ns": 3 * NS, "kind": "x"}]})
+    assert (t["tp"], t["fp"], t["fn"], t["tn"]) == (2, 1, 1, 6)
+    assert "Precision           66.7%" in format_message_table(t)
+    with pytest.raises(InvalidInputError, match="Labels"):
+        message_table(stamps, flags, {"events": [{"start": 1}]})
+
+
+def test_model_roundtrip_and_feature_mismatch(model, tmp_path):
+    path = model.save(tmp_path / "m")
+    back = OneClassModel.load(path, feature_config=model.feature_config)
+    assert Detector(back).model.model_id_ == model.model_id_
+    back.feature_config = {"id": "paper", "version": 1, "params": {"window": 500, "stride": 2}}
+    with pytest.raises(ModelError, match="expects 13 features"):
+        Detector(back)
+
+
+def test_collect_dataset(halves, tmp_path):
+    run, event = inject(halves[1], "accel", int(halves[1].stamp_ns[400]), 0.4)
+    meta = collect(run, tmp_path / "ds", labels={"events": [event]})
+    config, nominal, anomalous = load_dataset(tmp_path / "ds")
+    assert config["id"] == "default" and len(nominal) == meta["nominal"] > 500
+    assert len(anomalous) == meta["anomalous"] > 0
+    with pytest.raises(InvalidInputError, match="other features"):
+        collect(run, tmp_path / "ds", features={"id": "paper", "params": {"window": 10, "stride": 1}})
+
+
+def test_classifier_imports_no_storage():
+    code = ("import sys, cclogfs.classifier as c, cclogfs.classifier.testing;"
+            "bad = [m for m in sys.modules if m.startswith('cclogfs.') and m.split('.')[1] in "
+            "('store', 'segment', 'format', 'codecs', 'pipeline', 'manifest')]; print(bad)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

@@ -1,0 +1,85 @@
+import json
+
+import numpy as np
+import pytest
+from sklearn.svm import OneClassSVM
+
+from cclogfs.classifier.model import OneClassModel
+from cclogfs.errors import ModelError
+
+CONFIG = {"id": "default", "version": 1, "params": {"x": 1.0}}
+
+
+def nominal(n=1500, d=6, seed=0):
+    rng = np.random.default_rng(seed)
+    return rng.standard_normal((n, d)) * [1, 2, 0.5, 1, 1, 3] + [0, 1, 2, 3, 4, 5]
+
+
+@pytest.mark.parametrize("one_sided", [False, True])
+def test_numpy_inference_matches_sklearn(one_sided):
+    X = nominal()
+    m = OneClassModel(feature_config=CONFIG, nu=0.05, gamma=0.2, one_sided=one_sided).fit(X)
+    train, _ = m.split(X)
+    ref = OneClassSVM(kernel="rbf", nu=m.nu_, gamma=m.gamma_).fit(m.transform(train))
+    Q = nominal(300, seed=1) * 1.5
+    np.testing.assert_allclose(m.decision_function(Q), ref.decision_function(m.transform(Q)), atol=1e-9)
+
+
+def test_matches_sklearn_exactly_on_support_vectors():
+    X = nominal()
+    m = OneClassModel(feature_config=CONFIG, nu=0.05, gamma=0.2).fit(X)
+    # The decision function only depends on SVs, coefficients, gamma and intercept.
+    Z = m.transform(nominal(200, seed=2))
+    k = np.exp(-m.gamma_ * ((Z[:, None, :] - m.support_vectors_[None]) ** 2).sum(-1))
+    np.testing.assert_allclose(m.decision_function(nominal(200, seed=2)), k @ m.dual_coef_ + m.intercept_, atol=1e-9)
+
+
+def test_threshold_flags_outliers_and_few_nominal():
+    X = nominal()
+    m = OneClassModel(feature_config=CONFIG).fit(X)
+    assert m.predict(nominal(2000, seed=3)).mean() < 0.01
+    far = nominal(50, seed=4) + 8.0
+    assert m.predict(far).all()
+
+
+def test_labelled_anomalies_select_hyperparameters():
+    X = nominal()
+    anomalies = nominal(40, seed=5) + [3, 0, 0, 0, 0, 0]
+    m = OneClassModel(feature_config=CONFIG, nu_grid=(0.01, 0.05), gamma_grid=(0.1, 1.0)).fit(X, anomalies)
+    assert m.nu_ in (0.01, 0.05) and round(m.gamma_ * 6, 9) in (0.1, 1.0)
+    assert m.validation_recall_ == pytest.approx(m.predict(anomalies).mean())
+
+
+def test_save_load_roundtrip_without_pickle(tmp_path):
+    m = OneClassModel(feature_config=CONFIG).fit(nominal())
+    m.save(tmp_path / "m")
+    header = json.loads((tmp_path / "m" / "model.json").read_text())
+    assert header["format"] == "cclogfs-ocsvm" and header["model_id"] == m.model_id_
+    back = OneClassModel.load(tmp_path / "m", feature_config=CONFIG)
+    Q = nominal(100, seed=6)
+    np.testing.assert_array_equal(back.score(Q), m.score(Q))
+    with np.load(tmp_path / "m" / "model.npz", allow_pickle=False) as z:
+        assert set(z.files) == {"mean", "scale", "support_vectors", "dual_coef", "intercept"}
+
+
+def test_load_rejects_other_features_versions_and_damage(tmp_path):
+    path = OneClassModel(feature_config=CONFIG).fit(nominal()).save(tmp_path / "m")
+    with pytest.raises(ModelError, match="trained on features"):
+        OneClassModel.load(path, feature_config={"id": "paper", "version": 1, "params": {}})
+    header = json.loads((path / "model.json").read_text())
+    (path / "model.json").write_text(json.dumps(header | {"format_version": 2}))
+    with pytest.raises(ModelError, match="format_version 2"):
+        OneClassModel.load(path)
+    (path / "model.json").write_text(json.dumps(header))
+    blob = bytearray((path / "model.npz").read_bytes())
+    blob[-100] ^= 1
+    (path / "model.npz").write_bytes(bytes(blob))
+    with pytest.raises(ModelError, match="npz_sha256"):
+        OneClassModel.load(path)
+    with pytest.raises(ModelError, match="Cannot read"):
+        OneClassModel.load(tmp_path / "missing")
+
+
+def test_too_little_data():
+    with pytest.raises(ModelError, match="at least 20"):
+        OneClassModel().fit(np.ones((5, 3)))
