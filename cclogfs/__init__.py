@@ -16,9 +16,21 @@ from .errors import (
     StoreLockedError,
     UnknownCodecError,
 )
-from .store import Receipt, Recovery, Store, Window, open_store
 
 __version__ = "0.1.0"
+
+# The store is imported on first use, so `import cclogfs.classifier` does not load the
+# storage engine (the classifier must stay independent of it, and tests check that).
+_STORE_NAMES = ("Receipt", "Recovery", "Store", "Window", "open_store")
+
+
+def __getattr__(name: str):
+    if name in _STORE_NAMES:
+        from . import store
+
+        return getattr(store, name)
+    raise AttributeError(f"module 'cclogfs' has no attribute {name!r}")
+
 
 __all__ = [
     "CclogError",
