@@ -8,6 +8,7 @@ from __future__ import annotations
 import heapq
 import json
 import os
+import signal
 import socket
 import threading
 import time
@@ -440,6 +441,9 @@ class Store:
 
     def _flush_loop(self) -> None:
         """Commit a group once its oldest put is sync_every_ms old, even if no put follows."""
+        # Process signals (Ctrl-C, SIGTERM) belong to the main thread: were the kernel to hand
+        # one to this thread, a main thread blocked reading its input would not wake up.
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         interval = self.sync_every_ms / 1000
         with self._lock:
             while not self._closed and self._failed is None:

@@ -57,8 +57,10 @@ class OneClassModel:
         nu_grid: tuple[float, ...] = (0.002, 0.01, 0.05),
         gamma_grid: tuple[float, ...] = (0.03, 0.1, 0.3, 1.0),
         random_state: int = 0,
+        topic: str = "/odom",
     ):
         self.feature_config = feature_config
+        self.topic = topic  # the odometry topic the model watches, kept in the model file
         self.nu = nu
         self.gamma = gamma
         self.false_alarm_rate = false_alarm_rate
@@ -181,7 +183,7 @@ class OneClassModel:
             "gamma": self.gamma_, "nu": self.nu_, "threshold": self.threshold_,
             "one_sided": bool(self.one_sided),
             "false_alarm_rate": self.false_alarm_rate, "n_support": len(self.dual_coef_),
-            "n_train": int(self.n_train_),
+            "n_train": int(self.n_train_), "topic": self.topic,
             "versions": {"cclogfs": __version__, "numpy": np.__version__,
                          "sklearn": sklearn.__version__},
         }  # fmt: skip
@@ -243,7 +245,8 @@ class OneClassModel:
             with np.load(io.BytesIO(blob), allow_pickle=False) as z:
                 arrays = {k: z[k] for k in _ARRAYS}
             model = cls(feature_config=header["feature_config"], one_sided=header["one_sided"],
-                        false_alarm_rate=header["false_alarm_rate"])  # fmt: skip
+                        false_alarm_rate=header["false_alarm_rate"],
+                        topic=str(header.get("topic", "/odom")))  # fmt: skip
             model.mean_, model.scale_ = arrays["mean"], arrays["scale"]
             model.support_vectors_, model.dual_coef_ = arrays["support_vectors"], arrays["dual_coef"]
             model.intercept_ = float(arrays["intercept"][0])

@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import re
+import select
 import sys
 from collections.abc import Callable, Iterable, Iterator
 from json.decoder import scanstring
@@ -140,6 +142,27 @@ def _scan_object(line: str) -> dict[str, tuple[object, int, int]]:
     return fields
 
 
+def _stdin_lines(timeout_s: float = 0.2) -> Iterator[bytes]:
+    """Lines of standard input, waiting with select() so the main thread wakes up at least
+    every `timeout_s`: a signal the kernel hands to another thread (numpy's BLAS threads
+    do not block signals) would otherwise not interrupt a blocked read, and Ctrl-C or
+    SIGTERM would not stop an idle live stream."""
+    fd = sys.stdin.fileno()
+    tail = b""
+    while True:
+        if not select.select([fd], [], [], timeout_s)[0]:
+            continue  # Python runs pending signal handlers here
+        chunk = os.read(fd, 1 << 16)
+        if not chunk:
+            break
+        lines = (tail + chunk).split(b"\n")
+        tail = lines.pop()
+        for line in lines:
+            yield line + b"\n"
+    if tail:
+        yield tail
+
+
 class JsonlSource:
     """Messages of a JSONL file, or of standard input for the path "-".
 
@@ -170,7 +193,7 @@ class JsonlSource:
                 raise SourceError(f"Cannot open {self.name}: {err.strerror or err}.") from err
         else:
             self.name = "<stdin>"
-            self._file = sys.stdin.buffer
+            self._file = _stdin_lines()
 
     def __enter__(self) -> JsonlSource:
         return self

@@ -1,0 +1,91 @@
+"""`cclog record SOURCE --store DIR`: log a bag, an MCAP file or a JSONL stream into a store."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+
+from ..ingest import open_source
+from ..pipeline import KeepAll, RecordStats, record, smart_policy
+from ..store import open_store
+from ._fmt import human_bytes
+from .progress import Progress
+
+EXAMPLES = """\
+examples:
+  cclog record run.mcap --store robot.store                     # keep everything (collect mode)
+  cclog record run.mcap --store robot.store --model odom.model  # smart logging: anomaly windows only
+  cclog record run.bag --store robot.store --model odom.model --topic /tf --before 4s --after 4s
+  some-producer | cclog record - --store robot.store            # live JSON Lines on stdin
+
+JSON Lines: one message per line, {"topic": "/odom", "stamp_ns": 1432235695834049087, "msg": {...}}.
+With --model, odometry on the model's topic is scored; each anomaly opens a window of
+--before messages (or seconds, "4s") before it and --after after the last anomaly, over
+the odometry and the --topic topics (all topics when none is given). Ctrl-C or SIGTERM
+stores what was seen and closes the store cleanly.
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("record", help="log a bag, MCAP file or JSONL stream into a store",
+                       description="Record messages into a store: all of them, or with --model only "
+                                   "the logging windows around anomalies.",
+                       epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    p.add_argument("source", help="ROS 1/2 bag, MCAP file, JSONL file, or - for JSONL on stdin")
+    p.add_argument("--store", required=True, help="store directory (created when missing)")
+    p.add_argument("--topic", action="append", metavar="T", help="record topic T (repeatable; default all)")
+    p.add_argument("--model", help="smart logging with this model directory (from `cclog train`)")
+    p.add_argument("--before", default="100", help="window context before an anomaly: N messages or Ds")
+    p.add_argument("--after", default="100", help="window context after the last anomaly: N or Ds")
+    p.add_argument("--chunk", type=int, default=200, help="without --model: messages per stored window")
+    p.add_argument("--codec", default="zstd", help="codec for new records (zstd, lzma, none, columnar)")
+    p.add_argument("--on-error", choices=["stop", "skip"], default="stop",
+                   help="a malformed JSONL line stops the run (default) or is reported and skipped")
+    p.add_argument("--sync-ms", type=float, default=200, help="group commit interval (default 200 ms)")
+    p.add_argument("--no-summary", action="store_true", help="with --model: no per-minute summary stream")
+    p.set_defaults(func=run)
+
+
+def _skipped(err: Exception) -> None:
+    print(f"cclog: skipped: {err}", file=sys.stderr)
+
+
+def _sigterm(signum, frame):
+    raise KeyboardInterrupt
+
+
+def run(args: argparse.Namespace) -> int:
+    topics = args.topic
+    if args.model:
+        policy = smart_policy(args.model, topics=topics, before=args.before, after=args.after,
+                              summary=not args.no_summary)  # fmt: skip
+        # The scored odometry must be read even when --topic does not name it.
+        read_topics = None if topics is None else sorted({*topics, policy.odom_topic})
+    else:
+        policy, read_topics = KeepAll(chunk=args.chunk), topics
+    previous = signal.signal(signal.SIGTERM, _sigterm)
+    try:
+        with open_store(args.store, create=True, codec=args.codec, sync_every_ms=args.sync_ms) as store, \
+                open_source(args.source, topics=read_topics, on_error=args.on_error, report=_skipped) as source, \
+                Progress("recording") as progress:  # fmt: skip
+            last = [0]
+
+            def tick(stats):
+                progress(stats.messages_in - last[0])
+                last[0] = stats.messages_in
+
+            stats = RecordStats()
+            try:
+                record(source, store, policy, trusted_json=True, progress=tick, stats=stats)
+            except KeyboardInterrupt:  # arrived once the input had ended: all was stored
+                stats.interrupted = True
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    mode = "smart logging" if args.model else "every message"
+    kept = stats.json_bytes_kept / stats.json_bytes_in if stats.json_bytes_in else 0.0
+    print(f"{'interrupted: ' if stats.interrupted else ''}recorded {args.source} into {args.store} ({mode}): "
+          f"{stats.messages_in:,} messages in, {stats.messages_kept:,} kept ({100 * kept:.1f} % of "
+          f"{human_bytes(stats.json_bytes_in)} JSON) in {stats.windows:,} windows, {stats.seconds:.1f} s "
+          f"({stats.messages_in / max(stats.seconds, 1e-9):,.0f} msg/s)", file=sys.stderr)  # fmt: skip
+    return 130 if stats.interrupted else 0

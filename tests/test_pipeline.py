@@ -1,0 +1,150 @@
+"""The pipeline and the record/train/eval commands, on the real TurtleBot bag."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import cclogfs
+from cclogfs.classifier.features import parse_odometry
+from cclogfs.classifier.testing import inject, odom_texts
+from cclogfs.cli import main
+from cclogfs.ingest import format_line, open_source
+from cclogfs.pipeline import KeepAll, monotonic_runs, parse_span, read_topic, record
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_keep_all_chunks_per_topic():
+    policy = KeepAll(chunk=3)
+    out = []
+    for i in range(7):
+        out += policy.push("/a" if i % 2 else "/b", i, str(i))
+    out += policy.flush()
+    assert [(c.topic, [t for t, _ in c.messages]) for c in out] == [
+        ("/b", [0, 2, 4]), ("/a", [1, 3, 5]), ("/b", [6])]  # fmt: skip
+
+
+def test_monotonic_runs_keep_every_message_in_order():
+    msgs = [(5, "a"), (6, "b"), (3, "c"), (3, "d"), (9, "e"), (1, "f")]
+    runs = list(monotonic_runs(msgs))
+    assert runs == [[(5, "a"), (6, "b")], [(3, "c"), (3, "d"), (9, "e")], [(1, "f")]]
+    assert [m for r in runs for m in r] == msgs
+
+
+@pytest.mark.parametrize("text, want", [("100", (100, None)), ("4s", (0, 4.0)), ("2.5s", (0, 2.5))])
+def test_parse_span(text, want):
+    assert parse_span(text) == want
+
+
+@pytest.mark.parametrize("text", ["-1", "x", "4ms", "-2s", ""])
+def test_parse_span_rejects(text):
+    with pytest.raises(cclogfs.InvalidInputError, match="message count like 100"):
+        parse_span(text)
+
+
+def test_record_everything_from_a_bag_is_exact(tmp_path, shared_data):
+    bag = shared_data("nav2_turtlebot.mcap")
+    with open_source(bag) as source:
+        want = {}
+        for m in source:
+            want.setdefault(m.topic, []).append((m.stamp_ns, m.text))
+    with cclogfs.open_store(tmp_path / "s", create=True) as store, open_source(bag) as source:
+        stats = record(source, store, KeepAll(chunk=150), trusted_json=True)
+        assert stats.messages_in == stats.messages_kept == sum(map(len, want.values()))
+        for topic, messages in want.items():
+            got = sorted(store.query(topic), key=lambda w: w.seq)
+            assert [m for w in got for m in w.messages()] == messages
+
+
+def smart_fixture(tmp_path, shared_data):
+    """A model trained on the first half of /odom, and the second half with injected anomalies."""
+    texts = read_topic(str(shared_data("nav2_turtlebot.mcap")), "/odom")
+    odom = parse_odometry(t for _, t in texts)
+    half = len(odom) // 2
+    first, second = odom.take(slice(0, half)), odom.take(slice(half, None))
+    t0 = int(second.stamp_ns[0])
+    second, e1 = inject(second, "accel", t0 + 10 * 10**9, 1.0)
+    second, e2 = inject(second, "spin", t0 + 30 * 10**9, 3.0)
+    for name, part in (("train", first), ("test", second)):
+        lines = [format_line("/odom", int(s), text) for s, text in zip(part.stamp_ns, odom_texts(part))]
+        (tmp_path / f"{name}.jsonl").write_text("".join(lines))
+    (tmp_path / "labels.json").write_text(json.dumps({"events": [e1, e2]}))
+    return [e1, e2]
+
+
+def test_train_record_eval_smart_logging(tmp_path, shared_data, capsys):
+    events = smart_fixture(tmp_path, shared_data)
+    p = lambda name: str(tmp_path / name)  # noqa: E731
+    assert main(["train", p("train.jsonl"), "--out", p("model"), "--validate", p("test.jsonl"),
+                 "--validate-labels", p("labels.json")]) == 0  # fmt: skip
+    out = capsys.readouterr().out
+    assert "trained model" in out and "True Positives" in out
+    assert main(["record", p("test.jsonl"), "--store", p("store"), "--model", p("model"),
+                 "--before", "2s", "--after", "2s"]) == 0  # fmt: skip
+    with cclogfs.open_store(p("store"), readonly=True) as store:
+        windows = list(store.query("/odom"))
+        assert windows and all("model_id" in w.meta for w in windows)
+        for e in events:  # every injected event is inside a stored window
+            assert any(w.start_ns <= e["start_ns"] and e["end_ns"] <= w.end_ns for w in windows), e
+        kept = sum(w.count for w in windows)
+        assert kept < 0.8 * sum(1 for _ in open(p("test.jsonl")))  # smart logging drops most of it
+        assert "/cclog/summary" in store.streams()
+    assert main(["eval", p("test.jsonl"), "--model", p("model"), "--labels", p("labels.json"),
+                 "--before", "2s", "--after", "2s"]) == 0  # fmt: skip
+    out = capsys.readouterr().out
+    assert "Events recalled" in out and "2 (100.0%)" in out
+
+
+def test_model_file_errors(tmp_path, capsys):
+    (tmp_path / "m").mkdir()
+    (tmp_path / "m" / "model.json").write_text("{}")
+    (tmp_path / "m" / "model.npz").write_bytes(b"")
+    (tmp_path / "in.jsonl").write_text(format_line("/odom", 1, "{}") + "\n")
+    assert main(["record", str(tmp_path / "in.jsonl"), "--store", str(tmp_path / "s"), "--model",
+                 str(tmp_path / "m")]) == 1  # fmt: skip
+    assert "model.json is not a" in capsys.readouterr().err
+
+
+def run_cli(*args, **kw):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.Popen([sys.executable, "-m", "cclogfs", *args], env=env, cwd=ROOT, text=True,
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, **kw)  # fmt: skip
+
+
+def test_malformed_line_stops_and_keeps_what_came_before(tmp_path):
+    lines = [format_line("/odom", i, json.dumps({"i": i})) for i in range(50)]
+    lines.insert(30, "{\"topic\": \"/odom\", \"stamp_ns\": 1, \"msg\": {broken\n")
+    proc = run_cli("record", "-", "--store", str(tmp_path / "s"))
+    out, err = proc.communicate("".join(lines), timeout=60)
+    assert proc.returncode == 1 and "line 31" in err
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        assert [t for w in store.query() for t, _ in w.messages()] == list(range(30))
+    proc = run_cli("record", "-", "--store", str(tmp_path / "s2"), "--on-error", "skip")
+    out, err = proc.communicate("".join(lines), timeout=60)
+    assert proc.returncode == 0 and "skipped" in err and "line 31" in err
+    with cclogfs.open_store(tmp_path / "s2", readonly=True) as store:
+        assert sum(w.count for w in store.query()) == 50
+
+
+def test_sigterm_flushes_and_closes_cleanly(tmp_path):
+    proc = run_cli("record", "-", "--store", str(tmp_path / "s"))
+    for i in range(20):
+        proc.stdin.write(format_line("/odom", i, json.dumps({"i": i})))
+    proc.stdin.flush()
+    deadline = time.monotonic() + 30
+    while not (tmp_path / "s" / "MANIFEST").exists():  # the store is open: the lines are being read
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    time.sleep(0.5)
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130 and "interrupted" in err, err
+    with cclogfs.open_store(tmp_path / "s") as store:
+        assert store.recovery.clean, err  # closed cleanly, nothing torn
+        assert [t for w in store.query() for t, _ in w.messages()] == list(range(20)), err
