@@ -147,7 +147,11 @@ def _stdin_lines(timeout_s: float = 0.2) -> Iterator[bytes]:
     every `timeout_s`: a signal the kernel hands to another thread (numpy's BLAS threads
     do not block signals) would otherwise not interrupt a blocked read, and Ctrl-C or
     SIGTERM would not stop an idle live stream."""
-    fd = sys.stdin.fileno()
+    try:
+        fd = sys.stdin.fileno()
+    except (AttributeError, OSError, ValueError):  # stdin replaced by an in-memory stream
+        yield from sys.stdin.buffer
+        return
     tail = b""
     while True:
         if not select.select([fd], [], [], timeout_s)[0]:
