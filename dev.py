@@ -22,18 +22,18 @@ BIN = VENV / ("Scripts" if os.name == "nt" else "bin")
 PY = BIN / "python"
 
 
-def setup() -> None:
-    """Create the venv and (re)install the project when pyproject.toml changed."""
+def setup(extras: str = "test") -> None:
+    """Create the venv and (re)install the project when pyproject.toml or the extras changed."""
     if not PY.exists():
         print("dev.py: creating .venv", flush=True)
         venv.EnvBuilder(with_pip=True).create(VENV)
-    stamp = VENV / ".cclogfs-installed"
+    stamp = VENV / f".cclogfs-installed-{extras}"
     want = hashlib.sha256((ROOT / "pyproject.toml").read_bytes()).hexdigest()
     if stamp.exists() and stamp.read_text() == want:
         return
-    print("dev.py: installing cclogfs and its dependencies into .venv", flush=True)
+    print(f"dev.py: installing cclogfs[{extras}] and its dependencies into .venv", flush=True)
     pip = [str(PY), "-m", "pip", "install", "--disable-pip-version-check", "-q"]
-    subprocess.run([*pip, "-e", f"{ROOT}[test]"], check=True)
+    subprocess.run([*pip, "-e", f"{ROOT}[{extras}]"], check=True)
     stamp.write_text(want)
 
 
@@ -45,8 +45,8 @@ def main(argv: list[str]) -> int:
     if not argv or argv[0] not in {"demo", "test", "bench", "cclog"}:
         print(__doc__, file=sys.stderr)
         return 2
-    setup()
     job, rest = argv[0], argv[1:]
+    setup("test,bench" if job == "bench" else "test")
     if job == "demo":
         return run([str(BIN / "cclog"), "demo", *rest])
     if job == "test":

@@ -21,7 +21,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from ..errors import InvalidInputError, SourceError
 from ..rosjson import message_stamp_ns
 from .base import SourceMessage
-from .convert import MessageConverter
+from ..rosjson import MessageConverter
 from .jsonl import format_line
 
 Sink = Callable[[SourceMessage], None]

@@ -14,7 +14,7 @@ from rosbags.highlevel import AnyReader
 from ..errors import SourceError
 from ..rosjson import message_stamp_ns
 from .base import SourceMessage, topic_filter
-from .convert import MessageConverter
+from ..rosjson import MessageConverter
 
 
 class RosbagSource:
