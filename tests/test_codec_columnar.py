@@ -5,7 +5,6 @@ from __future__ import annotations
 import base64
 import json
 import math
-import os
 import struct
 from pathlib import Path
 
@@ -163,15 +162,6 @@ def test_golden_payloads_decode():
         encoded = (case / "encoded.bin").read_bytes()
         got = codec.decode(encoded, count=len(texts), raw_len=raw_size(stamps, texts))
         assert got == (stamps, texts), case.name
-
-
-@pytest.mark.skipif(not os.environ.get("CCLOG_REGEN_GOLDEN"), reason="set CCLOG_REGEN_GOLDEN=1 to rewrite")
-def test_regenerate_golden_payloads():
-    """Writes encoded.bin for every case; only run when the format version changes."""
-    for case in _golden_cases():
-        stamps, texts = _load_inputs(case)
-        codec = codec_from_config(json.loads((case / "config.json").read_text()))
-        (case / "encoded.bin").write_bytes(codec.encode(stamps, texts))
 
 
 # --- real data ----------------------------------------------------------------------------
