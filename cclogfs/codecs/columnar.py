@@ -60,15 +60,15 @@ _MAX_LABELS = 8
 
 
 def _split_by_label(
-    indices: list[int], rows: list[tuple[str, ...]]
-) -> list[tuple[list[int], list[tuple[str, ...]]]]:
+    literals: tuple[str, ...], indices: list[int], rows: list[tuple[str, ...]]
+) -> list[tuple[tuple[str, ...], list[int], list[tuple[str, ...]]]]:
     """Split a group by its first string slot with a few values (a frame id, say).
 
     /tf interleaves transforms of different frames; apart, each frame's values form a
     smooth series that delta coding shrinks, together they alternate and do not.
     """
     if len(rows) < 2 * _MAX_LABELS:
-        return [(indices, rows)]
+        return [(literals, indices, rows)]
     for j, token in enumerate(rows[0]):
         if token[:1] != '"':
             continue
@@ -79,8 +79,8 @@ def _split_by_label(
                 part = parts.setdefault(row[j], ([], []))
                 part[0].append(i)
                 part[1].append(row)
-            return list(parts.values())
-    return [(indices, rows)]
+            return [(literals, idx, part_rows) for idx, part_rows in parts.values()]
+    return [(literals, indices, rows)]
 
 
 def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]]) -> bytes:
@@ -195,26 +195,15 @@ class ColumnarCodec(Codec):
                 strs.append(t.decode("utf-8"))
             except UnicodeDecodeError:
                 strs.append(None)
-        groups, _ = matcher.group(strs)
+        groups, _ = matcher.group_window(strs)
         ids = np.full(count, RAW_GROUP, dtype="<u2")
         bodies = []
-        parts = [
-            (literals, part)
-            for literals, (indices, rows) in groups.items()
-            for part in _split_by_label(indices, rows)
-        ]
-        for literals, (indices, rows) in parts:
-            if len(bodies) == MAX_GROUPS:
-                break
-            data = _encode_group(literals, rows)
-            # The group is kept only if decoding its bytes gives back every text exactly.
-            try:
-                rendered = _decode_group(Reader(data), len(rows), len(data) * 64 + (1 << 20))
-            except CodecError:
-                continue
-            if rendered == [strs[i] for i in indices]:
-                ids[indices] = len(bodies)
-                bodies.append(data)
+        parts = [part for literals, indices, rows in groups for part in _split_by_label(literals, indices, rows)]
+        # No trial decode: a match rebuilds its text from the literals by construction,
+        # and classify() keeps a column kind only if rendering it gives every token back.
+        for literals, indices, rows in parts[:MAX_GROUPS]:
+            ids[indices] = len(bodies)
+            bodies.append(_encode_group(literals, rows))
         raw_indices = np.flatnonzero(ids == RAW_GROUP).tolist()
         body = bytearray(U32.pack(len(bodies)))
         body += ids.tobytes()

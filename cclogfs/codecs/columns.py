@@ -71,12 +71,17 @@ def _render_floats(values: np.ndarray) -> list[str]:
 
 
 def _as_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
+    """The tokens as float64, or None unless rendering them gives every token back."""
     try:
-        values = [_NONFINITE[t] if t in _NONFINITE else float(t) for t in tokens]
+        # float() also reads "NaN", "nan", "inf", "1_0", ...: the rendering check
+        # below rejects every spelling the decoder would not write back.
+        values = list(map(float, tokens))
     except ValueError:
         return None
     arr = np.array(values, dtype=np.float64)
-    return arr if _render_floats(arr) == list(tokens) else None
+    if np.isfinite(arr).all():
+        return arr if tuple(map(float.__repr__, values)) == tokens else None
+    return arr if tuple(map(_float_text, values)) == tokens else None
 
 
 def classify(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
@@ -86,7 +91,10 @@ def classify(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
         return ColumnKind.CONST, first
     if first[:1] == '"':
         if len(first) >= MIN_BASE64_CHARS + 2 and all(map(_BASE64.fullmatch, tokens)):
-            return ColumnKind.BASE64, [base64.b64decode(t[1:-1]) for t in tokens]
+            blobs = [base64.b64decode(t[1:-1]) for t in tokens]
+            # Padding bits that are not zero ("QR==") decode but do not encode back.
+            if all(_b64_token(b) == t for b, t in zip(blobs, tokens)):
+                return ColumnKind.BASE64, blobs
         return ColumnKind.TEXT, tokens
     if all(t in ("true", "false") for t in tokens):
         return ColumnKind.BOOL, np.array([t == "true" for t in tokens], dtype=np.uint8)
@@ -228,11 +236,12 @@ def read_column(
             raise CodecError("columnar payload is corrupt: base64 column lengths do not add up")
         ends = np.cumsum(counts, dtype=np.int64).tolist()
         data = bytes(blob)
-        return [
-            '"' + binascii.b2a_base64(data[a:b], newline=False).decode("ascii") + '"'
-            for a, b in zip([0] + ends[:-1], ends)
-        ], None
+        return [_b64_token(data[a:b]) for a, b in zip([0] + ends[:-1], ends)], None
     raise CodecError(f"columnar payload is corrupt: unknown column kind {kind}")
+
+
+def _b64_token(data: bytes) -> str:
+    return '"' + binascii.b2a_base64(data, newline=False).decode("ascii") + '"'
 
 
 def _utf8(data: memoryview, what: str) -> str:
