@@ -150,6 +150,13 @@ def _decode_group(reader: Reader, n: int, budget: int) -> list[str]:
     return [fmt % row for row in zip(*varying)]
 
 
+def _utf8_or_none(data: bytes) -> str | None:
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return None
+
+
 class ColumnarCodec(Codec):
     """Template + typed columns per JSON shape, zstd over the body; byte-exact."""
 
@@ -189,12 +196,10 @@ class ColumnarCodec(Codec):
         except OverflowError as err:
             raise CodecError("a window stamp does not fit in a signed 64-bit integer") from err
         compressor, _, matcher = self._state()
-        strs: list[str | None] = []
-        for t in texts:
-            try:
-                strs.append(t.decode("utf-8"))
-            except UnicodeDecodeError:
-                strs.append(None)
+        try:
+            strs: list[str | None] = [t.decode("utf-8") for t in texts]
+        except UnicodeDecodeError:
+            strs = [_utf8_or_none(t) for t in texts]
         groups, _ = matcher.group_window(strs)
         ids = np.full(count, RAW_GROUP, dtype="<u2")
         bodies = []

@@ -78,10 +78,13 @@ def _as_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
         values = list(map(float, tokens))
     except ValueError:
         return None
-    arr = np.array(values, dtype=np.float64)
-    if np.isfinite(arr).all():
-        return arr if tuple(map(float.__repr__, values)) == tokens else None
-    return arr if tuple(map(_float_text, values)) == tokens else None
+    # repr is most of the cost of a float column; it cannot be skipped, since only the
+    # repr spelling of a float comes back from the decoder.
+    if tuple(map(float.__repr__, values)) == tokens:
+        return np.array(values, dtype=np.float64)
+    if tuple(map(_float_text, values)) == tokens:  # NaN, Infinity as json.dumps writes them
+        return np.array(values, dtype=np.float64)
+    return None
 
 
 def classify(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
@@ -96,7 +99,7 @@ def classify(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
             if all(_b64_token(b) == t for b, t in zip(blobs, tokens)):
                 return ColumnKind.BASE64, blobs
         return ColumnKind.TEXT, tokens
-    if all(t in ("true", "false") for t in tokens):
+    if first in ("true", "false") and all(t in ("true", "false") for t in tokens):
         return ColumnKind.BOOL, np.array([t == "true" for t in tokens], dtype=np.uint8)
     try:
         ints = list(map(int, tokens))

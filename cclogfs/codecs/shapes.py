@@ -83,6 +83,7 @@ class ShapeMatcher:
     def __init__(self, capacity: int = 256):
         self._capacity = capacity
         self._compiled: OrderedDict[tuple, re.Pattern[str] | None] = OrderedDict()
+        self._last: tuple[tuple[str, ...], re.Pattern[str]] | None = None
 
     def _pattern(self, key: tuple, literals, values) -> re.Pattern[str] | None:
         pattern = self._compiled.get(key, False)
@@ -110,31 +111,28 @@ class ShapeMatcher:
         for _ in range(_MAX_ROUNDS):
             if not pending:
                 return out, unshaped
-            split = split_text(texts[pending[0]])
-            if split is None:
-                unshaped.append(pending.pop(0))
+            # The last window's specialized shape usually fits this one: skip the probes.
+            # (So the bytes of a window may depend on the one before; either decodes exactly.)
+            last = self._last
+            if last is not None and last[1].fullmatch(texts[pending[0]]) and last[1].fullmatch(texts[pending[-1]]):
+                merged, special = self._last
+                self._last = None
+            else:
+                found = self._specialize(texts, pending)
+                if found is None:
+                    unshaped.append(pending.pop(0))
+                    continue
+                if not found:
+                    break
+                merged, special = found
+            matches = list(map(special.fullmatch, [texts[i] for i in pending]))
+            if None not in matches:  # the usual case: the whole window has one shape
+                out.append((merged, pending, list(map(re.Match.groups, matches))))
+                self._last = (merged, special)
+                pending = []
                 continue
-            literals, values = split
-            kinds = tuple(v.startswith('"') for v in values)
-            generic = self._pattern((literals, kinds), literals, values)
-            if generic is None:
-                break
-            fixed, probed = [True] * len(values), 0
-            step = max(1, len(pending) // _PROBES)
-            for i in pending[step::step]:
-                match = generic.fullmatch(texts[i])
-                if match is not None:
-                    probed += 1
-                    fixed = [f and a == b for f, a, b in zip(fixed, values, match.groups())]
-            if probed == 0 and len(pending) > 1:  # nothing to compare with: bake nothing
-                fixed = [False] * len(values)
-            _keep_quaternions(values, fixed)
-            merged, kept = bake(literals, values, fixed)
-            key = (merged, tuple(v.startswith('"') for v in kept))
-            special = self._pattern(key, merged, kept)
             indices, rows, rest = [], [], []
-            for i in pending:
-                match = special.fullmatch(texts[i])
+            for i, match in zip(pending, matches):
                 if match is None:
                     rest.append(i)
                 else:
@@ -148,6 +146,33 @@ class ShapeMatcher:
             out.extend((lits, [pending[j] for j in idx], rows) for lits, (idx, rows) in groups.items())
             unshaped.extend(pending[j] for j in rest)
         return out, sorted(unshaped)
+
+    def _specialize(self, texts: list, pending: list[int]) -> tuple | None:
+        """(literals, regex) of the first pending text's shape with its constants baked in.
+
+        None when that text has no shape; () when its shape is too large for a regex.
+        """
+        split = split_text(texts[pending[0]])
+        if split is None:
+            return None
+        literals, values = split
+        kinds = tuple(v.startswith('"') for v in values)
+        generic = self._pattern((literals, kinds), literals, values)
+        if generic is None:
+            return ()
+        fixed, probed = [True] * len(values), 0
+        step = max(1, len(pending) // _PROBES)
+        for i in pending[step::step]:
+            match = generic.fullmatch(texts[i])
+            if match is not None:
+                probed += 1
+                fixed = [f and a == b for f, a, b in zip(fixed, values, match.groups())]
+        if probed == 0 and len(pending) > 1:  # nothing to compare with: bake nothing
+            fixed = [False] * len(values)
+        _keep_quaternions(values, fixed)
+        merged, kept = bake(literals, values, fixed)
+        key = (merged, tuple(v.startswith('"') for v in kept))
+        return merged, self._pattern(key, merged, kept)
 
     def group(self, texts: list[str | None]) -> tuple[dict[tuple, tuple[list[int], list]], list[int]]:
         """Group texts by shape: ({literals: (indices, value rows)}, indices without shape).
