@@ -45,8 +45,10 @@ from .columns import (
     classify,
     quaternion_prediction,
     read_column,
+    read_packed,
     slot_floats,
     write_column,
+    write_packed,
 )
 from .shapes import ShapeMatcher
 
@@ -83,7 +85,7 @@ def _split_by_label(
     return [(literals, indices, rows)]
 
 
-def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]]) -> bytes:
+def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]], version: int) -> bytes:
     """One group: header, literals, kinds, then each column's data."""
     n = len(rows)
     kinds, values = [], []
@@ -100,6 +102,8 @@ def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]]) -> byt
                 if near_unit.mean() >= _QUATERNION_SHARE:
                     kind = ColumnKind.QUAT_W
                     vals = vals.view("<u8") ^ quaternion_prediction(x, y, z).view("<u8")
+        elif kind is ColumnKind.INT and version >= 2:
+            kind = ColumnKind.INT_PACKED
         kinds.append(kind)
         values.append(vals)
         floats.append(fl)
@@ -208,11 +212,14 @@ class ColumnarCodec(Codec):
         # and classify() keeps a column kind only if rendering it gives every token back.
         for literals, indices, rows in parts[:MAX_GROUPS]:
             ids[indices] = len(bodies)
-            bodies.append(_encode_group(literals, rows))
+            bodies.append(_encode_group(literals, rows, self.version))
         raw_indices = np.flatnonzero(ids == RAW_GROUP).tolist()
         body = bytearray(U32.pack(len(bodies)))
         body += ids.tobytes()
-        body += _shuffle(_zigzag_delta(stamp_words, 1))
+        if self.version == 1:
+            body += _shuffle(_zigzag_delta(stamp_words, 1))
+        else:
+            write_packed(stamp_words, body)
         for data in bodies:
             body += data
         _write_blob([texts[i] for i in raw_indices], [len(texts[i]) for i in raw_indices], body)
@@ -245,8 +252,11 @@ class ColumnarCodec(Codec):
         valid = (ids < n_groups) | (ids == RAW_GROUP)
         if not valid.all():
             raise CodecError("columnar payload is corrupt: a message names a group that does not exist")
-        words = _unshuffle(reader.array("u1", 8 * count, "stamps"), count)
-        stamps = _undo_zigzag_delta(words, 1).tolist()
+        if version == 1:
+            words = _unshuffle(reader.array("u1", 8 * count, "stamps"), count)
+            stamps = _undo_zigzag_delta(words, 1).tolist()
+        else:
+            stamps = read_packed(reader, count, "stamps").tolist()
         order = np.argsort(ids, kind="stable")
         sizes = np.bincount(ids[ids != RAW_GROUP], minlength=n_groups).tolist()
         out: list[bytes] = [b""] * count

@@ -15,10 +15,12 @@ from typing import Any
 import numpy as np
 
 from ..errors import CodecError
-from .columnar_format import MIN_BASE64_CHARS, U32, ColumnKind
+from .columnar_format import MIN_BASE64_CHARS, PACKED_HEADER, U32, ColumnKind
 
 __all__ = [
     "Reader",
+    "read_packed",
+    "write_packed",
     "classify",
     "quaternion_prediction",
     "read_column",
@@ -162,6 +164,45 @@ def _undo_zigzag_delta(z: np.ndarray, order: int) -> np.ndarray:
     return d
 
 
+def write_packed(words: np.ndarray, out: bytearray) -> None:
+    """Append i64 values as: first, step (gcd of the deltas), width, width byte planes.
+
+    Stamps in microseconds or a 36 ms period leave the low bits of every delta zero and
+    its high bytes empty; dividing by the step and dropping empty planes saves both.
+    Nothing is written for no values.
+    """
+    n = len(words)
+    if n == 0:
+        return
+    deltas = np.diff(words.astype("<i8"))  # wraps modulo 2**64, as the cumsum that undoes it
+    step = math.gcd(*deltas.tolist()) if n > 1 else 0
+    if step > _I64_MAX:  # every delta is 0 or -2**63: keep them whole
+        step = 1
+    q = deltas // step if step else np.zeros(n - 1, dtype="<i8")
+    z = ((q << 1) ^ (q >> 63)).view("<u8")
+    width = (int(z.max()).bit_length() + 7) // 8 if n > 1 else 0
+    out += PACKED_HEADER.pack(int(words[0]), step, width)
+    out += z.view(np.uint8).reshape(n - 1, 8)[:, :width].T.tobytes()
+
+
+def read_packed(reader: "Reader", n: int, what: str) -> np.ndarray:
+    """The n i64 values write_packed wrote."""
+    if n == 0:
+        return np.zeros(0, dtype="<i8")
+    first, step, width = PACKED_HEADER.unpack(reader.take(PACKED_HEADER.size, f"{what} header"))
+    if width > 8 or step > _I64_MAX:
+        raise CodecError(f"columnar payload is corrupt: {what} claims step {step} and {width}-byte deltas")
+    planes = reader.array("u1", width * (n - 1), what).reshape(width, n - 1)
+    full = np.zeros((n - 1, 8), dtype=np.uint8)
+    full[:, :width] = planes.T
+    z = full.view("<u8").reshape(n - 1)
+    q = ((z >> 1) ^ (np.uint64(0) - (z & 1))).view("<i8")
+    values = np.empty(n, dtype="<i8")
+    values[0] = first
+    values[1:] = q * np.int64(step)  # wraps like the deltas did
+    return np.cumsum(values, dtype="<i8")
+
+
 def _write_blob(parts: list[bytes], counts: list[int], out: bytearray) -> None:
     blob = b"".join(parts)
     out += np.array(counts, dtype="<u4").tobytes()
@@ -178,6 +219,8 @@ def write_column(kind: ColumnKind, values: Any, out: bytearray) -> None:
         _write_blob([t.encode() for t in values], [len(t) for t in values], out)
     elif kind is ColumnKind.INT:
         out += _shuffle(_zigzag_delta(values, 1))
+    elif kind is ColumnKind.INT_PACKED:
+        write_packed(values, out)
     elif kind is ColumnKind.FLOAT:
         out += _shuffle(_zigzag_delta(values.view("<i8"), 2))
     elif kind is ColumnKind.QUAT_W:
@@ -216,6 +259,8 @@ def read_column(
     if kind == ColumnKind.INT:
         ints = _undo_zigzag_delta(_unshuffle(reader.array("u1", 8 * n, "int column"), n), 1)
         return list(map(str, ints.tolist())), None
+    if kind == ColumnKind.INT_PACKED:
+        return list(map(str, read_packed(reader, n, "int column").tolist())), None
     if kind == ColumnKind.FLOAT:
         words = _undo_zigzag_delta(_unshuffle(reader.array("u1", 8 * n, "float column"), n), 2)
         values = words.view("<f8")
