@@ -264,11 +264,13 @@ class ColumnarCodec(Codec):
         for g in range(n_groups):
             if sizes[g] == 0:
                 raise CodecError(f"columnar payload is corrupt: group {g} has no messages")
-            texts = _decode_group(reader, sizes[g], text_budget)
-            for i, text in zip(order[pos : pos + sizes[g]].tolist(), texts):
-                encoded = text.encode("utf-8")
-                total += len(encoded)
-                out[i] = encoded
+            encoded = [t.encode("utf-8") for t in _decode_group(reader, sizes[g], text_budget)]
+            total += sum(map(len, encoded))
+            if sizes[g] == count:  # one group holds the whole window, in order
+                out = encoded
+            else:
+                for i, data in zip(order[pos : pos + sizes[g]].tolist(), encoded):
+                    out[i] = data
             if total > text_budget:
                 raise CodecError("columnar payload renders more text than the window holds")
             pos += sizes[g]

@@ -68,7 +68,7 @@ def _float_text(value: float) -> str:
 
 def _render_floats(values: np.ndarray) -> list[str]:
     if np.isfinite(values).all():
-        return list(map(float.__repr__, values.tolist()))
+        return list(map(float.__repr__, values.tolist()))  # most of the decoding time
     return list(map(_float_text, values.tolist()))
 
 
