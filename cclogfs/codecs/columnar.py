@@ -1,9 +1,10 @@
 """The columnar codec: messages of one shape become one template plus typed columns.
 
-Texts that share their literal text (keys, punctuation, whitespace; see `shapes`) form a
-group: the literals are stored once and each value slot becomes a column (`columns`).
-Texts without a shape, and any group whose columns do not render back to the exact
-texts, are stored verbatim in the same payload. The body is compressed with one zstd
+Texts that share their literal text (keys, punctuation, whitespace, and the values that
+never change in the window; see `shapes`) form a group: the literals are stored once and
+each value slot becomes a column (`columns`), whose kind is kept only if rendering gives
+every token back (else the tokens are stored verbatim). Texts without a shape are stored
+verbatim in the same payload. The body is compressed with one zstd
 frame; an xxh32 of the frame in the header makes any flipped byte an error, not a text.
 The payload layout is specified in docs/CODEC_COLUMNAR.md.
 """
