@@ -1,9 +1,10 @@
 """The columnar codec: messages of one shape become one template plus typed columns.
 
-Texts that share their literal text (keys, punctuation, whitespace; see `shapes`) form a
-group: the literals are stored once and each value slot becomes a column (`columns`).
-Texts without a shape, and any group whose columns do not render back to the exact
-texts, are stored verbatim in the same payload. The body is compressed with one zstd
+Texts that share their literal text (keys, punctuation, whitespace, and the values that
+never change in the window; see `shapes`) form a group: the literals are stored once and
+each value slot becomes a column (`columns`), whose kind is kept only if rendering gives
+every token back (else the tokens are stored verbatim). Texts without a shape are stored
+verbatim in the same payload. The body is compressed with one zstd
 frame; an xxh32 of the frame in the header makes any flipped byte an error, not a text.
 The payload layout is specified in docs/CODEC_COLUMNAR.md.
 """
@@ -45,8 +46,10 @@ from .columns import (
     classify,
     quaternion_prediction,
     read_column,
+    read_packed,
     slot_floats,
     write_column,
+    write_packed,
 )
 from .shapes import ShapeMatcher
 
@@ -60,15 +63,15 @@ _MAX_LABELS = 8
 
 
 def _split_by_label(
-    indices: list[int], rows: list[tuple[str, ...]]
-) -> list[tuple[list[int], list[tuple[str, ...]]]]:
+    literals: tuple[str, ...], indices: list[int], rows: list[tuple[str, ...]]
+) -> list[tuple[tuple[str, ...], list[int], list[tuple[str, ...]]]]:
     """Split a group by its first string slot with a few values (a frame id, say).
 
     /tf interleaves transforms of different frames; apart, each frame's values form a
     smooth series that delta coding shrinks, together they alternate and do not.
     """
     if len(rows) < 2 * _MAX_LABELS:
-        return [(indices, rows)]
+        return [(literals, indices, rows)]
     for j, token in enumerate(rows[0]):
         if token[:1] != '"':
             continue
@@ -79,11 +82,11 @@ def _split_by_label(
                 part = parts.setdefault(row[j], ([], []))
                 part[0].append(i)
                 part[1].append(row)
-            return list(parts.values())
-    return [(indices, rows)]
+            return [(literals, idx, part_rows) for idx, part_rows in parts.values()]
+    return [(literals, indices, rows)]
 
 
-def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]]) -> bytes:
+def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]], version: int) -> bytes:
     """One group: header, literals, kinds, then each column's data."""
     n = len(rows)
     kinds, values = [], []
@@ -100,6 +103,8 @@ def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]]) -> byt
                 if near_unit.mean() >= _QUATERNION_SHARE:
                     kind = ColumnKind.QUAT_W
                     vals = vals.view("<u8") ^ quaternion_prediction(x, y, z).view("<u8")
+        elif kind is ColumnKind.INT and version >= 2:
+            kind = ColumnKind.INT_PACKED
         kinds.append(kind)
         values.append(vals)
         floats.append(fl)
@@ -150,6 +155,13 @@ def _decode_group(reader: Reader, n: int, budget: int) -> list[str]:
     return [fmt % row for row in zip(*varying)]
 
 
+def _utf8_or_none(data: bytes) -> str | None:
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return None
+
+
 class ColumnarCodec(Codec):
     """Template + typed columns per JSON shape, zstd over the body; byte-exact."""
 
@@ -189,36 +201,26 @@ class ColumnarCodec(Codec):
         except OverflowError as err:
             raise CodecError("a window stamp does not fit in a signed 64-bit integer") from err
         compressor, _, matcher = self._state()
-        strs: list[str | None] = []
-        for t in texts:
-            try:
-                strs.append(t.decode("utf-8"))
-            except UnicodeDecodeError:
-                strs.append(None)
-        groups, _ = matcher.group(strs)
+        try:
+            strs: list[str | None] = [t.decode("utf-8") for t in texts]
+        except UnicodeDecodeError:
+            strs = [_utf8_or_none(t) for t in texts]
+        groups, _ = matcher.group_window(strs)
         ids = np.full(count, RAW_GROUP, dtype="<u2")
         bodies = []
-        parts = [
-            (literals, part)
-            for literals, (indices, rows) in groups.items()
-            for part in _split_by_label(indices, rows)
-        ]
-        for literals, (indices, rows) in parts:
-            if len(bodies) == MAX_GROUPS:
-                break
-            data = _encode_group(literals, rows)
-            # The group is kept only if decoding its bytes gives back every text exactly.
-            try:
-                rendered = _decode_group(Reader(data), len(rows), len(data) * 64 + (1 << 20))
-            except CodecError:
-                continue
-            if rendered == [strs[i] for i in indices]:
-                ids[indices] = len(bodies)
-                bodies.append(data)
+        parts = [part for literals, indices, rows in groups for part in _split_by_label(literals, indices, rows)]
+        # No trial decode: a match rebuilds its text from the literals by construction,
+        # and classify() keeps a column kind only if rendering it gives every token back.
+        for literals, indices, rows in parts[:MAX_GROUPS]:
+            ids[indices] = len(bodies)
+            bodies.append(_encode_group(literals, rows, self.version))
         raw_indices = np.flatnonzero(ids == RAW_GROUP).tolist()
         body = bytearray(U32.pack(len(bodies)))
         body += ids.tobytes()
-        body += _shuffle(_zigzag_delta(stamp_words, 1))
+        if self.version == 1:
+            body += _shuffle(_zigzag_delta(stamp_words, 1))
+        else:
+            write_packed(stamp_words, body)
         for data in bodies:
             body += data
         _write_blob([texts[i] for i in raw_indices], [len(texts[i]) for i in raw_indices], body)
@@ -251,8 +253,11 @@ class ColumnarCodec(Codec):
         valid = (ids < n_groups) | (ids == RAW_GROUP)
         if not valid.all():
             raise CodecError("columnar payload is corrupt: a message names a group that does not exist")
-        words = _unshuffle(reader.array("u1", 8 * count, "stamps"), count)
-        stamps = _undo_zigzag_delta(words, 1).tolist()
+        if version == 1:
+            words = _unshuffle(reader.array("u1", 8 * count, "stamps"), count)
+            stamps = _undo_zigzag_delta(words, 1).tolist()
+        else:
+            stamps = read_packed(reader, count, "stamps").tolist()
         order = np.argsort(ids, kind="stable")
         sizes = np.bincount(ids[ids != RAW_GROUP], minlength=n_groups).tolist()
         out: list[bytes] = [b""] * count
@@ -260,11 +265,13 @@ class ColumnarCodec(Codec):
         for g in range(n_groups):
             if sizes[g] == 0:
                 raise CodecError(f"columnar payload is corrupt: group {g} has no messages")
-            texts = _decode_group(reader, sizes[g], text_budget)
-            for i, text in zip(order[pos : pos + sizes[g]].tolist(), texts):
-                encoded = text.encode("utf-8")
-                total += len(encoded)
-                out[i] = encoded
+            encoded = [t.encode("utf-8") for t in _decode_group(reader, sizes[g], text_budget)]
+            total += sum(map(len, encoded))
+            if sizes[g] == count:  # one group holds the whole window, in order
+                out = encoded
+            else:
+                for i, data in zip(order[pos : pos + sizes[g]].tolist(), encoded):
+                    out[i] = data
             if total > text_budget:
                 raise CodecError("columnar payload renders more text than the window holds")
             pos += sizes[g]

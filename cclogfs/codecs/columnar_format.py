@@ -6,12 +6,14 @@ import struct
 from enum import IntEnum
 
 # Payload versions this code decodes; the encoder writes the one its config names.
-FORMAT_VERSIONS = (1,)
-LATEST_VERSION = 1
+FORMAT_VERSIONS = (1, 2)
+LATEST_VERSION = 2
 
 HEADER = struct.Struct("<BII")  # format version, body length (before zstd), xxh32 of the frame
 GROUP_HEADER = struct.Struct("<II")  # messages in the group, value slots per message
 U32 = struct.Struct("<I")
+# Packed integers (version 2): first value, step dividing every delta, bytes per delta.
+PACKED_HEADER = struct.Struct("<qQB")
 
 # Group id of messages stored as plain text (no shape, or the shape did not reproduce them).
 RAW_GROUP = 0xFFFF
@@ -36,3 +38,4 @@ class ColumnKind(IntEnum):
     BOOL = 5  # u8 0/1: false/true
     BASE64 = 6  # decoded bytes: u32 length each, then the bytes; rendered as "base64"
     QUAT_W = 7  # f64 bits XOR sqrt(1 - x^2 - y^2 - z^2) of the three slots before
+    INT_PACKED = 8  # version 2: i64 as packed integers (first, step, narrow zigzag deltas)

@@ -15,10 +15,12 @@ from typing import Any
 import numpy as np
 
 from ..errors import CodecError
-from .columnar_format import MIN_BASE64_CHARS, U32, ColumnKind
+from .columnar_format import MIN_BASE64_CHARS, PACKED_HEADER, U32, ColumnKind
 
 __all__ = [
     "Reader",
+    "read_packed",
+    "write_packed",
     "classify",
     "quaternion_prediction",
     "read_column",
@@ -66,17 +68,25 @@ def _float_text(value: float) -> str:
 
 def _render_floats(values: np.ndarray) -> list[str]:
     if np.isfinite(values).all():
-        return list(map(float.__repr__, values.tolist()))
+        return list(map(float.__repr__, values.tolist()))  # most of the decoding time
     return list(map(_float_text, values.tolist()))
 
 
 def _as_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
+    """The tokens as float64, or None unless rendering them gives every token back."""
     try:
-        values = [_NONFINITE[t] if t in _NONFINITE else float(t) for t in tokens]
+        # float() also reads "NaN", "nan", "inf", "1_0", ...: the rendering check
+        # below rejects every spelling the decoder would not write back.
+        values = list(map(float, tokens))
     except ValueError:
         return None
-    arr = np.array(values, dtype=np.float64)
-    return arr if _render_floats(arr) == list(tokens) else None
+    # repr is most of the cost of a float column; it cannot be skipped, since only the
+    # repr spelling of a float comes back from the decoder.
+    if tuple(map(float.__repr__, values)) == tokens:
+        return np.array(values, dtype=np.float64)
+    if tuple(map(_float_text, values)) == tokens:  # NaN, Infinity as json.dumps writes them
+        return np.array(values, dtype=np.float64)
+    return None
 
 
 def classify(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
@@ -86,9 +96,12 @@ def classify(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
         return ColumnKind.CONST, first
     if first[:1] == '"':
         if len(first) >= MIN_BASE64_CHARS + 2 and all(map(_BASE64.fullmatch, tokens)):
-            return ColumnKind.BASE64, [base64.b64decode(t[1:-1]) for t in tokens]
+            blobs = [base64.b64decode(t[1:-1]) for t in tokens]
+            # Padding bits that are not zero ("QR==") decode but do not encode back.
+            if all(_b64_token(b) == t for b, t in zip(blobs, tokens)):
+                return ColumnKind.BASE64, blobs
         return ColumnKind.TEXT, tokens
-    if all(t in ("true", "false") for t in tokens):
+    if first in ("true", "false") and all(t in ("true", "false") for t in tokens):
         return ColumnKind.BOOL, np.array([t == "true" for t in tokens], dtype=np.uint8)
     try:
         ints = list(map(int, tokens))
@@ -151,6 +164,45 @@ def _undo_zigzag_delta(z: np.ndarray, order: int) -> np.ndarray:
     return d
 
 
+def write_packed(words: np.ndarray, out: bytearray) -> None:
+    """Append i64 values as: first, step (gcd of the deltas), width, width byte planes.
+
+    Stamps in microseconds or a 36 ms period leave the low bits of every delta zero and
+    its high bytes empty; dividing by the step and dropping empty planes saves both.
+    Nothing is written for no values.
+    """
+    n = len(words)
+    if n == 0:
+        return
+    deltas = np.diff(words.astype("<i8"))  # wraps modulo 2**64, as the cumsum that undoes it
+    step = math.gcd(*deltas.tolist()) if n > 1 else 0
+    if step > _I64_MAX:  # every delta is 0 or -2**63: keep them whole
+        step = 1
+    q = deltas // step if step else np.zeros(n - 1, dtype="<i8")
+    z = ((q << 1) ^ (q >> 63)).view("<u8")
+    width = (int(z.max()).bit_length() + 7) // 8 if n > 1 else 0
+    out += PACKED_HEADER.pack(int(words[0]), step, width)
+    out += z.view(np.uint8).reshape(n - 1, 8)[:, :width].T.tobytes()
+
+
+def read_packed(reader: "Reader", n: int, what: str) -> np.ndarray:
+    """The n i64 values write_packed wrote."""
+    if n == 0:
+        return np.zeros(0, dtype="<i8")
+    first, step, width = PACKED_HEADER.unpack(reader.take(PACKED_HEADER.size, f"{what} header"))
+    if width > 8 or step > _I64_MAX:
+        raise CodecError(f"columnar payload is corrupt: {what} claims step {step} and {width}-byte deltas")
+    planes = reader.array("u1", width * (n - 1), what).reshape(width, n - 1)
+    full = np.zeros((n - 1, 8), dtype=np.uint8)
+    full[:, :width] = planes.T
+    z = full.view("<u8").reshape(n - 1)
+    q = ((z >> 1) ^ (np.uint64(0) - (z & 1))).view("<i8")
+    values = np.empty(n, dtype="<i8")
+    values[0] = first
+    values[1:] = q * np.int64(step)  # wraps like the deltas did
+    return np.cumsum(values, dtype="<i8")
+
+
 def _write_blob(parts: list[bytes], counts: list[int], out: bytearray) -> None:
     blob = b"".join(parts)
     out += np.array(counts, dtype="<u4").tobytes()
@@ -167,6 +219,8 @@ def write_column(kind: ColumnKind, values: Any, out: bytearray) -> None:
         _write_blob([t.encode() for t in values], [len(t) for t in values], out)
     elif kind is ColumnKind.INT:
         out += _shuffle(_zigzag_delta(values, 1))
+    elif kind is ColumnKind.INT_PACKED:
+        write_packed(values, out)
     elif kind is ColumnKind.FLOAT:
         out += _shuffle(_zigzag_delta(values.view("<i8"), 2))
     elif kind is ColumnKind.QUAT_W:
@@ -205,6 +259,8 @@ def read_column(
     if kind == ColumnKind.INT:
         ints = _undo_zigzag_delta(_unshuffle(reader.array("u1", 8 * n, "int column"), n), 1)
         return list(map(str, ints.tolist())), None
+    if kind == ColumnKind.INT_PACKED:
+        return list(map(str, read_packed(reader, n, "int column").tolist())), None
     if kind == ColumnKind.FLOAT:
         words = _undo_zigzag_delta(_unshuffle(reader.array("u1", 8 * n, "float column"), n), 2)
         values = words.view("<f8")
@@ -228,11 +284,12 @@ def read_column(
             raise CodecError("columnar payload is corrupt: base64 column lengths do not add up")
         ends = np.cumsum(counts, dtype=np.int64).tolist()
         data = bytes(blob)
-        return [
-            '"' + binascii.b2a_base64(data[a:b], newline=False).decode("ascii") + '"'
-            for a, b in zip([0] + ends[:-1], ends)
-        ], None
+        return [_b64_token(data[a:b]) for a, b in zip([0] + ends[:-1], ends)], None
     raise CodecError(f"columnar payload is corrupt: unknown column kind {kind}")
+
+
+def _b64_token(data: bytes) -> str:
+    return '"' + binascii.b2a_base64(data, newline=False).decode("ascii") + '"'
 
 
 def _utf8(data: memoryview, what: str) -> str:

@@ -23,6 +23,10 @@ _TOKEN = re.compile(
 )
 # Shapes with more value slots than this are not compiled into a matcher regex.
 _MAX_MATCHER_SLOTS = 4096
+# Messages besides the first that decide which values of a shape are constant.
+_PROBES = 4
+# Rounds of specialized matching before the rest of a window is grouped text by text.
+_MAX_ROUNDS = 8
 
 
 def split_text(text: str) -> tuple[tuple[str, ...], list[str]] | None:
@@ -48,12 +52,38 @@ def _matcher(literals: tuple[str, ...], values: list[str]) -> re.Pattern[str] | 
     return re.compile("".join(parts), re.S)
 
 
+def bake(literals: tuple[str, ...], values: list[str], fixed: list[bool]) -> tuple[tuple[str, ...], list[str]]:
+    """The shape with the fixed values folded into the literals around them."""
+    merged, kept = [literals[0]], []
+    for lit, val, is_fixed in zip(literals[1:], values, fixed):
+        if is_fixed:
+            merged[-1] += val + lit
+        else:
+            kept.append(val)
+            merged.append(lit)
+    return tuple(merged), kept
+
+
+def _keep_quaternions(values: list[str], fixed: list[bool]) -> None:
+    """Unfix x, y, z of a unit quaternion whose w varies: the codec predicts w from them."""
+    for j in range(3, len(values)):
+        if fixed[j] or not any(fixed[j - 3 : j]):
+            continue
+        try:
+            q = [float(v) for v in values[j - 3 : j + 1]]
+        except ValueError:
+            continue
+        if abs(sum(c * c for c in q) - 1.0) < 1e-6:
+            fixed[j - 3 : j] = [False] * 3
+
+
 class ShapeMatcher:
     """Finds the shape of each text; reuses compiled shapes across windows (bounded LRU)."""
 
     def __init__(self, capacity: int = 256):
         self._capacity = capacity
         self._compiled: OrderedDict[tuple, re.Pattern[str] | None] = OrderedDict()
+        self._last: tuple[tuple[str, ...], re.Pattern[str]] | None = None
 
     def _pattern(self, key: tuple, literals, values) -> re.Pattern[str] | None:
         pattern = self._compiled.get(key, False)
@@ -65,6 +95,84 @@ class ShapeMatcher:
         else:
             self._compiled.move_to_end(key)
         return pattern
+
+    def group_window(self, texts: list[str | None]) -> tuple[list[tuple[tuple, list[int], list]], list[int]]:
+        """Groups [(literals, indices, value rows)] of a window, and indices without shape.
+
+        Most values of a robot message never change within a window (covariances, frame
+        ids, zero axes). The first pending text and a few probes spread over the window
+        show which; those are folded into the literals, so one regex with a handful of
+        groups matches the window. Texts it misses start the next round. Any baking is
+        exact: the literals are cut from a real text and a match rebuilds its text.
+        """
+        out: list[tuple[tuple, list[int], list]] = []
+        unshaped = [i for i, t in enumerate(texts) if t is None]
+        pending = [i for i, t in enumerate(texts) if t is not None]
+        for _ in range(_MAX_ROUNDS):
+            if not pending:
+                return out, unshaped
+            # The last window's specialized shape usually fits this one: skip the probes.
+            # (So the bytes of a window may depend on the one before; either decodes exactly.)
+            last = self._last
+            if last is not None and last[1].fullmatch(texts[pending[0]]) and last[1].fullmatch(texts[pending[-1]]):
+                merged, special = self._last
+                self._last = None
+            else:
+                found = self._specialize(texts, pending)
+                if found is None:
+                    unshaped.append(pending.pop(0))
+                    continue
+                if not found:
+                    break
+                merged, special = found
+            matches = list(map(special.fullmatch, [texts[i] for i in pending]))
+            if None not in matches:  # the usual case: the whole window has one shape
+                out.append((merged, pending, list(map(re.Match.groups, matches))))
+                self._last = (merged, special)
+                pending = []
+                continue
+            indices, rows, rest = [], [], []
+            for i, match in zip(pending, matches):
+                if match is None:
+                    rest.append(i)
+                else:
+                    indices.append(i)
+                    rows.append(match.groups())
+            out.append((merged, indices, rows))
+            pending = rest
+        if pending:
+            sub = [texts[i] for i in pending]
+            groups, rest = self.group(sub)
+            out.extend((lits, [pending[j] for j in idx], rows) for lits, (idx, rows) in groups.items())
+            unshaped.extend(pending[j] for j in rest)
+        return out, sorted(unshaped)
+
+    def _specialize(self, texts: list, pending: list[int]) -> tuple | None:
+        """(literals, regex) of the first pending text's shape with its constants baked in.
+
+        None when that text has no shape; () when its shape is too large for a regex.
+        """
+        split = split_text(texts[pending[0]])
+        if split is None:
+            return None
+        literals, values = split
+        kinds = tuple(v.startswith('"') for v in values)
+        generic = self._pattern((literals, kinds), literals, values)
+        if generic is None:
+            return ()
+        fixed, probed = [True] * len(values), 0
+        step = max(1, len(pending) // _PROBES)
+        for i in pending[step::step]:
+            match = generic.fullmatch(texts[i])
+            if match is not None:
+                probed += 1
+                fixed = [f and a == b for f, a, b in zip(fixed, values, match.groups())]
+        if probed == 0 and len(pending) > 1:  # nothing to compare with: bake nothing
+            fixed = [False] * len(values)
+        _keep_quaternions(values, fixed)
+        merged, kept = bake(literals, values, fixed)
+        key = (merged, tuple(v.startswith('"') for v in kept))
+        return merged, self._pattern(key, merged, kept)
 
     def group(self, texts: list[str | None]) -> tuple[dict[tuple, tuple[list[int], list]], list[int]]:
         """Group texts by shape: ({literals: (indices, value rows)}, indices without shape).
