@@ -586,7 +586,7 @@ def _encode_meta(meta: Mapping[str, Any]) -> bytes:
 
 
 def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: bool = False,
-               codec: Any = "zstd", stream_codecs: Mapping[str, Any] | None = None,
+               codec: Any = "columnar", stream_codecs: Mapping[str, Any] | None = None,
                sync_every_ms: float | None = 200, sync_every_bytes: int | None = 4 << 20,
                segment_bytes: int = 64 << 20, segment_age_s: float = 3600.0,
                segment_records: int = 16384, fs: FileSystem | None = None) -> Store:  # fmt: skip

@@ -17,7 +17,7 @@ def test_info_json_matches_store(tmp_path, capsys):
     assert main(["info", str(tmp_path / "s"), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["streams"]["/odom"]["windows"] == 40 and info["streams"]["/tf"]["messages"] == 200
-    assert info["streams"]["/odom"]["codec"]["id"] == "zstd"
+    assert info["streams"]["/odom"]["codec"]["id"] == "columnar"  # the default codec
     assert main(["info", str(tmp_path / "s")]) == 0
     assert "/odom" in capsys.readouterr().out
 

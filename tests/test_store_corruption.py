@@ -109,7 +109,7 @@ def test_unknown_codec_is_kept_and_named_on_read(tmp_path):
 
 def test_unknown_codec_id_in_config(tmp_path):
     path = tmp_path / "s"
-    with cclogfs.open_store(path, create=True) as store:
+    with cclogfs.open_store(path, create=True, codec="zstd") as store:
         store.put_window("/a", [(0, "1")])
         (w,) = store.query()
         offset = w._offset

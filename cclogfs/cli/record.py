@@ -39,7 +39,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--before", default="100", help="window context before an anomaly: N messages or Ds")
     p.add_argument("--after", default="100", help="window context after the last anomaly: N or Ds")
     p.add_argument("--chunk", type=int, default=200, help="without --model: messages per stored window")
-    p.add_argument("--codec", default="zstd", help="codec for new records (zstd, lzma, none, columnar)")
+    p.add_argument("--codec", default="columnar",
+                   help="codec for new records: columnar (default, smallest), zstd (fastest), lzma, none")
     p.add_argument("--on-error", choices=["stop", "skip"], default="stop",
                    help="a malformed JSONL line stops the run (default) or is reported and skipped")
     p.add_argument("--sync-ms", type=float, default=200, help="group commit interval (default 200 ms)")
