@@ -56,7 +56,7 @@ def plot_scores(path: Path, stamps: np.ndarray, scores: np.ndarray, windows: lis
     plt = _pyplot()
     t0 = stamps[0]
     sec = (stamps - t0) / 1e9
-    fig, ax = plt.subplots(figsize=(11, 4), dpi=110)
+    fig, ax = plt.subplots(figsize=(11, 4.4), dpi=110)
     for k, (a, b) in enumerate(windows):
         ax.axvspan((a - t0) / 1e9, (b - t0) / 1e9, color="tab:blue", alpha=0.18,
                    label="stored window" if k == 0 else None)  # fmt: skip
@@ -72,7 +72,7 @@ def plot_scores(path: Path, stamps: np.ndarray, scores: np.ndarray, windows: lis
     ax.set_xlabel("time (s)")
     ax.set_ylabel("score (> 0: anomalous)")
     ax.set_title("Anomaly score of each odometry message")
-    ax.legend(loc="upper left", fontsize=8, ncol=5)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), fontsize=8, ncol=4, frameon=False)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
