@@ -49,3 +49,18 @@ def test_errors_are_one_line_and_exit_nonzero(tmp_path, capsys):
     assert main(["info", str(tmp_path / "missing")]) == 1
     err = capsys.readouterr().err
     assert err.startswith("cclog: error:") and "not a cclogfs store" in err and err.count("\n") == 1
+
+
+def test_info_totals_the_summary_stream(tmp_path, capsys):
+    recs = [{"messages": 600, "distance_m": 12.5, "moving_s": 50.0, "anomalies": 3, "peak_speed": 0.9,
+             "peak_accel": 1.5}, {"messages": 300, "distance_m": 7.5, "moving_s": 20.0, "anomalies": 0,
+             "peak_speed": 1.1, "peak_accel": 0.5}]  # fmt: skip
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        for i, rec in enumerate(recs):
+            store.put_window("/cclog/summary", [(i * 60 * 10**9, json.dumps(rec))])
+    assert main(["info", str(tmp_path / "s"), "--json"]) == 0
+    totals = json.loads(capsys.readouterr().out)["summary"]
+    assert totals == {"minutes": 2, "messages": 900, "distance_m": 20.0, "moving_s": 70.0, "anomalies": 3,
+                      "peak_speed": 1.1, "peak_accel": 1.5}  # fmt: skip
+    assert main(["info", str(tmp_path / "s")]) == 0
+    assert "0.020 km driven" in capsys.readouterr().out

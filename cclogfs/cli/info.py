@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from ..classifier.summary import SUMMARY_TOPIC
 from ..store import open_store
 from ._fmt import human_bytes, iso_ns, table
 
@@ -35,6 +36,7 @@ def store_info(path: str) -> dict:
             st["codec"] = last.codec_config if last is not None else None
             st["ratio"] = st["stored_bytes"] / st["json_bytes"] if st["json_bytes"] else None
         return {
+            "summary": summary_totals(store) if SUMMARY_TOPIC in streams else None,
             "path": path,
             "store_id": store.manifest["store_id"],
             "segments": len(store.sealed) + len(store.unsealed),
@@ -43,6 +45,21 @@ def store_info(path: str) -> dict:
             "streams": streams,
             "recovery": [str(p) for p in store.recovery.problems],
         }
+
+
+def summary_totals(store) -> dict:
+    """Totals of the smart-logging summary stream: what the robot did while nothing was stored."""
+    total = {"minutes": 0, "messages": 0, "distance_m": 0.0, "moving_s": 0.0, "anomalies": 0,
+             "peak_speed": 0.0, "peak_accel": 0.0}  # fmt: skip
+    for w in store.query(SUMMARY_TOPIC):
+        for _, text in w.messages():
+            rec = json.loads(text)
+            total["minutes"] += 1
+            for key in ("messages", "distance_m", "moving_s", "anomalies"):
+                total[key] += rec.get(key, 0)
+            for key in ("peak_speed", "peak_accel"):
+                total[key] = max(total[key], rec.get(key, 0.0))
+    return total
 
 
 def run(args: argparse.Namespace) -> int:
@@ -59,6 +76,11 @@ def run(args: argparse.Namespace) -> int:
                      (st["codec"] or {}).get("id", "?")])  # fmt: skip
     print(f"store {info['path']}  ({info['segments']} segments, {human_bytes(info['disk_bytes'])} on disk)")
     print(table(rows, ["stream", "windows", "messages", "start (UTC)", "span", "JSON", "stored", "% of JSON", "codec"]))
+    if info["summary"]:
+        t = info["summary"]
+        print(f"summary ({SUMMARY_TOPIC}, {t['minutes']} periods): {t['distance_m'] / 1000:.3f} km driven, "
+              f"{t['moving_s'] / 60:.1f} min moving, peak speed {t['peak_speed']:.2f} m/s, peak acceleration "
+              f"{t['peak_accel']:.2f} m/s^2, {t['anomalies']:,} anomalous of {t['messages']:,} odometry messages")
     for line in info["recovery"]:
         print(f"note: a reader would drop a torn tail: {line}")
     return 0
