@@ -10,7 +10,7 @@ import sys
 from ..errors import CclogError
 
 # One module per subcommand, in the order `cclog --help` lists them.
-COMMANDS: list[str] = []
+COMMANDS: list[str] = ["simulate"]
 
 
 def build_parser() -> argparse.ArgumentParser:
