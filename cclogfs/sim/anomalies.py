@@ -189,8 +189,13 @@ def _oscillation(ov, sl, t, length, sev, rng, dt, a_max):
     ov.mode[sl] = 1
     f = rng.uniform(0.4, 0.9)
     ov.a[sl] = rng.uniform(0.05, 0.2)
-    ov.b[sl] = (0.5 + 0.9 * sev) * np.sign(np.sin(2 * np.pi * f * t + 1e-9))
-    ov.d[sl] = 3.0
+    amp = 0.5 + 0.9 * sev
+    # the swing fades out before the window ends, so the robot leaves it within limits
+    fade = np.clip((length - t) / 0.8, 0.0, 1.0)
+    ov.b[sl] = amp * fade * np.sin(2 * np.pi * f * t)
+    # enough angular acceleration to follow the swing; a slew-limited square wave would
+    # settle into a triangle around whatever offset it started from
+    ov.d[sl] = 1.5 * 2 * np.pi * f * amp
 
 
 def _stuck(ov, sl, t, length, sev, rng, dt, a_max):
@@ -228,7 +233,10 @@ def _collision(ov, sl, t, length, sev, rng, dt, a_max):
     ov.mode[sl] = mode
     decay = math.exp(-dt / 0.015)
     in_hit = t < hit
-    shape = np.sin(np.pi * np.clip((t - hit) / (bounce - hit), 0.0, 1.0))
+    # recoil: up within 50 ms of the impact, then dying away
+    u = t - hit
+    shape = np.where(u < 0.05, np.sin(0.5 * np.pi * np.clip(u / 0.05, 0.0, 1.0)),
+                     np.cos(0.5 * np.pi * np.clip((u - 0.05) / (bounce - hit - 0.05), 0.0, 1.0)) ** 2)
     kick = rng.choice([-1.0, 1.0]) * (0.3 + 0.9 * sev)
     ov.a[sl] = np.where(mode == 2, np.where(in_hit, 0.0, -(0.1 + 0.25 * sev) * shape), 0.0)
     ov.b[sl] = np.where(mode == 2, np.where(in_hit, decay, 0.0), np.nan)
