@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-import json
 import operator
 import unicodedata
 from collections.abc import Sequence
 
 from .errors import InvalidInputError
 from .format import MAX_COUNT, MAX_NAME
+from .jsoncheck import json_error
 
 I64_MIN, I64_MAX = -(1 << 63), (1 << 63) - 1
-_decoder = json.JSONDecoder()
 
 
 def check_stream_name(name: object) -> bytes:
@@ -64,13 +63,8 @@ def encode_messages(messages: Sequence[tuple[int, str]], *, check_json: bool = T
         prev = stamp
         if not isinstance(text, str):
             raise InvalidInputError(f"message {i}: the JSON text must be a str, got {type(text).__name__}")
-        if check_json:
-            try:
-                _decoder.decode(text)
-            except json.JSONDecodeError as err:
-                raise InvalidInputError(f"message {i} is not well-formed JSON: {err}") from err
-            except RecursionError as err:
-                raise InvalidInputError(f"message {i} is nested too deeply to check") from err
+        if check_json and (why := json_error(text)) is not None:
+            raise InvalidInputError(f"message {i} is not well-formed JSON: {why}")
         try:
             texts.append(text.encode("utf-8"))
         except UnicodeEncodeError as err:

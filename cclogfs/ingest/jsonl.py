@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import BinaryIO, Literal
 
 from ..errors import InvalidInputError, SourceError
+from ..jsoncheck import json_error
 from .base import SourceMessage, topic_filter
 
 OnError = Literal["stop", "skip"]
@@ -216,7 +217,6 @@ class JsonlSource:
     def __iter__(self) -> Iterator[SourceMessage]:
         wanted = self._wanted
         fast_head = _FAST_HEAD.match
-        raw_decode = _DECODER.raw_decode
         for lineno, raw in enumerate(self._file, 1):
             try:
                 line = raw.decode("utf-8")
@@ -232,13 +232,13 @@ class JsonlSource:
                 if wanted is not None and topic not in wanted:
                     continue
                 start = m.end()
-                try:
-                    end = raw_decode(line, start)[1]
-                except ValueError:
-                    end = -1
                 stamp = int(m.group(2))
-                if end == len(line) - 1 and stamp <= _MAX_STAMP:
-                    yield SourceMessage(topic, stamp, line[start:end], "")
+                # msg starts with "{" (the regex looks ahead), so line[start:-1] is exactly
+                # the msg value when it is one valid value with no whitespace before the
+                # final "}"; anything else takes the general path, which reports errors.
+                msg = line[start:-1]
+                if stamp <= _MAX_STAMP and line[-2] not in " \t\r\n" and json_error(msg) is None:
+                    yield SourceMessage(topic, stamp, msg, "")
                     continue
             if not line.strip():
                 continue
