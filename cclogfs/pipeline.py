@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple, Protocol
 
-from .store import Store
+from .store import Store, open_store
 
 
 class Chunk(NamedTuple):
@@ -145,6 +145,60 @@ def _signals_deferred() -> Iterator[None]:
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+class Logger:
+    """cclogfs inside a running robot program: hand it each message, it logs into a store.
+
+        with Logger("robot.store", model="odom.model", topics=["/odom", "/tf"]) as log:
+            log("/odom", stamp_ns, json_text)      # or log(source_message), e.g. as the
+                                                   # sink of ingest.live.LiveSource
+    Without `model` every message is kept (in windows of `chunk`); with it, only logging
+    windows around anomalies. Thread-safe: executor callbacks may call it concurrently.
+    Puts become durable by the store's group commit (`sync_every_ms`); `close()` flushes
+    the open windows and syncs.
+    """
+
+    def __init__(self, store_path: str, *, model: Any = None, topics: Iterable[str] | None = None,
+                 before: str = "100", after: str = "100", chunk: int = 200, codec: Any = "columnar",
+                 sync_every_ms: float | None = 200) -> None:  # fmt: skip
+        self.topics = None if topics is None else frozenset(topics)
+        self.policy = (smart_policy(model, topics=topics, before=before, after=after)
+                       if model is not None else KeepAll(chunk=chunk))  # fmt: skip
+        self.store: Store | None = open_store(store_path, create=True, codec=codec, sync_every_ms=sync_every_ms)
+        self.stats = RecordStats()
+        self._lock = threading.Lock()
+
+    def __call__(self, topic_or_message: Any, stamp_ns: int | None = None, text: str | None = None) -> None:
+        if stamp_ns is None:
+            m = topic_or_message
+            topic_or_message, stamp_ns, text = m.topic, m.stamp_ns, m.text
+        topic = topic_or_message
+        if self.topics is not None and topic not in self.topics and topic != getattr(self.policy, "odom_topic", None):
+            return
+        with self._lock:
+            self.stats.messages_in += 1
+            self.stats.json_bytes_in += len(text)
+            for window in self.policy.push(topic, stamp_ns, text):
+                store_window(self.store, window, self.stats)
+
+    def close(self) -> None:
+        with self._lock:
+            if self.store is None:
+                return
+            try:
+                with _signals_deferred():
+                    for window in self.policy.flush():
+                        store_window(self.store, window, self.stats)
+            finally:
+                self.store.close()
+                self.store = None
+
+    def __enter__(self) -> Logger:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 # -- smart logging: the classifier's policy, built from a model file ------------------------

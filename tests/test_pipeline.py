@@ -148,3 +148,35 @@ def test_sigterm_flushes_and_closes_cleanly(tmp_path):
     with cclogfs.open_store(tmp_path / "s") as store:
         assert store.recovery.clean, err  # closed cleanly, nothing torn
         assert [t for w in store.query() for t, _ in w.messages()] == list(range(20)), err
+
+
+def test_logger_embedded_in_a_live_program(tmp_path, shared_data):
+    # What examples/ros2_node.py does, with the bag's CDR bytes standing in for rclpy's,
+    # fed from two threads like a multi-threaded executor.
+    import threading
+
+    from rosbags.highlevel import AnyReader
+
+    from cclogfs.ingest.live import LiveSource
+    from cclogfs.pipeline import Logger
+
+    bag = shared_data("nav2_turtlebot.mcap")
+    with AnyReader([bag]) as reader:
+        raws = [(c.topic, c.msgtype, raw, t) for c, t, raw in reader.messages()]
+    with open_source(bag) as source:
+        want = sorted((m.topic, m.stamp_ns, m.text) for m in source)
+    with Logger(str(tmp_path / "s"), chunk=64) as log:
+        live = LiveSource(log)
+        by_topic = {}
+        for r in raws:
+            by_topic.setdefault(r[0], []).append(r)
+        # One thread per topic keeps each topic's order, as a ROS executor does per subscription.
+        threads = [threading.Thread(target=lambda rs=rs: [live.feed_cdr(t, ty, raw, recv_ns=ns) for t, ty, raw, ns in rs])
+                   for rs in by_topic.values()]  # fmt: skip
+        for th in threads:
+            th.start()
+        for th in threads:
+            th.join()
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        got = sorted((w.name, s, t) for w in store.query() for s, t in w.messages())
+    assert got == want
