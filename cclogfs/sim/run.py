@@ -80,18 +80,22 @@ class SimRun:
         """rosbags message objects of one topic (what the bag holds)."""
         return _spec(topic).messages(self._columns(topic))
 
-    def _columns(self, topic: str) -> dict[str, list]:
+    def _arrays(self, topic: str) -> dict[str, np.ndarray]:
+        """The per-field arrays that fill the topic's message template."""
         sec, nanosec = np.divmod(self.stamp_ns, 1_000_000_000)
-        cols: dict[str, list] = {"sec": sec.tolist(), "nanosec": nanosec.tolist()}
+        cols: dict[str, np.ndarray] = {"sec": sec, "nanosec": nanosec}
         if topic == "/imu":
-            cols.update(qz=np.sin(0.5 * self.imu.yaw).tolist(), qw=np.cos(0.5 * self.imu.yaw).tolist(),
-                        gz=self.imu.gz.tolist(), ax=self.imu.ax.tolist(),
-                        ay=self.imu.ay.tolist(), az=self.imu.az.tolist())
+            cols.update(qz=np.sin(0.5 * self.imu.yaw), qw=np.cos(0.5 * self.imu.yaw),
+                        gz=self.imu.gz, ax=self.imu.ax, ay=self.imu.ay, az=self.imu.az)
         else:
-            cols.update(x=self.x.tolist(), y=self.y.tolist(), qz=self.qz.tolist(), qw=self.qw.tolist())
+            cols.update(x=self.x, y=self.y, qz=self.qz, qw=self.qw)
             if topic == "/odom":
-                cols.update(vx=self.vx.tolist(), wz=self.wz.tolist())
+                cols.update(vx=self.vx, wz=self.wz)
         return cols
+
+    def _columns(self, topic: str) -> dict[str, list]:
+        # Python ints and floats: their repr is what json.dumps writes
+        return {k: v.tolist() for k, v in self._arrays(topic).items()}
 
     def labels_dict(self) -> dict:
         """The labels file: events plus the run's configuration."""
@@ -128,20 +132,22 @@ class SimRun:
                 yield f'{{"topic": "{topic}", "stamp_ns": {ns}, "msg": {texts[i]}}}\n'
 
     def write_bag(self, path: str | os.PathLike, *, topics: Sequence[str] = ("/odom",)) -> None:
-        """A rosbag2 directory with MCAP storage, messages as CDR, log time = header stamp."""
+        """A rosbag2 directory with MCAP storage, messages as CDR, log time = header stamp.
+
+        The CDR comes from a byte template (see messages.py); the tests check it against
+        rosbags' serialize_cdr and read it back."""
         from rosbags.rosbag2 import StoragePlugin, Writer
 
-        serialize = TYPESTORE.serialize_cdr
         stamps = self.stamp_ns.tolist()
         with Writer(Path(path), version=9, storage_plugin=StoragePlugin.MCAP) as writer:
             conns = []
             for topic in topics:
                 spec = _spec(topic)
                 conn = writer.add_connection(topic, spec.msgtype, typestore=TYPESTORE)
-                conns.append((conn, spec.msgtype, self.ros_messages(topic)))
+                conns.append((conn, spec.cdr(self._arrays(topic))))
             for i, ns in enumerate(stamps):
-                for conn, msgtype, msgs in conns:
-                    writer.write(conn, ns, serialize(msgs[i], msgtype))
+                for conn, raws in conns:
+                    writer.write(conn, ns, raws[i])
 
     def summary(self) -> str:
         """A few human-readable lines about the run."""
@@ -230,6 +236,13 @@ def simulate(
     severity is drawn uniformly from `severity`.
     """
     chosen = _check(seed, duration_s, rate_hz, anomalies, anomaly_rate_per_min, kinds, severity)
+    if isinstance(start_ns, bool) or not isinstance(start_ns, numbers.Integral) or not (
+        0 <= start_ns and start_ns + duration_s * 1e9 + 1e9 < 2**31 * 1e9
+    ):
+        raise InvalidInputError(
+            f"start_ns must be a non-negative integer such that the run ends before 2**31 s "
+            f"(header stamps hold seconds as int32), not {start_ns!r}."
+        )
     streams = [np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(6)]
     r_sched, r_drive, r_time, r_odom, r_imu, r_params = streams
     lo, hi = float(severity[0]), float(severity[1])
