@@ -132,8 +132,8 @@ class TopicSpec:
 
     def texts(self, cols: Columns) -> list[str]:
         """The JSON text of every message, from per-field value lists."""
-        tpl = self.template  # type: ignore[attr-defined]
-        return [tpl % vals for vals in zip(*(cols[n] for n in self.order))]  # type: ignore[attr-defined]
+        tpl, order = self.template, self.order  # type: ignore[attr-defined]
+        return [tpl % vals for vals in zip(*(cols[n] for n in order))]
 
     def cdr(self, cols: dict[str, np.ndarray]) -> list[bytes]:
         """CDR bytes of every message (what serialize_cdr gives), from per-field arrays."""

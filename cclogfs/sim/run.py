@@ -101,7 +101,9 @@ class SimRun:
         """The labels file: events plus the run's configuration."""
         return {"events": [e.to_dict() for e in self.events], "run": self.config}
 
-    def write(self, out_dir: str | os.PathLike, *, imu: bool = False, tf: bool = False) -> dict[str, Path]:
+    def write(
+        self, out_dir: str | os.PathLike, *, imu: bool = False, tf: bool = False
+    ) -> dict[str, Path]:
         """Write out_dir/run (rosbag2, MCAP), out_dir/labels.json and out_dir/run.jsonl."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
@@ -109,7 +111,9 @@ class SimRun:
         paths = {"bag": out / "run", "labels": out / "labels.json", "jsonl": out / "run.jsonl"}
         for p in paths.values():
             if p.exists():
-                raise InvalidInputError(f"{p} exists already; write the run into an empty directory.")
+                raise InvalidInputError(
+                    f"{p} exists already; write the run into an empty directory."
+                )
         self.write_bag(paths["bag"], topics=topics)
         self.write_labels(paths["labels"])
         self.write_jsonl(paths["jsonl"], topics=topics)
@@ -154,8 +158,8 @@ class SimRun:
         c = self.config
         dist = float(np.sum(np.hypot(np.diff(self.true_x), np.diff(self.true_y))))
         lines = [
-            f"{len(self)} /odom messages, {c['duration_s']:g} s at {c['rate_hz']:g} Hz, seed {c['seed']}, "
-            f"{dist:.0f} m driven, {c['goals_reached']} goals reached",
+            f"{len(self)} /odom messages, {c['duration_s']:g} s at {c['rate_hz']:g} Hz, "
+            f"seed {c['seed']}, {dist:.0f} m driven, {c['goals_reached']} goals reached",
             f"{len(self.events)} anomalies covering {self.anomalous.mean() * 100:.1f}% of messages",
         ]
         for e in self.events:
@@ -183,7 +187,8 @@ def _check(
     if not (isinstance(duration_s, numbers.Real) and math.isfinite(duration_s)
             and 0 < duration_s <= MAX_DURATION_S):
         raise InvalidInputError(
-            f"duration_s must be a number of seconds in (0, {MAX_DURATION_S:g}], not {duration_s!r}."
+            f"duration_s must be a number of seconds in (0, {MAX_DURATION_S:g}], "
+            f"not {duration_s!r}."
         )
     if not (isinstance(rate_hz, numbers.Real) and math.isfinite(rate_hz) and 1 <= rate_hz <= 1000):
         raise InvalidInputError(f"rate_hz must be between 1 and 1000 Hz, not {rate_hz!r}.")
@@ -192,7 +197,9 @@ def _check(
             f"a {duration_s:g} s run at {rate_hz:g} Hz has fewer than 2 messages; make it longer."
         )
     if isinstance(anomalies, bool) or not isinstance(anomalies, numbers.Integral) or anomalies < 0:
-        raise InvalidInputError(f"anomalies must be a non-negative integer count, not {anomalies!r}.")
+        raise InvalidInputError(
+            f"anomalies must be a non-negative integer count, not {anomalies!r}."
+        )
     if anomaly_rate_per_min is not None and not (
         isinstance(anomaly_rate_per_min, numbers.Real) and 0 <= anomaly_rate_per_min < 1000
     ):
@@ -204,7 +211,8 @@ def _check(
     lo, hi = severity
     if not (0 < lo <= hi <= 5):
         raise InvalidInputError(
-            f"severity range ({lo!r}, {hi!r}) must satisfy 0 < low <= high <= 5 (1.0 is the default)."
+            f"severity range ({lo!r}, {hi!r}) must satisfy 0 < low <= high <= 5 "
+            "(1.0 is the default)."
         )
     chosen = tuple(kinds) if kinds is not None else KINDS
     if isinstance(kinds, str) or not chosen:
@@ -247,7 +255,10 @@ def simulate(
     r_sched, r_drive, r_time, r_odom, r_imu, r_params = streams
     lo, hi = float(severity[0]), float(severity[1])
     strict = anomaly_rate_per_min is None
-    count = int(anomalies) if strict else int(r_sched.poisson(anomaly_rate_per_min * duration_s / 60.0))
+    if strict:
+        count = int(anomalies)
+    else:
+        count = int(r_sched.poisson(anomaly_rate_per_min * duration_s / 60.0))
     events = schedule_events(r_sched, duration_s=float(duration_s), start_ns=int(start_ns),
                              count=count, kinds=chosen, severity=(lo, hi), strict=strict)
 
