@@ -192,6 +192,17 @@ def test_json_from_bag_equals_json_in_memory(tmp_path):
     ]
 
 
+@pytest.mark.parametrize("topic", ["/odom", "/imu", "/tf"])
+def test_cdr_template_equals_rosbags_serializer(topic):
+    from cclogfs.sim.messages import TYPESTORE
+    from cclogfs.sim.run import _spec
+
+    run = simulate(seed=6, duration_s=5, rate_hz=30, start_ns=(2**31 - 10) * 10**9)
+    spec = _spec(topic)
+    want = [bytes(TYPESTORE.serialize_cdr(m, spec.msgtype)) for m in run.ros_messages(topic)]
+    assert spec.cdr(run._arrays(topic)) == want
+
+
 def test_cli_writes_a_run(tmp_path, capsys):
     out = tmp_path / "r"
     assert main(["simulate", "--seed", "1", "--duration", "20", "--rate", "10",
@@ -222,6 +233,8 @@ def test_cli_writes_a_run(tmp_path, capsys):
         (dict(severity=(0, 1)), "severity"),
         (dict(kinds=["teleport"]), "unknown anomaly kind"),
         (dict(kinds="spin"), "kinds"),
+        (dict(start_ns=-1), "start_ns"),
+        (dict(start_ns=(2**31 - 5) * 10**9, duration_s=10), "start_ns"),
         (dict(duration_s=20, anomalies=10), "do not fit|longer duration"),
     ],
 )

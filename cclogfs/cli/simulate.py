@@ -25,7 +25,8 @@ def _severity(text: str) -> tuple[float, float]:
     try:
         pair = (float(lo), float(hi if sep else lo))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected LOW:HIGH such as 0.5:1.5, got {text!r}") from None
+        msg = f"expected LOW:HIGH such as 0.5:1.5, got {text!r}"
+        raise argparse.ArgumentTypeError(msg) from None
     return pair
 
 
@@ -41,7 +42,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--out", required=True, help="output directory (created; must not hold a run)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0); same seed, same bytes")
+    p.add_argument("--seed", type=int, default=0,
+                   help="random seed (default 0); same seed, same bytes")
     p.add_argument("--duration", type=float, default=600.0, help="seconds (default 600)")
     p.add_argument("--rate", type=float, default=100.0, help="odometry rate in Hz (default 100)")
     p.add_argument("--anomalies", type=int, default=8, help="number of anomalies (default 8)")

@@ -102,9 +102,10 @@ def schedule_events(
     free = span - lengths.sum() - _GAP_S * (count - 1)
     if free < 0:
         if strict:
+            need = lengths.sum() + _GAP_S * (count - 1) + _WARMUP_S + _TAIL_S
             raise InvalidInputError(
-                f"{count} anomalies need about {lengths.sum() + _GAP_S * (count - 1) + _WARMUP_S + _TAIL_S:.0f} s "
-                f"but the run lasts {duration_s:g} s; ask for fewer anomalies or a longer duration."
+                f"{count} anomalies need about {need:.0f} s but the run lasts {duration_s:g} s; "
+                "ask for fewer anomalies or a longer duration."
             )
         while count and free < 0:
             count -= 1
@@ -235,8 +236,9 @@ def _collision(ov, sl, t, length, sev, rng, dt, a_max):
     in_hit = t < hit
     # recoil: up within 50 ms of the impact, then dying away
     u = t - hit
-    shape = np.where(u < 0.05, np.sin(0.5 * np.pi * np.clip(u / 0.05, 0.0, 1.0)),
-                     np.cos(0.5 * np.pi * np.clip((u - 0.05) / (bounce - hit - 0.05), 0.0, 1.0)) ** 2)
+    rise = np.sin(0.5 * np.pi * np.clip(u / 0.05, 0.0, 1.0))
+    fall = np.cos(0.5 * np.pi * np.clip((u - 0.05) / (bounce - hit - 0.05), 0.0, 1.0)) ** 2
+    shape = np.where(u < 0.05, rise, fall)
     kick = rng.choice([-1.0, 1.0]) * (0.3 + 0.9 * sev)
     ov.a[sl] = np.where(mode == 2, np.where(in_hit, 0.0, -(0.1 + 0.25 * sev) * shape), 0.0)
     ov.b[sl] = np.where(mode == 2, np.where(in_hit, decay, 0.0), np.nan)

@@ -34,6 +34,9 @@ _IMU_ORI_COV = np.diag([1e6, 1e6, 0.01]).ravel()
 _IMU_GYRO_COV = np.diag([1e-4, 1e-4, 1e-4]).ravel()
 _IMU_ACC_COV = np.diag([2.5e-3, 2.5e-3, 2.5e-3]).ravel()
 
+# CDR types of the integer fields (builtin_interfaces/Time); every other field is float64.
+_CDR_DTYPES = {"sec": "<i4", "nanosec": "<u4"}
+
 Columns = dict[str, list]  # field name -> one Python value per message
 
 
@@ -115,11 +118,32 @@ class TopicSpec:
             raise AssertionError(f"template for {self.msgtype} lost a field: {order}")
         object.__setattr__(self, "template", template)
         object.__setattr__(self, "order", tuple(order))
+        # The same trick for CDR: every message has the same length (fixed strings), so
+        # a serialized sentinel message is a byte template with a fixed offset per field.
+        raw = bytes(TYPESTORE.serialize_cdr(self.build(sentinels), self.msgtype))
+        offsets = {}
+        for name, value in sentinels.items():
+            needle = np.array([value], dtype=_CDR_DTYPES.get(name, "<f8")).tobytes()
+            if raw.count(needle) != 1:
+                raise AssertionError(f"CDR template for {self.msgtype}: field {name} not unique")
+            offsets[name] = raw.index(needle)
+        object.__setattr__(self, "cdr_template", np.frombuffer(raw, np.uint8))
+        object.__setattr__(self, "cdr_offsets", offsets)
 
     def texts(self, cols: Columns) -> list[str]:
         """The JSON text of every message, from per-field value lists."""
-        tpl = self.template  # type: ignore[attr-defined]
-        return [tpl % vals for vals in zip(*(cols[n] for n in self.order))]  # type: ignore[attr-defined]
+        tpl, order = self.template, self.order  # type: ignore[attr-defined]
+        return [tpl % vals for vals in zip(*(cols[n] for n in order))]
+
+    def cdr(self, cols: dict[str, np.ndarray]) -> list[bytes]:
+        """CDR bytes of every message (what serialize_cdr gives), from per-field arrays."""
+        tpl = self.cdr_template  # type: ignore[attr-defined]
+        n = len(next(iter(cols.values())))
+        buf = np.tile(tpl, (n, 1))
+        for name, off in self.cdr_offsets.items():  # type: ignore[attr-defined]
+            col = np.ascontiguousarray(cols[name], dtype=_CDR_DTYPES.get(name, "<f8"))
+            buf[:, off : off + col.itemsize] = col.view(np.uint8).reshape(n, col.itemsize)
+        return [row.tobytes() for row in buf]
 
     def messages(self, cols: Columns) -> list[Any]:
         """rosbags message objects, one per row."""

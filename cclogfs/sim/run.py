@@ -80,24 +80,30 @@ class SimRun:
         """rosbags message objects of one topic (what the bag holds)."""
         return _spec(topic).messages(self._columns(topic))
 
-    def _columns(self, topic: str) -> dict[str, list]:
+    def _arrays(self, topic: str) -> dict[str, np.ndarray]:
+        """The per-field arrays that fill the topic's message template."""
         sec, nanosec = np.divmod(self.stamp_ns, 1_000_000_000)
-        cols: dict[str, list] = {"sec": sec.tolist(), "nanosec": nanosec.tolist()}
+        cols: dict[str, np.ndarray] = {"sec": sec, "nanosec": nanosec}
         if topic == "/imu":
-            cols.update(qz=np.sin(0.5 * self.imu.yaw).tolist(), qw=np.cos(0.5 * self.imu.yaw).tolist(),
-                        gz=self.imu.gz.tolist(), ax=self.imu.ax.tolist(),
-                        ay=self.imu.ay.tolist(), az=self.imu.az.tolist())
+            cols.update(qz=np.sin(0.5 * self.imu.yaw), qw=np.cos(0.5 * self.imu.yaw),
+                        gz=self.imu.gz, ax=self.imu.ax, ay=self.imu.ay, az=self.imu.az)
         else:
-            cols.update(x=self.x.tolist(), y=self.y.tolist(), qz=self.qz.tolist(), qw=self.qw.tolist())
+            cols.update(x=self.x, y=self.y, qz=self.qz, qw=self.qw)
             if topic == "/odom":
-                cols.update(vx=self.vx.tolist(), wz=self.wz.tolist())
+                cols.update(vx=self.vx, wz=self.wz)
         return cols
+
+    def _columns(self, topic: str) -> dict[str, list]:
+        # Python ints and floats: their repr is what json.dumps writes
+        return {k: v.tolist() for k, v in self._arrays(topic).items()}
 
     def labels_dict(self) -> dict:
         """The labels file: events plus the run's configuration."""
         return {"events": [e.to_dict() for e in self.events], "run": self.config}
 
-    def write(self, out_dir: str | os.PathLike, *, imu: bool = False, tf: bool = False) -> dict[str, Path]:
+    def write(
+        self, out_dir: str | os.PathLike, *, imu: bool = False, tf: bool = False
+    ) -> dict[str, Path]:
         """Write out_dir/run (rosbag2, MCAP), out_dir/labels.json and out_dir/run.jsonl."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
@@ -105,7 +111,9 @@ class SimRun:
         paths = {"bag": out / "run", "labels": out / "labels.json", "jsonl": out / "run.jsonl"}
         for p in paths.values():
             if p.exists():
-                raise InvalidInputError(f"{p} exists already; write the run into an empty directory.")
+                raise InvalidInputError(
+                    f"{p} exists already; write the run into an empty directory."
+                )
         self.write_bag(paths["bag"], topics=topics)
         self.write_labels(paths["labels"])
         self.write_jsonl(paths["jsonl"], topics=topics)
@@ -128,28 +136,30 @@ class SimRun:
                 yield f'{{"topic": "{topic}", "stamp_ns": {ns}, "msg": {texts[i]}}}\n'
 
     def write_bag(self, path: str | os.PathLike, *, topics: Sequence[str] = ("/odom",)) -> None:
-        """A rosbag2 directory with MCAP storage, messages as CDR, log time = header stamp."""
+        """A rosbag2 directory with MCAP storage, messages as CDR, log time = header stamp.
+
+        The CDR comes from a byte template (see messages.py); the tests check it against
+        rosbags' serialize_cdr and read it back."""
         from rosbags.rosbag2 import StoragePlugin, Writer
 
-        serialize = TYPESTORE.serialize_cdr
         stamps = self.stamp_ns.tolist()
         with Writer(Path(path), version=9, storage_plugin=StoragePlugin.MCAP) as writer:
             conns = []
             for topic in topics:
                 spec = _spec(topic)
                 conn = writer.add_connection(topic, spec.msgtype, typestore=TYPESTORE)
-                conns.append((conn, spec.msgtype, self.ros_messages(topic)))
+                conns.append((conn, spec.cdr(self._arrays(topic))))
             for i, ns in enumerate(stamps):
-                for conn, msgtype, msgs in conns:
-                    writer.write(conn, ns, serialize(msgs[i], msgtype))
+                for conn, raws in conns:
+                    writer.write(conn, ns, raws[i])
 
     def summary(self) -> str:
         """A few human-readable lines about the run."""
         c = self.config
         dist = float(np.sum(np.hypot(np.diff(self.true_x), np.diff(self.true_y))))
         lines = [
-            f"{len(self)} /odom messages, {c['duration_s']:g} s at {c['rate_hz']:g} Hz, seed {c['seed']}, "
-            f"{dist:.0f} m driven, {c['goals_reached']} goals reached",
+            f"{len(self)} /odom messages, {c['duration_s']:g} s at {c['rate_hz']:g} Hz, "
+            f"seed {c['seed']}, {dist:.0f} m driven, {c['goals_reached']} goals reached",
             f"{len(self.events)} anomalies covering {self.anomalous.mean() * 100:.1f}% of messages",
         ]
         for e in self.events:
@@ -177,7 +187,8 @@ def _check(
     if not (isinstance(duration_s, numbers.Real) and math.isfinite(duration_s)
             and 0 < duration_s <= MAX_DURATION_S):
         raise InvalidInputError(
-            f"duration_s must be a number of seconds in (0, {MAX_DURATION_S:g}], not {duration_s!r}."
+            f"duration_s must be a number of seconds in (0, {MAX_DURATION_S:g}], "
+            f"not {duration_s!r}."
         )
     if not (isinstance(rate_hz, numbers.Real) and math.isfinite(rate_hz) and 1 <= rate_hz <= 1000):
         raise InvalidInputError(f"rate_hz must be between 1 and 1000 Hz, not {rate_hz!r}.")
@@ -186,7 +197,9 @@ def _check(
             f"a {duration_s:g} s run at {rate_hz:g} Hz has fewer than 2 messages; make it longer."
         )
     if isinstance(anomalies, bool) or not isinstance(anomalies, numbers.Integral) or anomalies < 0:
-        raise InvalidInputError(f"anomalies must be a non-negative integer count, not {anomalies!r}.")
+        raise InvalidInputError(
+            f"anomalies must be a non-negative integer count, not {anomalies!r}."
+        )
     if anomaly_rate_per_min is not None and not (
         isinstance(anomaly_rate_per_min, numbers.Real) and 0 <= anomaly_rate_per_min < 1000
     ):
@@ -198,7 +211,8 @@ def _check(
     lo, hi = severity
     if not (0 < lo <= hi <= 5):
         raise InvalidInputError(
-            f"severity range ({lo!r}, {hi!r}) must satisfy 0 < low <= high <= 5 (1.0 is the default)."
+            f"severity range ({lo!r}, {hi!r}) must satisfy 0 < low <= high <= 5 "
+            "(1.0 is the default)."
         )
     chosen = tuple(kinds) if kinds is not None else KINDS
     if isinstance(kinds, str) or not chosen:
@@ -230,11 +244,21 @@ def simulate(
     severity is drawn uniformly from `severity`.
     """
     chosen = _check(seed, duration_s, rate_hz, anomalies, anomaly_rate_per_min, kinds, severity)
+    if isinstance(start_ns, bool) or not isinstance(start_ns, numbers.Integral) or not (
+        0 <= start_ns and start_ns + duration_s * 1e9 + 1e9 < 2**31 * 1e9
+    ):
+        raise InvalidInputError(
+            f"start_ns must be a non-negative integer such that the run ends before 2**31 s "
+            f"(header stamps hold seconds as int32), not {start_ns!r}."
+        )
     streams = [np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(6)]
     r_sched, r_drive, r_time, r_odom, r_imu, r_params = streams
     lo, hi = float(severity[0]), float(severity[1])
     strict = anomaly_rate_per_min is None
-    count = int(anomalies) if strict else int(r_sched.poisson(anomaly_rate_per_min * duration_s / 60.0))
+    if strict:
+        count = int(anomalies)
+    else:
+        count = int(r_sched.poisson(anomaly_rate_per_min * duration_s / 60.0))
     events = schedule_events(r_sched, duration_s=float(duration_s), start_ns=int(start_ns),
                              count=count, kinds=chosen, severity=(lo, hi), strict=strict)
 

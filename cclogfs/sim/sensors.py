@@ -17,7 +17,7 @@ from .drive import Truth
 
 __all__ = ["Reported", "sample_times", "odometry", "imu"]
 
-TICK_M = 5e-5  # encoder resolution in wheel travel
+TICK_M = 1e-5  # encoder resolution in wheel travel (high-count encoders on the RMP base)
 GRAVITY = 9.80665
 
 
@@ -71,9 +71,10 @@ def odometry(
     scale_l, scale_r = 1.0 + rng.normal(0.0, 0.002, 2)
     cum_l = scale_l * np.interp(reads, tt, left)
     cum_r = scale_r * np.interp(reads, tt, right)
-    # noise in proportion to travel (tyre and floor), so a robot at rest reads exactly zero
-    noise_l = 0.02 * np.abs(np.diff(cum_l)) * rng.normal(0.0, 1.0, len(t))
-    noise_r = 0.02 * np.abs(np.diff(cum_r)) * rng.normal(0.0, 1.0, len(t))
+    # noise in proportion to travel (tyre and floor), so a robot at rest reads exactly zero;
+    # white noise is kept small because differencing 100 Hz odometry amplifies it
+    noise_l = 0.003 * np.abs(np.diff(cum_l)) * rng.normal(0.0, 1.0, len(t))
+    noise_r = 0.003 * np.abs(np.diff(cum_r)) * rng.normal(0.0, 1.0, len(t))
     cum_l[1:] += np.cumsum(noise_l + extras.left)
     cum_r[1:] += np.cumsum(noise_r + extras.right)
     dl = np.diff(np.round(cum_l / TICK_M)) * TICK_M
