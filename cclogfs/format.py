@@ -56,11 +56,13 @@ class Reason:
     ZERO_FILL = "zero fill"
     BAD_MAGIC = "bad magic"
     BAD_LENGTH = "bad record length"
+    BAD_FIELD = "bad record field"
     HEADER_CRC = "header checksum mismatch"
     PAYLOAD_HASH = "payload checksum mismatch"
     SEQ_GAP = "sequence gap"
     UNKNOWN_KIND = "unknown record kind"
     UNSUPPORTED_VERSION = "unsupported record version"
+    UNKNOWN_FLAGS = "unknown record flags"
     BAD_SEGMENT_HEADER = "bad segment header"
     DROPPED_SEGMENT = "segment after the torn tail"
 
@@ -205,13 +207,16 @@ def check_fixed(fixed: bytes, available: int) -> int:
         if not fixed.strip(b"\0"):
             raise RecordError(Reason.ZERO_FILL)
         raise RecordError(Reason.BAD_MAGIC, repr(fixed[:4]))
-    (_m, _k, _v, _f, header_len, _s, _a, _b, count, _c, name_len, config_len, meta_len,
+    (_m, _k, version, _f, header_len, _s, _a, _b, count, _c, name_len, config_len, meta_len,
      raw_len, enc_len, _h) = RECORD_FIXED.unpack_from(fixed)  # fmt: skip
+    least = RECORD_FIXED_SIZE + name_len + config_len + meta_len + 4
+    # A newer version may append header fields (FORMAT.md, extension rules): frame it by
+    # header_len so that it can be skipped, not mistaken for the end of the log.
     if (
         name_len > MAX_NAME
         or config_len > MAX_CONFIG
         or meta_len > MAX_META
-        or header_len != RECORD_FIXED_SIZE + name_len + config_len + meta_len + 4
+        or (header_len != least if version == RECORD_VERSION else not least <= header_len <= MAX_HEADER)
         or count > MAX_COUNT
         or raw_len > MAX_RAW
         or enc_len > MAX_ENC
@@ -241,6 +246,28 @@ def parse_header(head: bytes) -> RecordHeader:
         kind, version, flags, header_len, seq, start_ns, end_ns, count, codec, name,
         bytes(config), bytes(meta), raw_len, enc_len, payload_xxh3,
     )  # fmt: skip
+
+
+def check_fields(header: RecordHeader) -> str | None:
+    """Why an intact record cannot be used as it is, or None.
+
+    RecordError for fields no writer may produce (kind 0, an empty window, time running
+    backwards, a bad stream name); the reason string for what a newer writer may produce
+    and a reader skips (another kind, version or flags).
+    """
+    if header.kind == 0:
+        raise RecordError(Reason.BAD_FIELD, "kind 0 is invalid")
+    if header.kind != RecordKind.WINDOW:
+        return Reason.UNKNOWN_KIND
+    if header.version != RECORD_VERSION:
+        return Reason.UNSUPPORTED_VERSION
+    if header.flags:
+        return Reason.UNKNOWN_FLAGS
+    if header.count < 1 or header.end_ns < header.start_ns:
+        raise RecordError(Reason.BAD_FIELD, f"count {header.count}, {header.start_ns}..{header.end_ns}")
+    if not header.name or any(ord(c) < 32 or 127 <= ord(c) < 160 for c in header.name):
+        raise RecordError(Reason.BAD_FIELD, f"stream name {header.name!r}")
+    return None
 
 
 def check_payload(header: RecordHeader, payload: bytes | memoryview) -> None:

@@ -9,14 +9,13 @@ keeps only logging windows around anomalies (smart mode).
 
 from __future__ import annotations
 
-import contextlib
-import signal
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple, Protocol
 
+from ._signals import signals_deferred as _signals_deferred
 from .store import Store, open_store
 
 
@@ -120,8 +119,17 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
             stats.messages_in += 1
             stats.json_bytes_in += len(m.text)
             stats.topics_in[m.topic] = stats.topics_in.get(m.topic, 0) + 1
-            for window in policy.push(m.topic, m.stamp_ns, m.text):
-                store_window(store, window, stats, check_json=check)
+            # A window taken from the policy must reach the store: with interrupt_handler
+            # installed, Ctrl-C waits for the end of this section.
+            INTERRUPTS.critical = True
+            try:
+                for window in policy.push(m.topic, m.stamp_ns, m.text):
+                    store_window(store, window, stats, check_json=check)
+            finally:
+                INTERRUPTS.critical = False
+            if INTERRUPTS.pending:
+                INTERRUPTS.pending = False
+                raise KeyboardInterrupt
             if progress is not None and stats.messages_in % 4096 == 0:
                 progress(stats)
     except KeyboardInterrupt:
@@ -134,17 +142,25 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
     return stats
 
 
-@contextlib.contextmanager
-def _signals_deferred() -> Iterator[None]:
-    """Hold SIGINT/SIGTERM until the block ends (main thread only; elsewhere a no-op)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+class _Interrupts:
+    """State shared by `interrupt_handler` and the critical sections of `record`."""
+
+    critical = False
+    pending = False
+
+
+INTERRUPTS = _Interrupts()
+
+
+def interrupt_handler(signum: int, frame: Any) -> None:
+    """A SIGINT/SIGTERM handler for programs that run `record` (the CLI installs it): it
+    raises KeyboardInterrupt, but not in the middle of storing a window."""
+    if INTERRUPTS.critical:
+        INTERRUPTS.pending = True
+    else:
+        raise KeyboardInterrupt
+
+
 
 
 class Logger:

@@ -2,18 +2,19 @@
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 
 from .errors import CorruptionError
 from .format import (
     MAX_HEADER,
     RECORD_FIXED_SIZE,
+    RECORD_MAGIC,
     SEGMENT_HEADER_SIZE,
     Reason,
     RecordError,
     RecordHeader,
-    RecordKind,
-    RECORD_VERSION,
+    check_fields,
     check_fixed,
     check_payload,
     parse_header,
@@ -36,11 +37,15 @@ class Problem:
     reason: str
     detail: str = ""
     dropped_bytes: int = 0
+    intact_after: int = 0  # intact records found past the problem (0 for a plain torn tail)
+    kept_in: str = ""  # side file holding the dropped bytes, when intact records were among them
 
     def __str__(self) -> str:
         dropped = f", {self.dropped_bytes} bytes dropped" if self.dropped_bytes else ""
         detail = f" ({self.detail})" if self.detail else ""
-        return f"{self.path} at offset {self.offset}: {self.reason}{detail}{dropped}"
+        intact = f", {self.intact_after} intact records among them" if self.intact_after else ""
+        kept = f", kept in {self.kept_in}" if self.kept_in else ""
+        return f"{self.path} at offset {self.offset}: {self.reason}{detail}{dropped}{intact}{kept}"
 
 
 @dataclass
@@ -59,13 +64,15 @@ class Segment:
     not yet handed to the OS, and reads serve them from memory."""
 
     def __init__(self, fs: FileSystem, path: str, first_seq: int, created_ns: int, fd: int,
-                 size: int):  # fmt: skip
+                 size: int, *, lock: threading.RLock | None = None):  # fmt: skip
         self.fs, self.path, self.first_seq, self.created_ns = fs, path, first_seq, created_ns
+        self.lock = lock or threading.RLock()  # the store's: appends, flushes and reads take it
         self.fd = fd
         self.size = size  # bytes handed to the OS
         self.pending = bytearray()
         self.rows: list[tuple] = []  # index rows of the records in this segment
         self.next_seq = first_seq
+        self.sealed_size = -1  # for a sealed segment: its size in the manifest
         self._index: SegmentIndex | None = None
 
     @property
@@ -116,13 +123,14 @@ class Segment:
         return header, payload
 
 
-def open_segment(fs: FileSystem, path: str, *, write: bool) -> tuple[Segment, bool]:
+def open_segment(fs: FileSystem, path: str, *, write: bool,
+                 lock: threading.RLock | None = None) -> tuple[Segment, bool]:  # fmt: skip
     """Open a segment file; the flag says whether its segment header was intact."""
     fd = fs.open(path, write=write)
     size = fs.size(fd)
     parsed = unpack_segment_header(fs.pread(fd, SEGMENT_HEADER_SIZE, 0))
     first_seq, created_ns = parsed if parsed else (-1, 0)
-    return Segment(fs, path, first_seq, created_ns, fd, size), parsed is not None
+    return Segment(fs, path, first_seq, created_ns, fd, size, lock=lock), parsed is not None
 
 
 class _ChunkReader:
@@ -161,12 +169,13 @@ def scan(segment: Segment) -> ScanResult:
             check_payload(header, reader.read(pos + header_len, header.enc_len))
             if header.seq != result.next_seq:
                 raise RecordError(Reason.SEQ_GAP, f"seq {header.seq}, expected {result.next_seq}")
+            skip = check_fields(header)
         except RecordError as err:
             result.problem = Problem(path, pos, err.reason, str(err), size - pos)
             break
-        if header.kind != RecordKind.WINDOW or header.version != RECORD_VERSION:
-            reason = Reason.UNKNOWN_KIND if header.kind != RecordKind.WINDOW else Reason.UNSUPPORTED_VERSION
-            result.skipped.append(Problem(path, pos, reason, f"kind {header.kind} version {header.version}"))
+        if skip:
+            result.skipped.append(Problem(path, pos, skip, f"kind {header.kind} version {header.version} "
+                                                            f"flags {header.flags}"))  # fmt: skip
         else:
             result.rows.append(
                 (header.name, header.count, header.seq, header.start_ns, header.end_ns, pos,
@@ -176,3 +185,23 @@ def scan(segment: Segment) -> ScanResult:
         pos += header.record_len
     result.end = pos
     return result
+
+
+def intact_after(segment: Segment, offset: int) -> int:
+    """How many intact records (every check passed) lie after `offset`: records past the
+    point where a scan stopped. Zero for a torn tail; more means damage in the middle, or
+    a later write that landed while an earlier one did not."""
+    size = segment.fs.size(segment.fd)
+    data = segment.fs.pread(segment.fd, size - offset, offset)
+    found, pos = 0, data.find(RECORD_MAGIC, 1)
+    while pos >= 0:
+        try:
+            header_len = check_fixed(data[pos : pos + RECORD_FIXED_SIZE], len(data) - pos)
+            header = parse_header(data[pos : pos + header_len])
+            check_payload(header, memoryview(data)[pos + header_len : pos + header.record_len])
+        except RecordError:
+            pos = data.find(RECORD_MAGIC, pos + 1)
+            continue
+        found += 1
+        pos = data.find(RECORD_MAGIC, pos + header.record_len)
+    return found

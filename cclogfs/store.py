@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from ._signals import signals_deferred as _signals_deferred
 from .codecs import Codec, codec_from_config, codec_numeric_id, raw_size
 from .errors import (
     CorruptionError,
@@ -47,7 +48,7 @@ from .format import (
 )
 from .fs import FileSystem
 from .index import I64_MAX, I64_MIN, SegmentIndex, overlap_slice
-from .segment import Problem, Segment, open_segment, scan
+from .segment import Problem, Segment, intact_after, open_segment, scan
 from .validate import check_stream_name, encode_messages
 
 __all__ = ["Receipt", "Recovery", "Store", "Window", "open_store"]
@@ -94,7 +95,10 @@ class Window:
 
     def _read(self):
         if self._record is None:
-            self._record = self._segment.read_record(self._offset, self._length)
+            with self._segment.lock:  # the group-commit thread may be flushing this segment
+                if self._segment.fd < 0:
+                    raise StoreError(f"{self._segment.path}: the store is closed")
+                self._record = self._segment.read_record(self._offset, self._length)
         return self._record
 
     @property
@@ -198,9 +202,9 @@ class Store:
     def _open(self, create: bool) -> None:
         manifest_path = self._file(MANIFEST)
         if not self.fs.exists(manifest_path):
-            if not self.fs.exists(self.path) or not self.fs.listdir(self.path) or (
-                self.fs.listdir(self.path) == [LOCK]
-            ):
+            # Only a lock and temporary files: a crash while the store was being created.
+            leftovers = [n for n in self.fs.listdir(self.path)] if self.fs.exists(self.path) else []
+            if all(n == LOCK or n.endswith(TMP_SUFFIX) for n in leftovers):
                 if not create or self.readonly:
                     raise StoreError(f"{self.path} is not a cclogfs store (no {MANIFEST}); "
                                      "pass create=True to make one")  # fmt: skip
@@ -251,8 +255,9 @@ class Store:
                     f"{self.path}: {MANIFEST} lists segment {info['first_seq']:020d}.seg, "
                     "which is missing", path=self._file(MANIFEST), reason="missing segment",
                 )  # fmt: skip
-            seg, _ok = open_segment(self.fs, self._file(name), write=False)
+            seg, _ok = open_segment(self.fs, self._file(name), write=False, lock=self._lock)
             seg.first_seq, seg.next_seq = info["first_seq"], info["end_seq"]
+            seg.sealed_size = info["size"]
             self.sealed.append(seg)
             next_seq = info["end_seq"]
         self._recover_tail(next_seq, [files[s] for s in sorted(files)])
@@ -267,7 +272,7 @@ class Store:
             if first_seq < next_seq:  # older than the manifest's end: not ours to touch
                 self.recovery.problems.append(Problem(path, 0, "stray segment", "ignored"))
                 continue
-            seg, header_ok = open_segment(self.fs, path, write=not self.readonly)
+            seg, header_ok = open_segment(self.fs, path, write=not self.readonly, lock=self._lock)
             if broken or first_seq != next_seq:
                 reason = Reason.DROPPED_SEGMENT if broken else Reason.SEQ_GAP
                 self.recovery.problems.append(Problem(path, 0, reason, "", seg.size))
@@ -284,9 +289,13 @@ class Store:
             self.recovery.skipped.extend(result.skipped)
             seg.rows, seg.next_seq = result.rows, result.next_seq
             if result.problem:
-                self.recovery.problems.append(result.problem)
+                problem = result.problem
+                problem.intact_after = intact_after(seg, problem.offset)
+                self.recovery.problems.append(problem)
                 broken = True
                 if not self.readonly:
+                    if problem.intact_after:
+                        problem.kept_in = self._keep_tail(seg, problem.offset)
                     self.fs.truncate(seg.fd, result.end)
                     self.fs.fsync(seg.fd)
                 seg.size = result.end
@@ -299,6 +308,16 @@ class Store:
             self._seal(seg)
             self.recovery.sealed_on_open.append(os.path.basename(seg.path))
         self.active = kept[-1] if kept else self._new_segment(next_seq)
+
+    def _keep_tail(self, seg: Segment, offset: int) -> str:
+        """Copy the bytes recovery is about to cut to a side file, when intact records lie
+        among them: they were written but perhaps never synced (a reordered write), or a
+        synced record was damaged (bit rot). The log keeps its prefix guarantee either
+        way, and no byte is destroyed."""
+        name = f"{os.path.basename(seg.path)}.tail-{offset}"
+        data = self.fs.pread(seg.fd, self.fs.size(seg.fd) - offset, offset)
+        self.fs.write_file_atomic(self._file(name), data)
+        return name
 
     def _drop_segment(self, seg: Segment) -> None:
         self.fs.close(seg.fd)
@@ -314,7 +333,7 @@ class Store:
         self.fs.pwrite(fd, pack_segment_header(first_seq, created), 0)
         self.fs.fsync(fd)
         self.fs.fsync_dir(self.path)
-        return Segment(self.fs, path, first_seq, created, fd, SEGMENT_HEADER_SIZE)
+        return Segment(self.fs, path, first_seq, created, fd, SEGMENT_HEADER_SIZE, lock=self._lock)
 
     # -- writing ---------------------------------------------------------------------------
 
@@ -359,13 +378,13 @@ class Store:
                 raw_len=raw_len, payload=payload,
             )  # fmt: skip
             row = (name, len(stamps), seq, stamps[0], stamps[-1], seg.end, len(record), raw_len)
+            if self._unsynced_since is None:  # before the append: a commit must never skip its fsync
+                self._unsynced_since = time.monotonic()
             try:
                 seg.append(record, row)
             except OSError as err:
                 self._failed = err
                 raise StoreFailedError(f"{seg.path}: write failed: {err}") from err
-            if self._unsynced_since is None:
-                self._unsynced_since = time.monotonic()
             self._unsynced_bytes += len(record)
             # A full segment is committed (and so sealed) at once, not at the next group
             # commit: the limits bound what recovery must scan.
@@ -461,7 +480,7 @@ class Store:
 
     def close(self) -> None:
         """Commit what is buffered, seal nothing, release the lock. Idempotent."""
-        with self._lock:
+        with self._lock, _signals_deferred():  # a second Ctrl-C must not skip the last fsync
             if self._closed:
                 return
             try:
@@ -472,6 +491,7 @@ class Store:
                 self._wake.notify_all()
                 for seg in self._segments():
                     self.fs.close(seg.fd)
+                    seg.fd = -1
                 if self._lock_fd is not None:
                     self.fs.unlock(self._lock_fd)
                     self._lock_fd = None
@@ -487,15 +507,25 @@ class Store:
     def _sealed_index(self, seg: Segment) -> SegmentIndex:
         """The sealed segment's index from its .idx file, rebuilt when missing or damaged."""
         if seg._index is None:
+            if seg.size != seg.sealed_size:
+                # Never answer from a sealed segment that lost or gained bytes: a shorter one
+                # would otherwise give a silent hole.
+                raise CorruptionError(f"{seg.path} is {seg.size} bytes but the manifest says it was sealed "
+                                      f"at {seg.sealed_size}; its records cannot be trusted (run `cclog fsck`)",
+                                      path=seg.path, offset=min(seg.size, seg.sealed_size),
+                                      reason=Reason.BAD_LENGTH)  # fmt: skip
             path = self._file(index_name(seg.first_seq))
             try:
                 seg._index = SegmentIndex.decode(self.fs.read_file(path), seg.first_seq, seg.size)
-            except (OSError, RecordError):
+            except (OSError, RecordError, ValueError, TypeError):
                 result = scan(seg)
-                if result.problem:
-                    raise CorruptionError(f"{seg.path}: cannot rebuild the time index: {result.problem}",
-                                          path=seg.path, offset=result.problem.offset,
-                                          reason=result.problem.reason)  # fmt: skip
+                problem = result.problem
+                if problem is None and result.next_seq != seg.next_seq:
+                    problem = Problem(seg.path, result.end, Reason.SEQ_GAP,
+                                      f"ends at seq {result.next_seq}, the manifest says {seg.next_seq}")  # fmt: skip
+                if problem:
+                    raise CorruptionError(f"{seg.path}: cannot rebuild the time index: {problem}",
+                                          path=seg.path, offset=problem.offset, reason=problem.reason)  # fmt: skip
                 seg._index = SegmentIndex.build(result.rows)
                 if not self.readonly and not self._closed:
                     self.fs.write_file_atomic(path, seg._index.encode(seg.first_seq, seg.size))
@@ -567,6 +597,21 @@ class Store:
         for start, seq, stream, e, seg in heapq.merge(*runs, key=lambda r: (r[0], r[1])):
             yield Window(stream, seq, start, int(e["end"]), int(e["count"]), seg,
                          int(e["offset"]), int(e["length"]))  # fmt: skip
+
+    def refresh(self) -> None:
+        """Reader: see what the writer has committed since this store was opened."""
+        if not self.readonly:
+            raise StoreError(f"{self.path}: refresh() is for readers; the writer always sees its own puts")
+        with self._lock:
+            if self._closed:
+                raise StoreError(f"{self.path}: the store is closed")
+            for seg in self._segments():
+                self.fs.close(seg.fd)
+                seg.fd = -1
+            self.sealed, self.unsealed, self._sealed_by_stream = [], [], None
+            self.recovery = Recovery()
+            self._load_manifest()
+            self._open_segments()
 
     def disk_bytes(self) -> int:
         """Bytes of every file in the store directory."""

@@ -180,3 +180,45 @@ def test_logger_embedded_in_a_live_program(tmp_path, shared_data):
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
         got = sorted((w.name, s, t) for w in store.query() for s, t in w.messages())
     assert got == want
+
+
+def test_interrupt_while_storing_a_window_loses_nothing(tmp_path):
+    # The signal arrives in the middle of put_window: the window taken from the policy
+    # is still stored, then the run stops and the rest is flushed.
+    from cclogfs.pipeline import Chunk, interrupt_handler
+
+    class Msg:
+        def __init__(self, i):
+            self.topic, self.stamp_ns, self.text = "/a", i, str(i)
+
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        real_put = store.put_window
+        calls = []
+
+        def put(*args, **kw):
+            calls.append(1)
+            if len(calls) == 2:
+                interrupt_handler(2, None)  # as if Ctrl-C arrived now
+            return real_put(*args, **kw)
+
+        store.put_window = put
+        stats = record((Msg(i) for i in range(10)), store, KeepAll(chunk=3))
+        assert stats.interrupted and stats.messages_in == 6
+        assert [t for w in sorted(store.query(), key=lambda w: w.seq) for t, _ in w.messages()] == list(range(6))
+
+
+def test_negative_stamps_round_trip_through_jsonl(tmp_path, capsys):
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        store.put_window("/a", [(-5, '{"x": 1}'), (3, '{"x": 2}')])
+    assert main(["cat", str(tmp_path / "s")]) == 0
+    (tmp_path / "out.jsonl").write_text(capsys.readouterr().out)
+    with open_source(str(tmp_path / "out.jsonl")) as source:
+        assert [(m.stamp_ns, m.text) for m in source] == [(-5, '{"x": 1}'), (3, '{"x": 2}')]
+    assert main(["export", str(tmp_path / "s"), "--mcap", str(tmp_path / "o.mcap")]) == 1
+    assert "unsigned" in capsys.readouterr().err
+
+
+def test_parquet_flatten_keeps_colliding_names():
+    from cclogfs.export.parquet import flatten
+
+    assert flatten({"a.b": 1, "a": {"b": 2}}) == {"a.b": 1, "a.b~": 2}

@@ -121,6 +121,11 @@ def test_one_writer_many_readers(tmp_path):
             with pytest.raises(StoreError, match="read-only"):
                 reader.put_window("/a", [(2, "3")])
         assert [w.seq for w in writer.query()] == [0, 1]  # the writer sees its own puts
+        with cclogfs.open_store(path, readonly=True) as reader:
+            writer.sync()
+            assert [w.seq for w in reader.query()] == [0]  # a snapshot of when it opened
+            reader.refresh()
+            assert [w.seq for w in reader.query()] == [0, 1]
     with cclogfs.open_store(path) as again:
         assert [w.seq for w in again.query()] == [0, 1]
 

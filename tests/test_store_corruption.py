@@ -177,3 +177,119 @@ def test_reader_does_not_repair(tmp_path):
         assert seqs(store) == [0, 1, 2]
         assert store.recovery.problems[0].reason == "torn record"
     assert seg.read_bytes() == before
+
+
+def test_sealed_segment_cut_at_a_record_boundary_is_not_a_silent_hole(tmp_path):
+    # Cut exactly between records: every remaining record is intact, but some are missing.
+    make_store(tmp_path / "s", n=80, segment_bytes=4096, sync_every_bytes=1)
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        first = store.sealed[0]
+        cut = [w for w in store.query() if w.seq == first.next_seq - 2][0]._offset
+        expected_seqs = [w.seq for w in store.query()]
+    with open(tmp_path / "s" / SEG, "r+b") as f:
+        f.truncate(cut)
+    for opts in ({"readonly": True}, {}):
+        with cclogfs.open_store(tmp_path / "s", **opts) as store:
+            with pytest.raises(CorruptionError, match="manifest says it was sealed at"):
+                list(store.query())
+            # Windows of put i span [10 i, 10 i + 19]: from here on only later segments answer.
+            t = (store.sealed[1].first_seq + 1) * 10
+            later = [w.seq for w in store.query(start_ns=t)]
+            assert later == [s for s in expected_seqs if s >= store.sealed[1].first_seq]
+            assert later
+
+
+def test_record_of_a_newer_version_with_a_longer_header_is_skipped(tmp_path):
+    # Version 2 appends 8 bytes to the header (allowed by the extension rules): a version 1
+    # reader frames it by header_len, skips it, and keeps every later record.
+    from cclogfs.format import RECORD_FIXED, crc32c, pack_record, xxh3
+
+    recs = make_store(tmp_path / "s", n=3)
+    seg = tmp_path / "s" / SEG
+    data = seg.read_bytes()
+    seq1 = data[recs[1][1] : recs[1][1] + recs[1][2]]
+    fields = list(RECORD_FIXED.unpack_from(seq1))
+    header_len = fields[4]
+    head = bytearray(seq1[: header_len - 4]) + b"NEWFIELD"
+    fields[2], fields[4] = 2, header_len + 8  # version, header_len
+    RECORD_FIXED.pack_into(head, 0, *fields)
+    newer = bytes(head) + struct.pack("<I", crc32c(bytes(head))) + seq1[header_len:]
+    seg.write_bytes(data[: recs[1][1]] + newer + data[recs[1][1] + recs[1][2] :])
+    with cclogfs.open_store(tmp_path / "s") as store:
+        assert seqs(store) == [0, 2]
+        assert store.recovery.problems == []
+        assert [p.reason for p in store.recovery.skipped] == ["unsupported record version"]
+        assert store.put_window("/a", [(999, "1")]).seq == 3
+
+
+@pytest.mark.parametrize("fields, reason", [({"kind": 0}, "bad record field"), ({"count": 0}, "bad record field"),
+                                            ({"start": 50, "end": 40}, "bad record field"),
+                                            ({"flags": 4}, None)])  # fmt: skip
+def test_intact_records_with_impossible_fields(tmp_path, fields, reason):
+    recs = make_store(tmp_path / "s")
+    patch_header(tmp_path / "s" / SEG, recs[2][1], **fields)
+    with cclogfs.open_store(tmp_path / "s") as store:
+        if reason:  # no writer makes these: damage, the tail ends there
+            assert seqs(store) == [0, 1] and store.recovery.problems[0].reason == reason
+        else:  # unknown flags: a newer writer's record, skipped
+            assert seqs(store) == [0, 1, 3] and store.recovery.skipped[0].reason == "unknown record flags"
+
+
+def test_damage_mid_active_segment_keeps_the_bytes_and_fsck_says_error(tmp_path):
+    from cclogfs.fsck import check_store
+
+    recs = make_store(tmp_path / "s", n=5, sync_every_ms=0)  # every put synced
+    seq, off, length = recs[1]
+    flip(tmp_path / "s" / SEG, off + length - 5)  # bit rot in a synced record
+    report = check_store(str(tmp_path / "s"))
+    assert [f.severity for f in report.findings] == ["error"] and "3 intact records" in str(report.findings[0])
+    tail = (tmp_path / "s" / SEG).read_bytes()[off:]
+    with cclogfs.open_store(tmp_path / "s") as store:
+        assert seqs(store) == [0]  # still a prefix: no hole
+        (p,) = store.recovery.problems
+        assert p.intact_after == 3 and p.kept_in == f"{SEG}.tail-{off}"
+    assert (tmp_path / "s" / f"{SEG}.tail-{off}").read_bytes() == tail  # nothing destroyed
+
+
+def test_plain_torn_tail_keeps_no_side_file(tmp_path):
+    recs = make_store(tmp_path / "s")
+    with open(tmp_path / "s" / SEG, "r+b") as f:
+        f.truncate(recs[3][1] + 30)
+    with cclogfs.open_store(tmp_path / "s") as store:
+        assert store.recovery.problems[0].intact_after == 0 and not store.recovery.problems[0].kept_in
+    assert sorted(p.name for p in (tmp_path / "s").iterdir()) == ["00000000000000000000.seg", "LOCK", "MANIFEST"]
+
+
+def test_fsck_deep_reports_damaged_sealed_segment_without_index(tmp_path):
+    from cclogfs.fsck import check_store
+
+    make_store(tmp_path / "s", n=80, segment_bytes=4096, sync_every_bytes=1)
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        w = [w for w in store.query() if w.seq == 3][0]
+        off, length = w._offset, w._length
+    flip(tmp_path / "s" / SEG, off + length - 3)
+    (tmp_path / "s" / "00000000000000000000.idx").unlink()
+    report = check_store(str(tmp_path / "s"), deep=True)
+    assert report.errors and any("cannot be listed" in f.what for f in report.errors)
+    assert report.decoded > 0  # the other segments were still decoded
+
+
+def test_crash_while_creating_a_store(tmp_path):
+    (tmp_path / "s").mkdir()
+    (tmp_path / "s" / "LOCK").write_text("")
+    (tmp_path / "s" / "MANIFEST.tmp").write_bytes(b"CCLM\x01")
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        store.put_window("/a", [(0, "1")])
+    with cclogfs.open_store(tmp_path / "s") as store:
+        assert seqs(store) == [0]
+
+
+def test_windows_of_a_closed_store_refuse_to_read(tmp_path):
+    from cclogfs.errors import StoreError
+
+    make_store(tmp_path / "s")
+    store = cclogfs.open_store(tmp_path / "s", readonly=True)
+    windows = list(store.query())
+    store.close()
+    with pytest.raises(StoreError, match="closed"):
+        list(windows[0].messages())

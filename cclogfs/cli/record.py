@@ -7,7 +7,7 @@ import signal
 import sys
 
 from ..ingest import open_source
-from ..pipeline import KeepAll, RecordStats, record, smart_policy
+from ..pipeline import KeepAll, RecordStats, interrupt_handler, record, smart_policy
 from ..store import open_store
 from ._fmt import human_bytes
 from .progress import Progress
@@ -52,10 +52,6 @@ def _skipped(err: Exception) -> None:
     print(f"cclog: skipped: {err}", file=sys.stderr)
 
 
-def _sigterm(signum, frame):
-    raise KeyboardInterrupt
-
-
 def run(args: argparse.Namespace) -> int:
     topics = args.topic
     if args.model:
@@ -65,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
         read_topics = None if topics is None else sorted({*topics, policy.odom_topic})
     else:
         policy, read_topics = KeepAll(chunk=args.chunk), topics
-    previous = signal.signal(signal.SIGTERM, _sigterm)
+    previous = {sig: signal.signal(sig, interrupt_handler) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         with open_store(args.store, create=True, codec=args.codec, sync_every_ms=args.sync_ms) as store, \
                 open_source(args.source, topics=read_topics, on_error=args.on_error, report=_skipped) as source, \
@@ -82,7 +78,8 @@ def run(args: argparse.Namespace) -> int:
             except KeyboardInterrupt:  # arrived once the input had ended: all was stored
                 stats.interrupted = True
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     mode = "smart logging" if args.model else "every message"
     kept = stats.json_bytes_kept / stats.json_bytes_in if stats.json_bytes_in else 0.0
     print(f"{'interrupted: ' if stats.interrupted else ''}recorded {args.source} into {args.store} ({mode}): "

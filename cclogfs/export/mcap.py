@@ -65,6 +65,11 @@ def _write(
         for w in windows:
             count = 0
             for stamp_ns, text in w.messages():
+                if stamp_ns < 0:
+                    raise InvalidInputError(
+                        f"The message on {w.name} at {stamp_ns} ns cannot go into MCAP, whose "
+                        "times are unsigned nanoseconds; export a time range after 0 (--start 0)."
+                    )
                 chan = channels.get(w.name)
                 if chan is None:
                     chan = channels[w.name] = _register(writer, w, text)

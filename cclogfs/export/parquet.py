@@ -40,6 +40,8 @@ def flatten(
         name = prefix + key
         if not prefix and name in RESERVED:
             name = "msg." + name
+        while name in out:  # {"a.b": 1, "a": {"b": 2}}: keep both, the later one renamed
+            name += "~"
         if type(value) is dict:
             if value:
                 flatten(value, name + ".", out)

@@ -31,13 +31,13 @@ OnError = Literal["stop", "skip"]
 
 # The layout format_line() writes; anything else takes the general path.
 _FAST_HEAD = re.compile(
-    r'\{"topic": "([^"\\\x00-\x1f]+)", "stamp_ns": (0|[1-9][0-9]{0,18}), "msg": (?=\{)'
+    r'\{"topic": "([^"\\\x00-\x1f]+)", "stamp_ns": (0|-?[1-9][0-9]{0,18}), "msg": (?=\{)'
 )
 _WS = re.compile(r"[ \t\n\r]*")
 _DECODER = json.JSONDecoder()
 _REQUIRED = ("topic", "stamp_ns", "msg")
 _OPTIONAL = ("msgtype",)
-_MAX_STAMP = (1 << 63) - 1
+_MIN_STAMP, _MAX_STAMP = -(1 << 63), (1 << 63) - 1  # the store's int64 nanoseconds
 
 
 # A log has few topics; json.dumps of the name was a tenth of the time to write a line.
@@ -71,7 +71,7 @@ def parse_line(line: str) -> tuple[str, int, str, str]:
         except ValueError:
             end = -1
         stamp = int(m.group(2))
-        if end == len(line) - 1 and stamp <= _MAX_STAMP:
+        if end == len(line) - 1 and _MIN_STAMP <= stamp <= _MAX_STAMP:
             return m.group(1), stamp, line[start:end], ""
     return _parse_general(line)
 
@@ -99,8 +99,8 @@ def _parse_general(line: str) -> tuple[str, int, str, str]:
     msgtype = fields.get("msgtype", ("", 0, 0))[0]
     if not isinstance(topic, str) or not topic:
         raise JsonlLineError("'topic' must be a non-empty string")
-    if type(stamp) is not int or not 0 <= stamp <= _MAX_STAMP:
-        raise JsonlLineError(f"'stamp_ns' must be an integer in [0, 2**63), not {stamp!r}")
+    if type(stamp) is not int or not _MIN_STAMP <= stamp <= _MAX_STAMP:
+        raise JsonlLineError(f"'stamp_ns' must be a 64-bit integer, not {stamp!r}")
     if not isinstance(msg, dict):
         raise JsonlLineError(f"'msg' must be a JSON object, not {type(msg).__name__}")
     if not isinstance(msgtype, str):
@@ -237,7 +237,7 @@ class JsonlSource:
                 # the msg value when it is one valid value with no whitespace before the
                 # final "}"; anything else takes the general path, which reports errors.
                 msg = line[start:-1]
-                if stamp <= _MAX_STAMP and line[-2] not in " \t\r\n" and json_error(msg) is None:
+                if _MIN_STAMP <= stamp <= _MAX_STAMP and line[-2] not in " \t\r\n" and json_error(msg) is None:
                     yield SourceMessage(topic, stamp, msg, "")
                     continue
             if not line.strip():
