@@ -100,6 +100,21 @@ def test_parse_dicts_and_texts_alike():
     np.testing.assert_array_equal(np.isnan(a.raw), np.isnan(odom.raw))
 
 
+def test_odom_text_fast_path_equals_json():
+    from cclogfs.classifier.features import _ODOM_TEXT, odom_row
+
+    msg = json.loads(odom_texts(synthetic(n=1))[0])
+    msg["header"] = {"seq": 7, "stamp": {"sec": 12, "nanosec": 345}, "frame_id": 'od\\"o]m'}
+    msg["child_frame_id"] = "base]"
+    msg["pose"]["pose"]["position"] = {"x": -1.5e-07, "y": float("nan"), "z": float("-inf")}
+    msg["twist"]["twist"]["angular"]["z"] = 12345678901234567890.0
+    for text in (json.dumps(msg), json.dumps(msg, indent=1)):  # fast path, then json.loads
+        got, want = odom_row(text), odom_row(msg)
+        assert got[0] == want[0] == 12 * NS + 345
+        np.testing.assert_array_equal(got[1], want[1])
+    assert _ODOM_TEXT.fullmatch(json.dumps(msg)) and not _ODOM_TEXT.fullmatch(json.dumps(msg, indent=1))
+
+
 def test_bad_message_and_config_errors():
     with pytest.raises(InvalidInputError, match="message 1.*twist"):
         parse_odometry([odom_texts(synthetic(n=1))[0], '{"header": {"stamp": {"sec": 1, "nanosec": 0}}, "pose": {"pose": {"position": {"x":0,"y":0,"z":0}, "orientation": {"x":0,"y":0,"z":0,"w":1}}}}'])

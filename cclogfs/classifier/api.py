@@ -115,7 +115,7 @@ class Detector:
         got = self._stream.push(stamp_ns, row)
         if got is None or not got[1]:
             return math.nan, False
-        score = float(self.model.score(got[0][None, :])[0])
+        score = self.model.score_one(got[0])
         return score, score > 0
 
     def update(self, msg: dict | str | bytes) -> tuple[float, bool]:

@@ -12,6 +12,7 @@ Two feature sets share one interface (`get_config`, `batch`, `stream`):
 from __future__ import annotations
 
 import json
+import re
 from collections import deque
 from math import atan2, cos, hypot, inf, isfinite, pi, sin
 from dataclasses import dataclass
@@ -77,8 +78,29 @@ class OdomArrays:
         )
 
 
+_NUM = r"(-?(?:0|[1-9][0-9]*)(?:\.[0-9]+)?(?:[eE][-+]?[0-9]+)?|NaN|-?Infinity)"
+_STR = r'"(?:[^"\\]|\\.)*"'
+_XYZ = '\\{"x": ' + _NUM + ', "y": ' + _NUM + ', "z": ' + _NUM + "\\}"
+_COV = r"\[[^]]*\]"  # not checked: sources have validated the JSON already
+# The whole message in the layout json.dumps gives rosbridge JSON (fields in definition
+# order; ROS 1 headers have a seq): a full match needs no json.loads, which would spend
+# most of its time on the two 36-value covariance arrays we do not use.
+_ODOM_TEXT = re.compile(
+    '\\{"header": \\{(?:"seq": [0-9]+, )?"stamp": \\{"(?:sec|secs)": ([0-9]+), "(?:nanosec|nsecs)": ([0-9]+)\\}, '
+    f'"frame_id": {_STR}\\}}, "child_frame_id": {_STR}, "pose": \\{{"pose": \\{{"position": {_XYZ}, '
+    f'"orientation": \\{{"x": {_NUM}, "y": {_NUM}, "z": {_NUM}, "w": {_NUM}\\}}\\}}, '
+    f'"covariance": {_COV}\\}}, "twist": \\{{"twist": \\{{"linear": {_XYZ}, "angular": {_XYZ}\\}}, '
+    f'"covariance": {_COV}\\}}\\}}'
+)
+
+
 def odom_row(msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
     """One nav_msgs/Odometry (rosbridge dict or JSON text) as (stamp_ns, 13 floats)."""
+    if isinstance(msg, str):
+        m = _ODOM_TEXT.fullmatch(msg)
+        if m is not None:
+            g = m.groups()
+            return int(g[0]) * NS + int(g[1]), tuple(map(float, g[2:]))
     try:
         if not isinstance(msg, dict):
             msg = json.loads(msg)
