@@ -66,6 +66,11 @@ def test_smart_logger_live_equals_replay_and_windows_cover_event(model, quiet):
     live = list(SmartLogger(Detector(model), before_s=4, after_s=4).run(stream))
     batch = SmartLogger(Detector(model), before_s=4, after_s=4).replay(stream)
     assert [(w.topic, w.messages, w.meta) for w in live] == [(w.topic, w.messages, w.meta) for w in batch]
+    stream[7:7] = [("/imu", int(run.stamp_ns[i]), f'{{"i": {i}}}') for i in range(7, 400)]
+    one = list(SmartLogger(Detector(model), before_s=4, after_s=4).run(stream))
+    held = list(SmartLogger(Detector(model), before_s=4, after_s=4, batch=7).run(stream))
+    assert [(w.topic, w.messages, w.meta) for w in held] == [(w.topic, w.messages, w.meta) for w in one]
+    assert any(w.topic == "/imu" for w in held)
     spans = window_spans(live)
     table = event_table(run.stamp_ns, spans, {"events": [event]})
     assert table["recalled"] == 1 and table["false_windows"] == 0
