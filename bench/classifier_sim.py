@@ -67,6 +67,7 @@ def evaluate(args, rate: float, severity: tuple[float, float], features: str, ca
         cache[key] = (train(runs, features=features), time.perf_counter() - t0)
     model, train_s = cache[key]
     recalled = events = windows = false = 0
+    kept_n = total_n = 0
     missed: Counter = Counter()
     peaks: dict = {}
     for k in range(args.anomalous_runs):
@@ -86,9 +87,10 @@ def evaluate(args, rate: float, severity: tuple[float, float], features: str, ca
         kept = np.zeros(len(t), bool)
         for a, b in spans:
             kept[np.searchsorted(t, a): np.searchsorted(t, b, "right")] = True
+        kept_n, total_n = kept_n + int(kept.sum()), total_n + len(t)
         for ev in labels["events"]:
             sel = slice(np.searchsorted(t, ev["start_ns"]), np.searchsorted(t, ev["end_ns"], "right"))
-            peaks.setdefault(ev["kind"], []).append(float(np.nanmax(scores[sel])))
+            peaks.setdefault(ev["kind"], []).append(float(np.nanmax(scores[sel], initial=-np.inf)))
             if not kept[sel].all():
                 missed[ev["kind"]] += 1
     nom_false, nom_min = 0, 0.0
@@ -106,7 +108,7 @@ def evaluate(args, rate: float, severity: tuple[float, float], features: str, ca
         "precision": (windows - false) / windows if windows else float("nan"),
         "windows": windows, "false_in_anom": false,
         "false_per_10min": nom_false * 10 / nom_min, "nominal_min": nom_min,
-        "missed": dict(missed), "train_s": train_s,
+        "missed": dict(missed), "train_s": train_s, "kept": kept_n / total_n,
         "min_peak": {k: round(min(v), 2) for k, v in sorted(peaks.items())},
     }  # fmt: skip
 
@@ -132,7 +134,7 @@ def main() -> None:
     print(f"split {args.split}: train {args.train_min:g} min ({args.train_runs} runs), "
           f"{args.anomalous_runs} x 5 min with 6 anomalies, {args.nominal_runs} x "
           f"{args.nominal_min:g} min nominal; windows --before {args.before} --after {args.after}")  # fmt: skip
-    head = f"{'features':<8} {'Hz':>4} {'severity':>8} {'recall':>13} {'precision':>15} {'false/10min':>12} {'train s':>7}"
+    head = f"{'features':<8} {'Hz':>4} {'severity':>8} {'recall':>13} {'precision':>15} {'false/10min':>12} {'train s':>7} {'kept':>6}"
     print(head)
     cache: dict = {}
     for features in args.features.split(","):
@@ -142,7 +144,7 @@ def main() -> None:
                 r = evaluate(args, rate, (lo, hi), features, cache)
                 print(f"{features:<8} {rate:>4g} {sev:>8} {100 * r['recall']:>5.0f} % ({r['recalled']}/{r['events']})"
                       f" {100 * r['precision']:>5.0f} % ({r['windows'] - r['false_in_anom']}/{r['windows']})"
-                      f" {r['false_per_10min']:>12.2f} {r['train_s']:>7.1f}", flush=True)  # fmt: skip
+                      f" {r['false_per_10min']:>12.2f} {r['train_s']:>7.1f} {100 * r['kept']:>5.0f}%", flush=True)  # fmt: skip
                 if args.verbose:
                     print(f"    missed {r['missed']}  min peak score {r['min_peak']}", flush=True)
 
