@@ -254,7 +254,7 @@ def smart_policy(model: Any, *, topics: Iterable[str] | None = None, before: str
     b_n, b_s = parse_span(before)
     a_n, a_s = parse_span(after)
     return SmartLogger(Detector(model), odom_topic=model.topic, topics=topics,
-                       before=b_n, after=a_n, before_s=b_s, after_s=a_s,
+                       before=b_n, after=a_n, before_s=b_s, after_s=a_s, batch=64,
                        summary_period_s=60.0 if summary else None)  # fmt: skip
 
 

@@ -77,7 +77,7 @@ def test_default_features_similar_across_rates(shared_data):
     for rate in (10, 100):
         X, valid = fs.batch(resample(odom, rate, jitter_s=0.1 / rate))
         med.append(np.median(X[valid], axis=0))
-    # path, net speed and turn rate are integrals: the same at any rate
+    # wasted motion, wasted turn and net turn are integrals: the same at any rate
     np.testing.assert_allclose(med[0][8:11], med[1][8:11], rtol=0.05, atol=0.01)
 
 
@@ -98,6 +98,21 @@ def test_parse_dicts_and_texts_alike():
     np.testing.assert_array_equal(a.stamp_ns, odom.stamp_ns)
     np.testing.assert_array_equal(a.raw, b.raw)
     np.testing.assert_array_equal(np.isnan(a.raw), np.isnan(odom.raw))
+
+
+def test_odom_text_fast_path_equals_json():
+    from cclogfs.classifier.features import _ODOM_TEXT, odom_row
+
+    msg = json.loads(odom_texts(synthetic(n=1))[0])
+    msg["header"] = {"seq": 7, "stamp": {"sec": 12, "nanosec": 345}, "frame_id": 'od\\"o]m'}
+    msg["child_frame_id"] = "base]"
+    msg["pose"]["pose"]["position"] = {"x": -1.5e-07, "y": float("nan"), "z": float("-inf")}
+    msg["twist"]["twist"]["angular"]["z"] = 12345678901234567890.0
+    for text in (json.dumps(msg), json.dumps(msg, indent=1)):  # fast path, then json.loads
+        got, want = odom_row(text), odom_row(msg)
+        assert got[0] == want[0] == 12 * NS + 345
+        np.testing.assert_array_equal(got[1], want[1])
+    assert _ODOM_TEXT.fullmatch(json.dumps(msg)) and not _ODOM_TEXT.fullmatch(json.dumps(msg, indent=1))
 
 
 def test_bad_message_and_config_errors():

@@ -17,12 +17,10 @@ from .windows import LoggedWindow, WindowBuilder
 
 __all__ = ["Detector", "SmartLogger", "collect", "event_masks", "load_dataset", "parse_labels", "train"]
 
-# Noise floors of the default features (m/s, rad/s, m/s^2, ...): standardizing by a spread
-# smaller than this would make sensor noise look anomalous on a robot other than the one
-# the model was trained on.
-DEFAULT_FLOORS = np.array(
-    [0.1, 0.3, 0.5, 0.5, 1.0, 5.0, 0.05, 0.05, 0.1, 0.1, 0.2, 0.05, 0.05]
-)
+# Noise floors of the default features (rad/s, m/s^2, rad/s^2, m/s, ...), in the order of
+# features.DEFAULT_NAMES: standardizing by a spread smaller than this would make sensor
+# noise look anomalous on a robot other than the one the model was trained on.
+DEFAULT_FLOORS = np.array([0.3, 0.3, 0.3, 1.0, 0.1, 0.005, 0.02, 0.02, 0.05, 0.1, 0.1])
 
 
 def _as_odom(source) -> OdomArrays:
@@ -112,12 +110,17 @@ class Detector:
             scores[valid] = self.model.score(X[valid])
         return scores, np.nan_to_num(scores, nan=-np.inf) > 0
 
+    def vector(self, stamp_ns: int, row) -> np.ndarray | None:
+        """The newest message's feature vector (None while there is none or it is not valid)."""
+        got = self._stream.push(stamp_ns, row)
+        return got[0] if got is not None and got[1] else None
+
     def update_row(self, stamp_ns: int, row) -> tuple[float, bool]:
         """Score of the newest message given as (stamp, 13 raw values)."""
         got = self._stream.push(stamp_ns, row)
         if got is None or not got[1]:
             return math.nan, False
-        score = float(self.model.score(got[0][None, :])[0])
+        score = self.model.score_one(got[0])
         return score, score > 0
 
     def update(self, msg: dict | str | bytes) -> tuple[float, bool]:
@@ -129,11 +132,18 @@ class SmartLogger:
     """Turns a stream of (topic, stamp_ns, json_text) into LoggedWindows to store.
 
     Odometry on `odom_topic` is scored; windows come from WindowBuilder (same keyword
-    arguments); per-minute summaries come out as windows on `/cclog/summary`.
+    arguments); per-minute summaries come out as windows on `/cclog/summary`. With
+    `batch` > 1, features are still computed per message but the SVM scores up to `batch`
+    held messages at once: the same windows, closing up to `batch` messages later.
     """
 
     def __init__(self, detector: Detector, *, odom_topic: str = "/odom",
-                 summary_period_s: float | None = 60.0, **window_args):  # fmt: skip
+                 summary_period_s: float | None = 60.0, batch: int = 1, **window_args):  # fmt: skip
+        if batch < 1:
+            raise InvalidInputError(f"batch must be at least 1, not {batch!r}.")
+        self.batch = batch
+        self._pending: list[tuple] = []  # messages held until their odometry is scored
+        self._vectors: list[np.ndarray] = []
         self.detector = detector
         self.odom_topic = odom_topic
         self.windows = WindowBuilder(trigger_topic=odom_topic,
@@ -145,10 +155,33 @@ class SmartLogger:
     def push(self, topic: str, stamp_ns: int, text: str) -> list[LoggedWindow]:
         """One message; returns the windows (and summaries) that closed."""
         if topic != self.odom_topic:
+            if self._pending:
+                self._pending.append((topic, stamp_ns, text, None, False))
+                return []
             return self.windows.push(topic, stamp_ns, text)
         head, row = odom_row(text)
-        score, flag = self.detector.update_row(head, row)
-        return self._odom(stamp_ns, text, row, score, flag)
+        if self.batch == 1:
+            score, flag = self.detector.update_row(head, row)
+            return self._odom(stamp_ns, text, row, score, flag)
+        vec = self.detector.vector(head, row)
+        if vec is not None:
+            self._vectors.append(vec)
+        self._pending.append((topic, stamp_ns, text, row, vec is not None))
+        return self._drain() if len(self._pending) >= self.batch else []
+
+    def _drain(self) -> list[LoggedWindow]:
+        """Score the held odometry vectors at once, then run the windows over the held messages."""
+        scores = iter(self.detector.model.score(np.array(self._vectors)).tolist() if self._vectors else ())
+        out: list[LoggedWindow] = []
+        for topic, stamp_ns, text, row, scored in self._pending:
+            if row is None:
+                out += self.windows.push(topic, stamp_ns, text)
+            else:
+                score = next(scores) if scored else math.nan
+                out += self._odom(stamp_ns, text, row, score, score > 0)
+        self._pending.clear()
+        self._vectors.clear()
+        return out
 
     def _odom(self, stamp_ns, text, row, score, flag) -> list[LoggedWindow]:
         self.scored += 1
@@ -161,7 +194,7 @@ class SmartLogger:
 
     def flush(self) -> list[LoggedWindow]:
         """End of input: close the open window and the current summary period."""
-        out = self.windows.flush()
+        out = self._drain() + self.windows.flush()
         if self.summary is not None:
             out += [self._summary_window(r) for r in self.summary.flush()]
         return out

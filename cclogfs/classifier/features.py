@@ -12,7 +12,9 @@ Two feature sets share one interface (`get_config`, `batch`, `stream`):
 from __future__ import annotations
 
 import json
+import re
 from collections import deque
+from math import atan2, cos, hypot, inf, isfinite, pi, sin
 from dataclasses import dataclass
 from typing import Any, Iterable, Protocol
 
@@ -33,6 +35,7 @@ __all__ = [
 NS = 1_000_000_000
 # Per message: position xyz, orientation xyzw, linear twist xyz, angular twist xyz.
 RAW_WIDTH = 13
+TWO_PI = 2 * pi
 
 
 @dataclass
@@ -75,8 +78,29 @@ class OdomArrays:
         )
 
 
+_NUM = r"(-?(?:0|[1-9][0-9]*)(?:\.[0-9]+)?(?:[eE][-+]?[0-9]+)?|NaN|-?Infinity)"
+_STR = r'"(?:[^"\\]|\\.)*"'
+_XYZ = '\\{"x": ' + _NUM + ', "y": ' + _NUM + ', "z": ' + _NUM + "\\}"
+_COV = r"\[[^]]*\]"  # not checked: sources have validated the JSON already
+# The whole message in the layout json.dumps gives rosbridge JSON (fields in definition
+# order; ROS 1 headers have a seq): a full match needs no json.loads, which would spend
+# most of its time on the two 36-value covariance arrays we do not use.
+_ODOM_TEXT = re.compile(
+    '\\{"header": \\{(?:"seq": [0-9]+, )?"stamp": \\{"(?:sec|secs)": ([0-9]+), "(?:nanosec|nsecs)": ([0-9]+)\\}, '
+    f'"frame_id": {_STR}\\}}, "child_frame_id": {_STR}, "pose": \\{{"pose": \\{{"position": {_XYZ}, '
+    f'"orientation": \\{{"x": {_NUM}, "y": {_NUM}, "z": {_NUM}, "w": {_NUM}\\}}\\}}, '
+    f'"covariance": {_COV}\\}}, "twist": \\{{"twist": \\{{"linear": {_XYZ}, "angular": {_XYZ}\\}}, '
+    f'"covariance": {_COV}\\}}\\}}'
+)
+
+
 def odom_row(msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
     """One nav_msgs/Odometry (rosbridge dict or JSON text) as (stamp_ns, 13 floats)."""
+    if isinstance(msg, str):
+        m = _ODOM_TEXT.fullmatch(msg)
+        if m is not None:
+            g = m.groups()
+            return int(g[0]) * NS + int(g[1]), tuple(map(float, g[2:]))
     try:
         if not isinstance(msg, dict):
             msg = json.loads(msg)
@@ -174,22 +198,24 @@ class _PaperStream:
         return np.concatenate(list(self.rows)[:: self.stride]), True
 
 
-# Feature names of the default set, in column order.
+# Feature names of the default set, in column order. Each grows with how anomalous the
+# motion is and is bounded in nominal driving by the robot's own limits (not by where it
+# goes or how fast it chose to drive), so minutes of training cover its nominal range.
 DEFAULT_NAMES = (
-    "speed",  # |linear twist| now, m/s
     "yaw_rate",  # |angular twist z| now, rad/s
     "accel_max",  # max |dv/dt| over the short window, m/s^2
     "brake_max",  # max deceleration along the body x axis, m/s^2 (abrupt stops)
     "ang_accel_max",  # max |dw/dt|, rad/s^2 (sudden twisting)
-    "jerk_max",  # max |d(accel)/dt|, m/s^3
+    "lateral_max",  # max |v * w|, m/s^2 (turning harder than the planner allows)
+    "reverse_max",  # max backward speed, m/s (a base driven by a planner goes forward)
     "pose_twist_mismatch",  # max |pose displacement - integrated twist| / time, m/s
     "yaw_twist_mismatch",  # max |pose yaw change - integrated yaw rate| / time, rad/s
-    "path_speed",  # twist path length / time over the long window, m/s
-    "net_speed",  # pose net displacement / time over the long window, m/s
-    "turn_rate",  # integral of |w| / time over the long window, rad/s
-    "wasted_motion",  # path - net displacement, per second (back and forth, oscillation)
-    "wasted_turn",  # turning that cancels out, per second (yaw oscillation)
+    "wasted_motion",  # (twist path length - pose net displacement) / time, long window, m/s
+    "wasted_turn",  # turning that cancels out, per second, long window (oscillation)
+    "net_turn",  # |net rotation| / time over the long window, rad/s (spinning in place)
 )
+# Columns of the short-window maxima (instantaneous values of each message).
+_SHORT = slice(1, 8)
 
 
 def _wrap(a: np.ndarray) -> np.ndarray:
@@ -229,7 +255,7 @@ class DefaultFeatures:
     """
 
     id = "default"
-    version = 1
+    version = 2
     names = DEFAULT_NAMES
 
     def __init__(
@@ -254,7 +280,7 @@ class DefaultFeatures:
         self._short, self._long = ns["short_s"], ns["long_s"]
         self._gap, self._warmup = ns["gap_s"], ns["warmup_s"]
         # How far back the newest vector looks: a window plus the baseline of its oldest row.
-        self.horizon_ns = max(self._short + self._deriv * 2, self._short + self._match, self._long)
+        self.horizon_ns = max(self._short + self._deriv, self._short + self._match, self._long)
 
     def get_config(self) -> dict:
         return {"id": self.id, "version": self.version, "params": dict(self.params)}
@@ -294,8 +320,11 @@ class DefaultFeatures:
     def stream(self) -> _DefaultStream:
         return _DefaultStream(self)
 
-    def _segment(self, t: np.ndarray, raw: np.ndarray, seg_start: int, last_only: bool = False):
-        """Vectors of one gap-free run with strictly increasing stamps `t` (int64 ns)."""
+    def _segment(self, t: np.ndarray, raw: np.ndarray, seg_start: int):
+        """Vectors of one gap-free run with strictly increasing stamps `t` (int64 ns).
+
+        `_DefaultStream` computes the same values message by message: change both alike.
+        """
         n = len(t)
         pos = raw[:, 0:2]
         qx, qy, qz, qw = raw[:, 3], raw[:, 4], raw[:, 5], raw[:, 6]
@@ -321,86 +350,150 @@ class DefaultFeatures:
         cum = np.zeros((n, steps.shape[1]))
         np.cumsum(steps, axis=0, out=cum[1:])
 
-        def back(lag: int, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        def back(lag: int) -> tuple[np.ndarray, np.ndarray]:
             """Baseline rows at least `lag` ns back (clamped to the run start), and the times."""
-            k = np.maximum(np.searchsorted(t, t[rows] - lag, side="right") - 1, 0)
-            span = (t[rows] - t[k]) * 1e-9
+            k = np.maximum(np.searchsorted(t, t - lag, side="right") - 1, 0)
+            span = (t - t[k]) * 1e-9
             return k, np.where(span > 0, span, np.inf)
 
-        if last_only:  # only rows inside the newest vector's short window matter
-            first = int(np.searchsorted(t, t[-1] - self._short, side="left"))
-            rows = np.arange(first, n)
-        else:
-            rows = np.arange(n)
-        k, span = back(self._deriv, rows)
-        ax = (vx[rows] - vx[k]) / span
-        accel = np.hypot(ax, (vy[rows] - vy[k]) / span)
-        alpha = np.abs((wz[rows] - wz[k]) / span)
-        # Jerk needs the acceleration at the baseline row too: computed the same way.
-        k2, span2 = back(self._deriv, k)
-        ax_k = (vx[k] - vx[k2]) / span2
-        jerk = np.abs((ax - ax_k) / span)
-        m, mspan = back(self._match, rows)
-        dpose = pos[rows] - pos[m]
-        dtw = cum[rows, 0:2] - cum[m, 0:2]
+        k, span = back(self._deriv)
+        ax = (vx - vx[k]) / span
+        accel = np.hypot(ax, (vy - vy[k]) / span)
+        alpha = np.abs((wz - wz[k]) / span)
+        m, mspan = back(self._match)
+        dpose = pos - pos[m]
+        dtw = cum[:, 0:2] - cum[m, 0:2]
         mis_lin = np.hypot(dpose[:, 0] - dtw[:, 0], dpose[:, 1] - dtw[:, 1]) / mspan
-        mis_yaw = np.abs((cum[rows, 3] - cum[m, 3]) - (cum[rows, 2] - cum[m, 2])) / mspan
-        inst = np.column_stack([accel, -ax, alpha, jerk, mis_lin, mis_yaw])
+        mis_yaw = np.abs((cum[:, 3] - cum[m, 3]) - (cum[:, 2] - cum[m, 2])) / mspan
+        inst = np.column_stack([accel, -ax, alpha, speed * np.abs(wz), -vx, mis_lin, mis_yaw])
+        short = _window_max(inst, np.searchsorted(t, t - self._short, side="left"))
+        short[:, 4] = np.maximum(short[:, 4], 0.0)  # reverse speed: none is 0, not -speed
 
-        if last_only:
-            out_rows = np.array([n - 1])
-            short = inst.max(axis=0, keepdims=True)
-        else:
-            out_rows = rows
-            start = np.searchsorted(t, t - self._short, side="left")
-            short = _window_max(inst, start)
-        j = np.searchsorted(t, t[out_rows] - self._long, side="left")
-        T = (t[out_rows] - t[j]) * 1e-9
+        j = np.searchsorted(t, t - self._long, side="left")
+        T = (t - t[j]) * 1e-9
         T = np.where(T > 0, T, np.inf)
-        dcum = cum[out_rows] - cum[j]
+        dcum = cum - cum[j]
         path = dcum[:, 4] / T
-        net = np.hypot(*(pos[out_rows] - pos[j]).T) / T
-        turn = dcum[:, 5] / T
+        net = np.hypot(pos[:, 0] - pos[j, 0], pos[:, 1] - pos[j, 1]) / T
+        net_turn = np.abs(dcum[:, 2]) / T
         X = np.column_stack([
-            speed[out_rows], np.abs(wz[out_rows]), short,
-            path, net, turn, np.maximum(path - net, 0.0),
-            np.maximum(turn - np.abs(dcum[:, 2]) / T, 0.0),
+            np.abs(wz), short, np.maximum(path - net, 0.0),
+            np.maximum(dcum[:, 5] / T - net_turn, 0.0), net_turn,
         ])  # fmt: skip
-        valid = t[out_rows] - seg_start >= self._warmup
-        return X, valid
+        return X, t - seg_start >= self._warmup
+
+
+class _MaxWindow:
+    """Running maximum over the values of the last `span_ns` (monotonic deque): O(1)."""
+
+    __slots__ = ("span", "q")
+
+    def __init__(self, span_ns: int):
+        self.span = span_ns
+        self.q: deque = deque()
+
+    def push(self, t: int, v: float) -> float:
+        q = self.q
+        while q and q[-1][1] <= v:
+            q.pop()
+        q.append((t, v))
+        bound = t - self.span
+        while q[0][0] < bound:
+            q.popleft()
+        return q[0][1]
 
 
 class _DefaultStream:
-    """Live extraction: keeps only the messages the newest vector depends on."""
+    """Live extraction in O(1) per message: running sums, baseline queues and running
+    maxima give the same vector `DefaultFeatures._segment` computes for the newest row."""
 
     def __init__(self, fs: DefaultFeatures):
         self.fs = fs
-        self.t: deque[int] = deque()
-        self.rows: deque[np.ndarray] = deque()
-        self.seg_start = 0
         self.last: tuple[np.ndarray, bool] | None = None
+        self.prev: tuple | None = None  # (t, yaw, vx, vy, wz) of the last accepted message
+        self._reset()
+
+    def _reset(self) -> None:
+        self.prev = None
+        self.seg_start = 0
+        self.cum = [0.0] * 6
+        self.deriv: deque = deque()  # (t, vx, vy, wz): the baseline is the first entry
+        self.match: deque = deque()  # (t, x, y, cum0, cum1, cum2, cum3)
+        self.long: deque = deque()  # (t, x, y, cum2, cum4, cum5)
+        self.maxima = [_MaxWindow(self.fs._short) for _ in range(_SHORT.stop - _SHORT.start)]
 
     def push(self, stamp_ns: int, row: Any) -> tuple[np.ndarray, bool] | None:
         """Vector and validity after this message (None before the first usable message)."""
-        row = np.asarray(row, dtype=np.float64)
-        if not np.isfinite(row).all() or (self.t and stamp_ns <= self.t[-1]):
+        fs = self.fs
+        if not isfinite(sum(row)) and not all(isfinite(v) for v in row):
             return self.last
-        if self.t and stamp_ns - self.t[-1] > self.fs._gap:
-            self.t.clear()
-            self.rows.clear()
-        if not self.t:
-            self.seg_start = stamp_ns
-        self.t.append(stamp_ns)
-        self.rows.append(row)
-        # Keep exactly one message at or before the horizon, as baseline of the oldest row.
-        bound = stamp_ns - self.fs.horizon_ns
-        while len(self.t) > 1 and self.t[1] <= bound:
-            self.t.popleft()
-            self.rows.popleft()
-        X, valid = self.fs._segment(
-            np.fromiter(self.t, np.int64, len(self.t)), np.array(self.rows), self.seg_start, True
-        )
-        self.last = (X[0], bool(valid[0]))
+        prev = self.prev
+        if prev is not None:
+            if stamp_ns <= prev[0]:
+                return self.last
+            if stamp_ns - prev[0] > fs._gap:
+                self._reset()
+                prev = None
+        t = stamp_ns
+        x, y = float(row[0]), float(row[1])
+        qx, qy, qz, qw = float(row[3]), float(row[4]), float(row[5]), float(row[6])
+        vx, vy, wz = float(row[7]), float(row[8]), float(row[12])
+        yaw = atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+        cum = self.cum
+        if prev is None:
+            self.seg_start = t
+        else:
+            pt, pyaw, pvx, pvy, pwz = prev
+            dt = (t - pt) * 1e-9
+            dyaw = (yaw - pyaw + pi) % TWO_PI - pi
+            mid = pyaw + 0.5 * dyaw
+            mvx, mvy, mw = 0.5 * (vx + pvx), 0.5 * (vy + pvy), 0.5 * (wz + pwz)
+            c, s = cos(mid), sin(mid)
+            cum[0] += (c * mvx - s * mvy) * dt
+            cum[1] += (s * mvx + c * mvy) * dt
+            cum[2] += mw * dt
+            cum[3] += dyaw
+            cum[4] += hypot(mvx, mvy) * dt
+            cum[5] += abs(mw) * dt
+        self.prev = (t, yaw, vx, vy, wz)
+
+        # Baselines: the newest entry at least `lag` back, else the segment's first.
+        d = self.deriv
+        d.append((t, vx, vy, wz))
+        bound = t - fs._deriv
+        while len(d) > 1 and d[1][0] <= bound:
+            d.popleft()
+        kt, kvx, kvy, kwz = d[0]
+        span = (t - kt) * 1e-9 if t > kt else inf
+        ax = (vx - kvx) / span
+        accel = hypot(ax, (vy - kvy) / span)
+        alpha = abs((wz - kwz) / span)
+        m = self.match
+        m.append((t, x, y, cum[0], cum[1], cum[2], cum[3]))
+        bound = t - fs._match
+        while len(m) > 1 and m[1][0] <= bound:
+            m.popleft()
+        mt, mx, my, m0, m1, m2, m3 = m[0]
+        mspan = (t - mt) * 1e-9 if t > mt else inf
+        mis_lin = hypot((x - mx) - (cum[0] - m0), (y - my) - (cum[1] - m1)) / mspan
+        mis_yaw = abs((cum[3] - m3) - (cum[2] - m2)) / mspan
+        inst = (accel, -ax, alpha, hypot(vx, vy) * abs(wz), -vx, mis_lin, mis_yaw)
+        short = [w.push(t, v) for w, v in zip(self.maxima, inst)]
+        short[4] = max(short[4], 0.0)
+
+        lq = self.long
+        lq.append((t, x, y, cum[2], cum[4], cum[5]))
+        bound = t - fs._long
+        while lq[0][0] < bound:
+            lq.popleft()
+        jt, jx, jy, j2, j4, j5 = lq[0]
+        T = (t - jt) * 1e-9 if t > jt else inf
+        path = (cum[4] - j4) / T
+        net = hypot(x - jx, y - jy) / T
+        net_turn = abs(cum[2] - j2) / T
+        vec = np.array([abs(wz), *short, max(path - net, 0.0),
+                        max((cum[5] - j5) / T - net_turn, 0.0), net_turn])  # fmt: skip
+        self.last = (vec, t - self.seg_start >= fs._warmup)
         return self.last
 
 

@@ -157,6 +157,18 @@ class OneClassModel:
             out[rows] = np.exp(-self.gamma_ * np.maximum(d2, 0.0)) @ self.dual_coef_
         return out + self.intercept_
 
+    def score_one(self, x: np.ndarray) -> float:
+        """`score` of one vector with few numpy calls (the live path, once per message)."""
+        sv = self.support_vectors_
+        if getattr(self, "_sv_of", None) is not sv:
+            self._sv_of, self._sv_sq = sv, np.einsum("ij,ij->i", sv, sv)
+        z = (x - self.mean_) / self.scale_
+        if self.one_sided:
+            np.maximum(z, 0.0, out=z)
+        d2 = np.maximum(z @ z + self._sv_sq - 2.0 * (sv @ z), 0.0)
+        d = float(np.exp(-self.gamma_ * d2) @ self.dual_coef_) + self.intercept_
+        return (self.threshold_ - d) / max(-self.intercept_, 1e-12)
+
     def score(self, X: np.ndarray) -> np.ndarray:
         """Anomaly score: how far below the threshold, in units of rho (so comparable
         across models); > 0 is anomalous, NaN rows give NaN."""
