@@ -20,7 +20,7 @@ TEXTS = JSON_VALUES.map(json.dumps) | st.sampled_from(['{"a":1.0}', " [1e5, -0.0
 
 
 class StoreMachine(RuleBasedStateMachine):
-    @initialize(codec=st.sampled_from(["zstd", "none", "lzma"]), segment_bytes=st.sampled_from([4096, 1 << 20]))
+    @initialize(codec=st.sampled_from(["columnar", "zstd", "none", "lzma"]), segment_bytes=st.sampled_from([4096, 1 << 20]))
     def open(self, codec, segment_bytes):
         self.dir = tempfile.mkdtemp()
         self.opts = dict(codec=codec, segment_bytes=segment_bytes, sync_every_ms=None, sync_every_bytes=3000)

@@ -17,6 +17,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="cclog",
         description="cclogfs: keep the robot log data that matters, compressed and checksummed.",
+        epilog="Start with `cclog demo`; `cclog COMMAND --help` shows examples for each command.",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in COMMANDS:
