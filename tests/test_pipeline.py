@@ -222,3 +222,16 @@ def test_parquet_flatten_keeps_colliding_names():
     from cclogfs.export.parquet import flatten
 
     assert flatten({"a.b": 1, "a": {"b": 2}}) == {"a.b": 1, "a.b~": 2}
+
+
+def test_collect_mode_writes_a_labelled_dataset_that_train_learns_from(tmp_path, shared_data, capsys):
+    events = smart_fixture(tmp_path, shared_data)
+    p = lambda name: str(tmp_path / name)  # noqa: E731
+    assert main(["record", p("test.jsonl"), "--store", p("all"), "--features-out", p("vectors"),
+                 "--labels", p("labels.json")]) == 0  # fmt: skip
+    meta = json.loads((tmp_path / "vectors" / "dataset.json").read_text())
+    assert meta["nominal"] > 100 and meta["anomalous"] > 0
+    assert len(list((tmp_path / "vectors" / "anomalous").glob("*.npy"))) == meta["anomalous"]
+    assert main(["train", p("vectors"), "--out", p("model")]) == 0
+    assert "trained model" in capsys.readouterr().out
+    assert events

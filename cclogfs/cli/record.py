@@ -6,6 +6,7 @@ import argparse
 import signal
 import sys
 
+from ..errors import InvalidInputError
 from ..ingest import open_source
 from ..pipeline import KeepAll, RecordStats, interrupt_handler, record, smart_policy
 from ..store import open_store
@@ -17,6 +18,7 @@ examples:
   cclog record run.mcap --store robot.store                     # keep everything (collect mode)
   cclog record run.mcap --store robot.store --model odom.model  # smart logging: anomaly windows only
   cclog record run.bag --store robot.store --model odom.model --topic /tf --before 4s --after 4s
+  cclog record sim.mcap --store all.store --features-out vectors/ --labels sim.labels.json  # collect mode
   some-producer | cclog record - --store robot.store            # live JSON Lines on stdin
 
 JSON Lines: one message per line, {"topic": "/odom", "stamp_ns": 1432235695834049087, "msg": {...}}.
@@ -45,7 +47,39 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="a malformed JSONL line stops the run (default) or is reported and skipped")
     p.add_argument("--sync-ms", type=float, default=200, help="group commit interval (default 200 ms)")
     p.add_argument("--no-summary", action="store_true", help="with --model: no per-minute summary stream")
+    p.add_argument("--features-out", metavar="DIR",
+                   help="also write the odometry's feature vectors as a labelled dataset (collect mode; "
+                        "`cclog train DIR` learns from it)")
+    p.add_argument("--labels", metavar="JSON", help="with --features-out: labelled events of the source")
+    p.add_argument("--features", default="default", choices=["default", "paper"],
+                   help="with --features-out: the feature set")
+    p.add_argument("--odom-topic", default="/odom", help="with --features-out: the odometry topic (default /odom)")
     p.set_defaults(func=run)
+
+
+def _tee_odometry(messages, topic: str, rows: list):
+    """Pass messages on, keeping the odometry as compact rows (not texts) for the dataset."""
+    from ..classifier.features import odom_row
+
+    for m in messages:
+        if m.topic == topic:
+            rows.append(odom_row(m.text))
+        yield m
+
+
+def _write_dataset(args: argparse.Namespace, rows: list) -> None:
+    import numpy as np
+
+    from ..classifier import OdomArrays, collect
+    from .train import load_labels
+
+    if not rows:
+        print(f"cclog: no {args.odom_topic} messages, so no feature vectors were written", file=sys.stderr)
+        return
+    odom = OdomArrays(np.array([r[0] for r in rows], dtype=np.int64), np.array([r[1] for r in rows], dtype=float))
+    meta = collect(odom, args.features_out, features=args.features, labels=load_labels(args.labels))
+    print(f"feature vectors in {args.features_out}: {meta['nominal']:,} nominal, {meta['anomalous']:,} anomalous "
+          f"({args.features} features)", file=sys.stderr)  # fmt: skip
 
 
 def _skipped(err: Exception) -> None:
@@ -54,6 +88,10 @@ def _skipped(err: Exception) -> None:
 
 def run(args: argparse.Namespace) -> int:
     topics = args.topic
+    if args.labels and not args.features_out:
+        raise InvalidInputError("--labels goes with --features-out")
+    if args.features_out and topics is not None and args.odom_topic not in topics:
+        topics = [*topics, args.odom_topic]
     if args.model:
         policy = smart_policy(args.model, topics=topics, before=args.before, after=args.after,
                               summary=not args.no_summary)  # fmt: skip
@@ -73,13 +111,17 @@ def run(args: argparse.Namespace) -> int:
                 last[0] = stats.messages_in
 
             stats = RecordStats()
+            rows: list = []
+            messages = _tee_odometry(source, args.odom_topic, rows) if args.features_out else source
             try:
-                record(source, store, policy, trusted_json=True, progress=tick, stats=stats)
+                record(messages, store, policy, trusted_json=True, progress=tick, stats=stats)
             except KeyboardInterrupt:  # arrived once the input had ended: all was stored
                 stats.interrupted = True
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+    if args.features_out:
+        _write_dataset(args, rows)
     mode = "smart logging" if args.model else "every message"
     kept = stats.json_bytes_kept / stats.json_bytes_in if stats.json_bytes_in else 0.0
     print(f"{'interrupted: ' if stats.interrupted else ''}recorded {args.source} into {args.store} ({mode}): "
