@@ -210,7 +210,6 @@ DEFAULT_NAMES = (
     "reverse_max",  # max backward speed, m/s (a base driven by a planner goes forward)
     "pose_twist_mismatch",  # max |pose displacement - integrated twist| / time, m/s
     "yaw_twist_mismatch",  # max |pose yaw change - integrated yaw rate| / time, rad/s
-    "wasted_motion",  # (twist path length - pose net displacement) / time, long window, m/s
     "turn_in_place",  # |net rotation while slower than creep_mps|, long window, rad (spinning)
     "yaw_reversals",  # sign changes of the yaw rate beyond +-yaw_flip, last flip_s (oscillation)
     "direction_reversals",  # forward/backward changes beyond +-dir_flip, long window (stuck)
@@ -270,7 +269,7 @@ class DefaultFeatures:
         gap_s: float = 1.0,
         warmup_s: float = 1.0,
         creep_mps: float = 0.1,
-        yaw_flip: float = 0.25,
+        yaw_flip: float = 0.2,
         dir_flip: float = 0.01,
     ):
         values = dict(deriv_s=deriv_s, match_s=match_s, short_s=short_s, long_s=long_s,
@@ -353,8 +352,6 @@ class DefaultFeatures:
             (s * mvx + c * mvy) * dt,  # twist-integrated world y
             mw * dt,  # twist-integrated yaw
             dyaw,  # pose yaw change, unwrapped by summing wrapped steps
-            np.hypot(mvx, mvy) * dt,  # path length
-            np.abs(mw) * dt,  # total turning
             np.where(np.hypot(mvx, mvy) < self.creep, mw * dt, 0.0),  # turning in place
         ])  # fmt: skip
         cum = np.zeros((n, steps.shape[1]))
@@ -380,17 +377,12 @@ class DefaultFeatures:
         short[:, 4] = np.maximum(short[:, 4], 0.0)  # reverse speed: none is 0, not -speed
 
         j = np.searchsorted(t, t - self._long, side="left")
-        T = (t - t[j]) * 1e-9
-        T = np.where(T > 0, T, np.inf)
-        dcum = cum - cum[j]
-        path = dcum[:, 4] / T
-        net = np.hypot(pos[:, 0] - pos[j, 0], pos[:, 1] - pos[j, 1]) / T
         f = np.searchsorted(t, t - self._flip, side="left")
         yaw_flips = np.concatenate(([0], np.cumsum(_flips(wz, self.yaw_flip))))
         dir_flips = np.concatenate(([0], np.cumsum(_flips(vx, self.dir_flip))))
         idx = np.arange(n) + 1
         X = np.column_stack([
-            np.abs(wz), short, np.maximum(path - net, 0.0), np.abs(dcum[:, 6]),
+            np.abs(wz), short, np.abs(cum[:, 4] - cum[j, 4]),
             yaw_flips[idx] - yaw_flips[f], dir_flips[idx] - dir_flips[j],
         ])  # fmt: skip
         return X, t - seg_start >= self._warmup
@@ -462,10 +454,10 @@ class _DefaultStream:
     def _reset(self) -> None:
         self.prev = None
         self.seg_start = 0
-        self.cum = [0.0] * 7
+        self.cum = [0.0] * 5
         self.deriv: deque = deque()  # (t, vx, vy, wz): the baseline is the first entry
         self.match: deque = deque()  # (t, x, y, cum0, cum1, cum2, cum3)
-        self.long: deque = deque()  # (t, x, y, cum4, cum6)
+        self.long: deque = deque()  # (t, cum4)
         self.maxima = [_MaxWindow(self.fs._short) for _ in range(_SHORT.stop - _SHORT.start)]
         self.yaw_flips = _Flips(self.fs.yaw_flip, self.fs._flip)
         self.dir_flips = _Flips(self.fs.dir_flip, self.fs._long)
@@ -501,11 +493,8 @@ class _DefaultStream:
             cum[1] += (s * mvx + c * mvy) * dt
             cum[2] += mw * dt
             cum[3] += dyaw
-            speed = hypot(mvx, mvy)
-            cum[4] += speed * dt
-            cum[5] += abs(mw) * dt
-            if speed < fs.creep:
-                cum[6] += mw * dt
+            if hypot(mvx, mvy) < fs.creep:
+                cum[4] += mw * dt
         self.prev = (t, yaw, vx, vy, wz)
 
         # Baselines: the newest entry at least `lag` back, else the segment's first.
@@ -533,15 +522,11 @@ class _DefaultStream:
         short[4] = max(short[4], 0.0)
 
         lq = self.long
-        lq.append((t, x, y, cum[4], cum[6]))
+        lq.append((t, cum[4]))
         bound = t - fs._long
         while lq[0][0] < bound:
             lq.popleft()
-        jt, jx, jy, j4, j6 = lq[0]
-        T = (t - jt) * 1e-9 if t > jt else inf
-        path = (cum[4] - j4) / T
-        net = hypot(x - jx, y - jy) / T
-        vec = np.array([abs(wz), *short, max(path - net, 0.0), abs(cum[6] - j6),
+        vec = np.array([abs(wz), *short, abs(cum[4] - lq[0][1]),
                         self.yaw_flips.push(t, wz), self.dir_flips.push(t, vx)])  # fmt: skip
         self.last = (vec, t - self.seg_start >= fs._warmup)
         return self.last
