@@ -24,6 +24,7 @@ sys.path.insert(0, str(ROOT))
 from cclogfs.classifier.api import Detector, SmartLogger, train  # noqa: E402
 from cclogfs.classifier.evaluate import event_table, window_spans  # noqa: E402
 from cclogfs.classifier.features import OdomArrays  # noqa: E402
+from cclogfs.pipeline import WINDOW_AFTER, WINDOW_BEFORE  # noqa: E402
 from cclogfs.sim import simulate  # noqa: E402
 
 # Seed bases: training, anomalous test runs, nominal test runs (per split).
@@ -132,8 +133,8 @@ def main() -> None:
     p.add_argument("--anomalous-runs", type=int, default=4)
     p.add_argument("--nominal-runs", type=int, default=3)
     p.add_argument("--nominal-min", type=float, default=10.0)
-    p.add_argument("--before", default="5s")
-    p.add_argument("--after", default="5s")
+    p.add_argument("--before", default=WINDOW_BEFORE)
+    p.add_argument("--after", default=WINDOW_AFTER)
     p.add_argument("--heading", choices=["imu", "wheels"], default="imu",
                    help="odometry yaw source in the simulator (wheels: slip is invisible)")
     p.add_argument("--kinds", default=None, type=lambda s: s.split(","),
