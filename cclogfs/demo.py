@@ -22,7 +22,7 @@ import numpy as np
 
 from .classifier import Detector, event_table, format_message_table, message_table, train
 from .ingest import open_source
-from .pipeline import KeepAll, record, smart_policy
+from .pipeline import WINDOW_AFTER, WINDOW_BEFORE, KeepAll, record, smart_policy
 from .sim import simulate
 from .store import open_store
 
@@ -39,8 +39,11 @@ class DemoConfig:
     severity: tuple[float, float] = (0.5, 1.5)
     train_seeds: tuple[int, ...] = (1, 2)
     test_seed: int = 101
-    before: str = "2s"
-    after: str = "2s"
+    # one robot for training and test (a model is per robot), odometry yaw from its IMU
+    robot_seed: int = 1
+    heading: str = "imu"
+    before: str = WINDOW_BEFORE
+    after: str = WINDOW_AFTER
     plots: bool = True
 
 
@@ -93,7 +96,8 @@ def run_demo(cfg: DemoConfig) -> DemoResult:
 
     step(f"simulating {cfg.train_minutes:g} min of nominal driving at {cfg.rate_hz:g} Hz for training")
     per_run = cfg.train_minutes * 60 / len(cfg.train_seeds)
-    nominal = [simulate(seed=s, duration_s=per_run, rate_hz=cfg.rate_hz) for s in cfg.train_seeds]
+    nominal = [simulate(seed=s, duration_s=per_run, rate_hz=cfg.rate_hz, robot_seed=cfg.robot_seed,
+                        heading=cfg.heading) for s in cfg.train_seeds]  # fmt: skip
 
     step(f"training the one-class SVM on {sum(len(r) for r in nominal):,} odometry messages")
     model = train([[t for _, t in r.messages] for r in nominal], topic="/odom")
@@ -101,7 +105,8 @@ def run_demo(cfg: DemoConfig) -> DemoResult:
 
     step(f"simulating a different {cfg.test_minutes:g} min run with {cfg.anomalies} anomalies, as a ROS 2 bag")
     run = simulate(seed=cfg.test_seed, duration_s=cfg.test_minutes * 60, rate_hz=cfg.rate_hz,
-                   anomalies=cfg.anomalies, severity=cfg.severity)  # fmt: skip
+                   anomalies=cfg.anomalies, severity=cfg.severity, robot_seed=cfg.robot_seed,
+                   heading=cfg.heading)  # fmt: skip
     run.write(out / "test", imu=True)
     labels = run.labels_dict()
 

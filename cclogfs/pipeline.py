@@ -18,6 +18,16 @@ from typing import Any, NamedTuple, Protocol
 from ._signals import signals_deferred as _signals_deferred
 from .store import Store, open_store
 
+# Default logging-window extents, in seconds so they mean the same at any odometry rate.
+# 8 s before: the slow anomalies are recognised only seconds after they start (a stuck
+# robot at its first backward nudge, 4-6.5 s in on the simulator; a spin once it has
+# turned further than a turn in place ever does, 2.5-4.7 s in), and the window must hold
+# the start. 8 s after: a stuck robot's nudges come 2-3.5 s apart and the event may go on
+# past the last flagged one; it also merges the flagged stretches of one event into one
+# window. (bench/classifier_sim.py --split tune: 5 s missed 2 of 16 stuck events.)
+WINDOW_BEFORE = "8s"
+WINDOW_AFTER = "8s"
+
 
 class Chunk(NamedTuple):
     """A window to store: messages of one topic and the window's metadata."""
@@ -176,7 +186,7 @@ class Logger:
     """
 
     def __init__(self, store_path: str, *, model: Any = None, topics: Iterable[str] | None = None,
-                 before: str = "100", after: str = "100", chunk: int = 200, codec: Any = "columnar",
+                 before: str = WINDOW_BEFORE, after: str = WINDOW_AFTER, chunk: int = 200, codec: Any = "columnar",
                  sync_every_ms: float | None = 200) -> None:  # fmt: skip
         self.topics = None if topics is None else frozenset(topics)
         self.policy = (smart_policy(model, topics=topics, before=before, after=after)
@@ -240,8 +250,8 @@ def parse_span(text: str) -> tuple[int, float | None]:
                                 "a duration like 4s") from err  # fmt: skip
 
 
-def smart_policy(model: Any, *, topics: Iterable[str] | None = None, before: str = "100",
-                 after: str = "100", summary: bool = True) -> Any:  # fmt: skip
+def smart_policy(model: Any, *, topics: Iterable[str] | None = None, before: str = WINDOW_BEFORE,
+                 after: str = WINDOW_AFTER, summary: bool = True) -> Any:  # fmt: skip
     """The classifier's SmartLogger for `model` (a path or a loaded OneClassModel).
 
     `topics`: the topics to log over each window (None: every topic seen); the model's own
@@ -267,7 +277,7 @@ def read_topic(path: str, topic: str) -> list[tuple[int, str]]:
 
 
 def evaluate_run(messages: list[tuple[str, int, str]], model: Any, labels: Any, *,
-                 before: str = "100", after: str = "100") -> dict:  # fmt: skip
+                 before: str = WINDOW_BEFORE, after: str = WINDOW_AFTER) -> dict:  # fmt: skip
     """Score a labelled run as smart logging would: the paper's per-message Table 1, the
     per-event figures, and what fraction of messages and JSON bytes would be kept."""
     from .classifier import event_table, message_table, parse_odometry, window_spans

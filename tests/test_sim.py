@@ -47,6 +47,44 @@ def test_other_seed_other_run():
     assert a.messages != b.messages
 
 
+def test_robot_seed_fixes_the_robot_not_the_run():
+    a = simulate(seed=1, duration_s=20, robot_seed=4)
+    b = simulate(seed=2, duration_s=20, robot_seed=4)
+    c = simulate(seed=1, duration_s=20, robot_seed=5)
+    plain = simulate(seed=1, duration_s=20)
+    assert a.config["a_max"] == b.config["a_max"] != c.config["a_max"]
+    assert a.config["robot_seed"] == 4 and "robot_seed" not in plain.config
+    assert not np.array_equal(a.true_x, b.true_x)
+    # one robot: same odometry calibration, so the same wheel travel reads the same twist
+    still = simulate(seed=1, duration_s=20, robot_seed=5)
+    assert np.array_equal(c.vx, still.vx)
+
+
+def _yaw_mismatch(run, sel):
+    """Largest |pose yaw change - integrated twist yaw| over 0.5 s inside `sel`, rad/s."""
+    t = (run.stamp_ns - run.stamp_ns[0]) / 1e9
+    step = np.diff(np.unwrap(run.yaw)) - 0.5 * (run.wz[1:] + run.wz[:-1]) * np.diff(t)
+    c = np.concatenate(([0.0], np.cumsum(step)))
+    k = int(round(0.5 * run.config["rate_hz"]))
+    m = np.abs(c[k:] - c[:-k]) / 0.5  # m[j]: messages j .. j+k
+    inside = np.array([sel[j:j + k + 1].all() for j in range(len(m))])
+    return m[inside].max()
+
+
+@pytest.mark.parametrize("heading", ["wheels", "imu"])
+def test_wheel_slip_shows_as_yaw_mismatch_only_with_imu_heading(heading):
+    run = simulate(seed=11, duration_s=45, anomalies=1, kinds=["wheel_slip"],
+                   severity=(0.3, 0.3), robot_seed=3, heading=heading)
+    (ev,) = run.events
+    slip = _yaw_mismatch(run, _window(run, ev))
+    calm = _yaw_mismatch(run, ~_window(run, ev, pad_s=0.6))
+    assert calm < 0.05
+    if heading == "imu":  # the gyro does not turn with the slipping wheel
+        assert slip > 0.3 and run.config["heading"] == "imu"
+    else:  # pose and twist come from the same wheel travel: they agree
+        assert slip < 0.05 and "heading" not in run.config
+
+
 # --- nominal runs --------------------------------------------------------------------
 
 def test_nominal_run_has_no_events_and_stays_in_limits():
@@ -210,8 +248,11 @@ def test_cli_writes_a_run(tmp_path, capsys):
     assert "200 /odom messages" in capsys.readouterr().out
     events = json.loads((out / "labels.json").read_text())["events"]
     assert len(events) == 1 and 0.5 <= events[0]["severity"] <= 0.7
-    assert main(["simulate", "--nominal", "--duration", "20", "--out", str(tmp_path / "n")]) == 0
-    assert json.loads((tmp_path / "n" / "labels.json").read_text())["events"] == []
+    assert main(["simulate", "--nominal", "--duration", "20", "--robot-seed", "3",
+                 "--heading", "imu", "--out", str(tmp_path / "n")]) == 0
+    labels = json.loads((tmp_path / "n" / "labels.json").read_text())
+    assert labels["events"] == []
+    assert labels["run"]["robot_seed"] == 3 and labels["run"]["heading"] == "imu"
     # a second write into the same place is refused, not merged
     assert main(["simulate", "--nominal", "--duration", "20", "--out", str(out)]) == 1
     assert "exists already" in capsys.readouterr().err
@@ -236,6 +277,8 @@ def test_cli_writes_a_run(tmp_path, capsys):
         (dict(start_ns=-1), "start_ns"),
         (dict(start_ns=(2**31 - 5) * 10**9, duration_s=10), "start_ns"),
         (dict(duration_s=20, anomalies=10), "do not fit|longer duration"),
+        (dict(robot_seed=-1), "robot_seed"),
+        (dict(heading="compass"), "heading"),
     ],
 )
 def test_bad_arguments_are_clear_errors(kwargs, match):

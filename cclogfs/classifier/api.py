@@ -20,7 +20,7 @@ __all__ = ["Detector", "SmartLogger", "collect", "event_masks", "load_dataset", 
 # Noise floors of the default features (rad/s, m/s^2, rad/s^2, m/s, ...), in the order of
 # features.DEFAULT_NAMES: standardizing by a spread smaller than this would make sensor
 # noise look anomalous on a robot other than the one the model was trained on.
-DEFAULT_FLOORS = np.array([0.3, 0.3, 0.3, 1.0, 0.1, 0.005, 0.02, 0.02, 0.05, 0.1, 0.1])
+DEFAULT_FLOORS = np.array([0.3, 0.3, 0.3, 1.0, 0.1, 0.005, 0.02, 0.02, 0.5, 1.0, 1.0])
 
 
 def _as_odom(source) -> OdomArrays:

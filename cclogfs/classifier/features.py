@@ -210,9 +210,9 @@ DEFAULT_NAMES = (
     "reverse_max",  # max backward speed, m/s (a base driven by a planner goes forward)
     "pose_twist_mismatch",  # max |pose displacement - integrated twist| / time, m/s
     "yaw_twist_mismatch",  # max |pose yaw change - integrated yaw rate| / time, rad/s
-    "wasted_motion",  # (twist path length - pose net displacement) / time, long window, m/s
-    "wasted_turn",  # turning that cancels out, per second, long window (oscillation)
-    "net_turn",  # |net rotation| / time over the long window, rad/s (spinning in place)
+    "turn_in_place",  # |net rotation while slower than creep_mps|, long window, rad (spinning)
+    "yaw_reversals",  # sign changes of the yaw rate beyond +-yaw_flip, last flip_s (oscillation)
+    "direction_reversals",  # forward/backward changes beyond +-dir_flip, long window (stuck)
 )
 # Columns of the short-window maxima (instantaneous values of each message).
 _SHORT = slice(1, 8)
@@ -255,7 +255,7 @@ class DefaultFeatures:
     """
 
     id = "default"
-    version = 2
+    version = 3
     names = DEFAULT_NAMES
 
     def __init__(
@@ -265,22 +265,30 @@ class DefaultFeatures:
         match_s: float = 0.5,
         short_s: float = 1.0,
         long_s: float = 8.0,
+        flip_s: float = 4.0,
         gap_s: float = 1.0,
         warmup_s: float = 1.0,
+        creep_mps: float = 0.1,
+        yaw_flip: float = 0.2,
+        dir_flip: float = 0.01,
     ):
         values = dict(deriv_s=deriv_s, match_s=match_s, short_s=short_s, long_s=long_s,
-                      gap_s=gap_s, warmup_s=warmup_s)  # fmt: skip
+                      flip_s=flip_s, gap_s=gap_s, warmup_s=warmup_s, creep_mps=creep_mps,
+                      yaw_flip=yaw_flip, dir_flip=dir_flip)  # fmt: skip
         for name, value in values.items():
             if not value > 0:
                 raise InvalidInputError(f"Feature parameter {name} must be > 0, got {value!r}.")
         self.params = {k: float(v) for k, v in values.items()}
         self.dim = len(DEFAULT_NAMES)
-        ns = {k: int(round(v * NS)) for k, v in self.params.items()}
+        ns = {k: int(round(v * NS)) for k, v in self.params.items() if k.endswith("_s")}
         self._deriv, self._match = ns["deriv_s"], ns["match_s"]
         self._short, self._long = ns["short_s"], ns["long_s"]
         self._gap, self._warmup = ns["gap_s"], ns["warmup_s"]
+        self._flip = ns["flip_s"]
+        self.creep, self.yaw_flip, self.dir_flip = creep_mps, yaw_flip, dir_flip
         # How far back the newest vector looks: a window plus the baseline of its oldest row.
-        self.horizon_ns = max(self._short + self._deriv, self._short + self._match, self._long)
+        self.horizon_ns = max(self._short + self._deriv, self._short + self._match, self._long,
+                              self._flip)  # fmt: skip
 
     def get_config(self) -> dict:
         return {"id": self.id, "version": self.version, "params": dict(self.params)}
@@ -344,8 +352,7 @@ class DefaultFeatures:
             (s * mvx + c * mvy) * dt,  # twist-integrated world y
             mw * dt,  # twist-integrated yaw
             dyaw,  # pose yaw change, unwrapped by summing wrapped steps
-            np.hypot(mvx, mvy) * dt,  # path length
-            np.abs(mw) * dt,  # total turning
+            np.where(np.hypot(mvx, mvy) < self.creep, mw * dt, 0.0),  # turning in place
         ])  # fmt: skip
         cum = np.zeros((n, steps.shape[1]))
         np.cumsum(steps, axis=0, out=cum[1:])
@@ -370,17 +377,48 @@ class DefaultFeatures:
         short[:, 4] = np.maximum(short[:, 4], 0.0)  # reverse speed: none is 0, not -speed
 
         j = np.searchsorted(t, t - self._long, side="left")
-        T = (t - t[j]) * 1e-9
-        T = np.where(T > 0, T, np.inf)
-        dcum = cum - cum[j]
-        path = dcum[:, 4] / T
-        net = np.hypot(pos[:, 0] - pos[j, 0], pos[:, 1] - pos[j, 1]) / T
-        net_turn = np.abs(dcum[:, 2]) / T
+        f = np.searchsorted(t, t - self._flip, side="left")
+        yaw_flips = np.concatenate(([0], np.cumsum(_flips(wz, self.yaw_flip))))
+        dir_flips = np.concatenate(([0], np.cumsum(_flips(vx, self.dir_flip))))
+        idx = np.arange(n) + 1
         X = np.column_stack([
-            np.abs(wz), short, np.maximum(path - net, 0.0),
-            np.maximum(dcum[:, 5] / T - net_turn, 0.0), net_turn,
+            np.abs(wz), short, np.abs(cum[:, 4] - cum[j, 4]),
+            yaw_flips[idx] - yaw_flips[f], dir_flips[idx] - dir_flips[j],
         ])  # fmt: skip
         return X, t - seg_start >= self._warmup
+
+
+def _flips(x: np.ndarray, h: float) -> np.ndarray:
+    """1.0 where x changes sign with hysteresis: beyond +-h, opposite to the last value
+    beyond +-h (0.0 at the first such value and elsewhere)."""
+    n = len(x)
+    last = np.maximum.accumulate(np.where(np.abs(x) > h, np.arange(n), -1))
+    state = np.where(last >= 0, np.sign(x[np.maximum(last, 0)]), 0.0)
+    out = np.zeros(n)
+    out[1:] = (state[1:] != state[:-1]) & (state[:-1] != 0)
+    return out
+
+
+class _Flips:
+    """Live `_flips` and the count of flips in the last `span_ns`."""
+
+    __slots__ = ("h", "span", "state", "q")
+
+    def __init__(self, h: float, span_ns: int):
+        self.h, self.span, self.state = h, span_ns, 0
+        self.q: deque = deque()
+
+    def push(self, t: int, x: float) -> int:
+        if x > self.h or x < -self.h:
+            sign = 1 if x > 0 else -1
+            if self.state and sign != self.state:
+                self.q.append(t)
+            self.state = sign
+        bound = t - self.span
+        q = self.q
+        while q and q[0] < bound:
+            q.popleft()
+        return len(q)
 
 
 class _MaxWindow:
@@ -416,11 +454,13 @@ class _DefaultStream:
     def _reset(self) -> None:
         self.prev = None
         self.seg_start = 0
-        self.cum = [0.0] * 6
+        self.cum = [0.0] * 5
         self.deriv: deque = deque()  # (t, vx, vy, wz): the baseline is the first entry
         self.match: deque = deque()  # (t, x, y, cum0, cum1, cum2, cum3)
-        self.long: deque = deque()  # (t, x, y, cum2, cum4, cum5)
+        self.long: deque = deque()  # (t, cum4)
         self.maxima = [_MaxWindow(self.fs._short) for _ in range(_SHORT.stop - _SHORT.start)]
+        self.yaw_flips = _Flips(self.fs.yaw_flip, self.fs._flip)
+        self.dir_flips = _Flips(self.fs.dir_flip, self.fs._long)
 
     def push(self, stamp_ns: int, row: Any) -> tuple[np.ndarray, bool] | None:
         """Vector and validity after this message (None before the first usable message)."""
@@ -453,8 +493,8 @@ class _DefaultStream:
             cum[1] += (s * mvx + c * mvy) * dt
             cum[2] += mw * dt
             cum[3] += dyaw
-            cum[4] += hypot(mvx, mvy) * dt
-            cum[5] += abs(mw) * dt
+            if hypot(mvx, mvy) < fs.creep:
+                cum[4] += mw * dt
         self.prev = (t, yaw, vx, vy, wz)
 
         # Baselines: the newest entry at least `lag` back, else the segment's first.
@@ -482,17 +522,12 @@ class _DefaultStream:
         short[4] = max(short[4], 0.0)
 
         lq = self.long
-        lq.append((t, x, y, cum[2], cum[4], cum[5]))
+        lq.append((t, cum[4]))
         bound = t - fs._long
         while lq[0][0] < bound:
             lq.popleft()
-        jt, jx, jy, j2, j4, j5 = lq[0]
-        T = (t - jt) * 1e-9 if t > jt else inf
-        path = (cum[4] - j4) / T
-        net = hypot(x - jx, y - jy) / T
-        net_turn = abs(cum[2] - j2) / T
-        vec = np.array([abs(wz), *short, max(path - net, 0.0),
-                        max((cum[5] - j5) / T - net_turn, 0.0), net_turn])  # fmt: skip
+        vec = np.array([abs(wz), *short, abs(cum[4] - lq[0][1]),
+                        self.yaw_flips.push(t, wz), self.dir_flips.push(t, vx)])  # fmt: skip
         self.last = (vec, t - self.seg_start >= fs._warmup)
         return self.last
 

@@ -6,7 +6,7 @@ import argparse
 
 from ..classifier import format_event_table, format_message_table
 from ..ingest import open_source
-from ..pipeline import evaluate_run
+from ..pipeline import WINDOW_AFTER, WINDOW_BEFORE, evaluate_run
 from ._fmt import human_bytes
 from .train import load_labels
 
@@ -27,8 +27,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", required=True, help="model directory")
     p.add_argument("--labels", required=True, help='{"events": [{"start_ns", "end_ns", "kind"}]}')
     p.add_argument("--topic", action="append", metavar="T", help="topics logged with the windows (default all)")
-    p.add_argument("--before", default="100", help="N messages or Ds")
-    p.add_argument("--after", default="100", help="N messages or Ds")
+    p.add_argument("--before", default=WINDOW_BEFORE, help="N messages or Ds (default %(default)s)")
+    p.add_argument("--after", default=WINDOW_AFTER, help="N messages or Ds (default %(default)s)")
     p.set_defaults(func=run)
 
 

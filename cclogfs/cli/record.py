@@ -8,7 +8,7 @@ import sys
 
 from ..errors import InvalidInputError
 from ..ingest import open_source
-from ..pipeline import KeepAll, RecordStats, interrupt_handler, record, smart_policy
+from ..pipeline import WINDOW_AFTER, WINDOW_BEFORE, KeepAll, RecordStats, interrupt_handler, record, smart_policy
 from ..store import open_store
 from ._fmt import human_bytes
 from .progress import Progress
@@ -38,8 +38,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--store", required=True, help="store directory (created when missing)")
     p.add_argument("--topic", action="append", metavar="T", help="record topic T (repeatable; default all)")
     p.add_argument("--model", help="smart logging with this model directory (from `cclog train`)")
-    p.add_argument("--before", default="100", help="window context before an anomaly: N messages or Ds")
-    p.add_argument("--after", default="100", help="window context after the last anomaly: N or Ds")
+    p.add_argument("--before", default=WINDOW_BEFORE, help="window context before an anomaly: N messages or Ds (default %(default)s)")
+    p.add_argument("--after", default=WINDOW_AFTER, help="window context after the last anomaly: N or Ds (default %(default)s)")
     p.add_argument("--chunk", type=int, default=200, help="without --model: messages per stored window")
     p.add_argument("--codec", default="columnar",
                    help="codec for new records: columnar (default, smallest), zstd (fastest), lzma, none")

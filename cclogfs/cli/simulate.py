@@ -13,6 +13,7 @@ examples:
   cclog simulate --seed 2 --duration 3600 --nominal --out runs/nominal    # no anomalies
   cclog simulate --seed 3 --rate 30 --severity 0.3:0.8 --kinds collision,wheel_slip --out runs/mild
   cclog simulate --seed 4 --duration 1800 --rate-per-min 0.5 --imu --tf --out runs/s4
+  cclog simulate --seed 5 --robot-seed 1 --heading imu --out runs/s5  # robot 1, gyro yaw
 
 writes OUT/run (a rosbag2 directory, MCAP storage, /odom as nav_msgs/msg/Odometry),
 OUT/labels.json ({"events": [{"start_ns", "end_ns", "kind", "group", "severity"}]})
@@ -53,6 +54,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--severity", type=_severity, default=(0.5, 1.5),
                    help="LOW:HIGH severity range, 1.0 = default strength (default 0.5:1.5)")
     p.add_argument("--kinds", default=None, help="comma-separated anomaly kinds (default: all)")
+    p.add_argument("--robot-seed", type=int, default=None,
+                   help="fix the robot (acceleration limit, odometry calibration) across seeds")
+    p.add_argument("--heading", choices=["wheels", "imu"], default="wheels",
+                   help="odometry yaw from the wheels (default) or the IMU (slip then shows)")
     p.add_argument("--imu", action="store_true", help="also write /imu (sensor_msgs/msg/Imu)")
     p.add_argument("--tf", action="store_true", help="also write /tf (odom -> base_link)")
     p.set_defaults(func=run)
@@ -73,6 +78,8 @@ def run(args: argparse.Namespace) -> int:
         anomaly_rate_per_min=None if args.nominal else args.rate_per_min,
         kinds=kinds,
         severity=args.severity,
+        robot_seed=args.robot_seed,
+        heading=args.heading,
     )
     paths = sim.write(args.out, imu=args.imu, tf=args.tf)
     print(sim.summary())

@@ -17,15 +17,17 @@ from ..errors import InvalidInputError
 from .anomalies import KINDS, Event, motion_overrides, schedule_events, sensor_extras
 from .drive import RobotParams, drive
 from .messages import IMU, ODOM, TF, TYPESTORE, TopicSpec
-from .sensors import ImuData, imu, odometry, sample_times
+from .sensors import Calibration, ImuData, imu, odometry, sample_times
 from .world import build_building
 
-__all__ = ["DEFAULT_START_NS", "SimRun", "simulate"]
+__all__ = ["DEFAULT_START_NS", "HEADINGS", "SimRun", "simulate"]
 
 # Header stamps start here (22 May 2015, the era of the paper's BWIBot logs).
 DEFAULT_START_NS = 1_432_235_695_000_000_000
 _TOPICS: dict[str, TopicSpec] = {"/odom": ODOM, "/imu": IMU, "/tf": TF}
 MAX_DURATION_S = 24 * 3600.0
+HEADINGS = ("wheels", "imu")
+_ROBOT_STREAM = 0x524F424F  # "ROBO": keeps robot draws apart from SeedSequence(seed)'s
 
 
 @dataclass
@@ -235,6 +237,8 @@ def simulate(
     kinds: Sequence[str] | None = None,
     severity: Sequence[float] = (0.5, 1.5),
     start_ns: int = DEFAULT_START_NS,
+    robot_seed: int | None = None,
+    heading: str = "wheels",
 ) -> SimRun:
     """Simulate a run; `anomalies=0` (the default) is a nominal run.
 
@@ -242,8 +246,24 @@ def simulate(
     when given, replaces it by a Poisson count at that rate (capped to what fits).
     `kinds` restricts the kinds (default all of KINDS, used in turn); each event's
     severity is drawn uniformly from `severity`.
+
+    `robot_seed` fixes the robot: its acceleration limit and odometry calibration (wheel
+    scale errors, wheel-base estimate) come from it instead of from `seed`, so runs with
+    different seeds but one robot_seed are the same robot on different days. `heading`
+    "imu" publishes the IMU's heading as the odometry yaw (Kobuki's use_imu_heading, or an
+    EKF trusting the gyro for yaw) while the twist stays from the wheels: wheel slip then
+    shows as a yaw rate that the pose does not follow. The defaults give today's runs.
     """
     chosen = _check(seed, duration_s, rate_hz, anomalies, anomaly_rate_per_min, kinds, severity)
+    if robot_seed is not None and (isinstance(robot_seed, bool) or not isinstance(
+            robot_seed, numbers.Integral) or robot_seed < 0):
+        raise InvalidInputError(
+            f"robot_seed must be a non-negative integer or None, not {robot_seed!r}."
+        )
+    if heading not in HEADINGS:
+        raise InvalidInputError(
+            f"heading must be one of {', '.join(map(repr, HEADINGS))}, not {heading!r}."
+        )
     if isinstance(start_ns, bool) or not isinstance(start_ns, numbers.Integral) or not (
         0 <= start_ns and start_ns + duration_s * 1e9 + 1e9 < 2**31 * 1e9
     ):
@@ -262,7 +282,14 @@ def simulate(
     events = schedule_events(r_sched, duration_s=float(duration_s), start_ns=int(start_ns),
                              count=count, kinds=chosen, severity=(lo, hi), strict=strict)
 
-    params = RobotParams(a_max=float(r_params.uniform(0.55, 1.0)))
+    a_max = float(r_params.uniform(0.55, 1.0))
+    calibration = None
+    if robot_seed is not None:
+        r_robot = np.random.default_rng([int(robot_seed), _ROBOT_STREAM])
+        a_max = float(r_robot.uniform(0.55, 1.0))
+        calibration = Calibration(*(1.0 + r_robot.normal(0.0, 0.002, 2)),
+                                  1.0 + float(r_robot.normal(0.0, 0.003)))
+    params = RobotParams(a_max=a_max)
     n_out = int(round(duration_s * rate_hz))
     t = sample_times(r_time, n_out, float(rate_hz))
     dt = 1.0 / max(100.0, float(rate_hz))
@@ -273,8 +300,10 @@ def simulate(
     tt = np.arange(n_int) * dt
     true_x, true_y = np.interp(t, tt, truth.x), np.interp(t, tt, truth.y)
     true_yaw = np.interp(t, tt, truth.yaw)
+    imu_data = imu(r_imu, truth, t)
     rep = odometry(r_odom, truth, t, params.wheel_base, float(truth.x[0]), float(truth.y[0]),
-                   float(truth.yaw[0]), sensor_extras(events, t))
+                   float(truth.yaw[0]), sensor_extras(events, t), calibration=calibration,
+                   heading=np.unwrap(imu_data.yaw) if heading == "imu" else None)
     stamp_ns = int(start_ns) + np.round(t * 1e9).astype(np.int64)
 
     labels = np.zeros(n_out, np.int8)
@@ -286,9 +315,13 @@ def simulate(
         "start_ns": int(start_ns), "severity": [lo, hi], "kinds": list(chosen),
         "anomalies_requested": count, "a_max": params.a_max, "goals_reached": truth.goals,
     }
+    if robot_seed is not None:  # only when asked for, so default runs keep their bytes
+        config["robot_seed"] = int(robot_seed)
+    if heading != "wheels":
+        config["heading"] = heading
     return SimRun(
         config=config, stamp_ns=stamp_ns, x=rep.x, y=rep.y, yaw=rep.yaw, vx=rep.vx, wz=rep.wz,
         true_x=true_x, true_y=true_y, true_yaw=(true_yaw + np.pi) % (2 * np.pi) - np.pi,
         true_v=np.interp(t, tt, truth.v), true_w=np.interp(t, tt, truth.w),
-        imu=imu(r_imu, truth, t), events=events, labels=labels,
+        imu=imu_data, events=events, labels=labels,
     )

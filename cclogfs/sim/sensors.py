@@ -15,7 +15,7 @@ import numpy as np
 from .anomalies import SensorExtras
 from .drive import Truth
 
-__all__ = ["Reported", "sample_times", "odometry", "imu"]
+__all__ = ["Calibration", "Reported", "sample_times", "odometry", "imu"]
 
 TICK_M = 1e-5  # encoder resolution in wheel travel (high-count encoders on the RMP base)
 GRAVITY = 9.80665
@@ -44,6 +44,15 @@ class Reported:
     wz: np.ndarray
 
 
+@dataclass(frozen=True)
+class Calibration:
+    """A robot's odometry errors: wheel travel scale per side, wheel-base estimate factor."""
+
+    scale_l: float
+    scale_r: float
+    base: float
+
+
 def _wheel_travel(truth: Truth, b: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Cumulative left/right wheel travel on the internal grid, and its time axis."""
     dt = truth.dt
@@ -62,13 +71,22 @@ def odometry(
     y0: float,
     yaw0: float,
     extras: SensorExtras,
+    *,
+    calibration: Calibration | None = None,
+    heading: np.ndarray | None = None,
 ) -> Reported:
-    """Wheel odometry sampled at read times t (s)."""
+    """Wheel odometry sampled at read times t (s).
+
+    `calibration` replaces the per-run draws of the robot's errors (the draws are still
+    made, so the noise stays the same). `heading` (unwrapped IMU yaw at t) replaces the
+    wheels' yaw in the pose; the twist stays the wheels'."""
     tt, left, right = _wheel_travel(truth, wheel_base)
     period = (t[-1] - t[0]) / max(1, len(t) - 1) if len(t) > 1 else 0.01
     reads = np.concatenate(([t[0] - period], t))
     # the truth grid starts at rest, so reads before it see no motion
     scale_l, scale_r = 1.0 + rng.normal(0.0, 0.002, 2)
+    if calibration is not None:
+        scale_l, scale_r = calibration.scale_l, calibration.scale_r
     cum_l = scale_l * np.interp(reads, tt, left)
     cum_r = scale_r * np.interp(reads, tt, right)
     # noise in proportion to travel (tyre and floor), so a robot at rest reads exactly zero;
@@ -80,11 +98,17 @@ def odometry(
     dl = np.diff(np.round(cum_l / TICK_M)) * TICK_M
     dr = np.diff(np.round(cum_r / TICK_M)) * TICK_M
     b_est = wheel_base * (1.0 + rng.normal(0.0, 0.003))
+    if calibration is not None:
+        b_est = wheel_base * calibration.base
     dtr = np.diff(reads)
     ds, dth = 0.5 * (dl + dr), (dr - dl) / b_est
     vx, wz = ds / dtr, dth / dtr
-    yaw = yaw0 + np.cumsum(dth + extras.yaw)
-    mid = yaw - 0.5 * (dth + extras.yaw)
+    if heading is not None:  # the pose turns with the gyro, the twist with the wheels
+        dth_pose = np.diff(heading, prepend=heading[0])
+    else:
+        dth_pose = dth
+    yaw = yaw0 + np.cumsum(dth_pose + extras.yaw)
+    mid = yaw - 0.5 * (dth_pose + extras.yaw)
     x = x0 + np.cumsum(ds * np.cos(mid) + extras.x)
     y = y0 + np.cumsum(ds * np.sin(mid) + extras.y)
     yaw = (yaw + np.pi) % (2.0 * np.pi) - np.pi
