@@ -1,5 +1,6 @@
 """The `cclog` command line. Each subcommand is a module in this package that defines
-`register(subparsers)`; the module list below is the only place that names them."""
+HELP, DESCRIPTION, EXAMPLES, `add_arguments(parser)` and `run(args)`; the module list
+below is the only place that names them."""
 
 from __future__ import annotations
 
@@ -21,7 +22,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in COMMANDS:
-        importlib.import_module(f"{__name__}.{name}").register(sub)
+        mod = importlib.import_module(f"{__name__}.{name}")
+        p = sub.add_parser(name, help=mod.HELP, description=mod.DESCRIPTION, epilog=mod.EXAMPLES,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+        mod.add_arguments(p)
+        p.set_defaults(func=mod.run)
     return parser
 
 

@@ -23,16 +23,12 @@ several streams are merged by stamp.
 """
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "cat",
-        help="print stored messages as JSON Lines",
-        description="Print the messages of a store as JSON Lines, in time order.",
-        epilog=EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+HELP = "print stored messages as JSON Lines"
+DESCRIPTION = "Print the messages of a store as JSON Lines, in time order."
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     add_selection(p)
-    p.set_defaults(func=run)
 
 
 def add_selection(p: argparse.ArgumentParser) -> None:

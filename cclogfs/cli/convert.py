@@ -20,14 +20,11 @@ rosbridge JSON (docs/JSON.md), stamp_ns its header.stamp or else its log time.
 """
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "convert",
-        help="convert a bag, MCAP or JSONL file to JSON Lines",
-        description="Read a ROS 1/ROS 2 bag, an MCAP file or JSON Lines and write JSON Lines.",
-        epilog=EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+HELP = "convert a bag, MCAP or JSONL file to JSON Lines"
+DESCRIPTION = "Read a ROS 1/ROS 2 bag, an MCAP file or JSON Lines and write JSON Lines."
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("source", help="bag file, ROS 2 bag directory, .mcap, .jsonl, or - (stdin)")
     p.add_argument("-o", "--output", required=True, help="output .jsonl file, or - for stdout")
     p.add_argument("--topic", action="append", metavar="T", help="keep only topic T (repeatable)")
@@ -37,7 +34,6 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="stop",
         help="a malformed JSONL input line stops the run (default) or is skipped with a warning",
     )
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

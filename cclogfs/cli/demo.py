@@ -12,12 +12,15 @@ examples:
 """
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("demo", help="train, smart-log and report on simulated runs",
-                       description="Simulate nominal driving and train on it, smart-log a different "
-                                   "run with labelled anomalies into a store, and report detection "
-                                   "quality and storage, with plots.",
-                       epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+HELP = "train, smart-log and report on simulated runs"
+DESCRIPTION = (
+    "Simulate nominal driving and train on it, smart-log a different "
+    "run with labelled anomalies into a store, and report detection "
+    "quality and storage, with plots."
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="out/demo", help="output directory (default out/demo)")
     p.add_argument("--train-minutes", type=float, default=3.0, help="nominal driving to train on")
     p.add_argument("--test-minutes", type=float, default=5.0, help="length of the run to smart-log")
@@ -25,7 +28,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--anomalies", type=int, default=6, help="anomalies in the test run")
     p.add_argument("--seed", type=int, default=101, help="seed of the test run")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

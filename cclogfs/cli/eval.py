@@ -17,19 +17,21 @@ examples:
 """
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("eval", help="score a labelled run: Table 1, events recalled, bytes kept",
-                       description="Replay a labelled run through smart logging and report the "
-                                   "paper's per-message Table 1, per-event recall and precision, "
-                                   "and the fraction of messages and bytes that would be kept.",
-                       epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+HELP = "score a labelled run: Table 1, events recalled, bytes kept"
+DESCRIPTION = (
+    "Replay a labelled run through smart logging and report the "
+    "paper's per-message Table 1, per-event recall and precision, "
+    "and the fraction of messages and bytes that would be kept."
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("source", help="bag, MCAP or JSONL file")
     p.add_argument("--model", required=True, help="model directory")
     p.add_argument("--labels", required=True, help='{"events": [{"start_ns", "end_ns", "kind"}]}')
     p.add_argument("--topic", action="append", metavar="T", help="topics logged with the windows (default all)")
     p.add_argument("--before", default=WINDOW_BEFORE, help="N messages or Ds (default %(default)s)")
     p.add_argument("--after", default=WINDOW_AFTER, help="N messages or Ds (default %(default)s)")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -24,14 +24,11 @@ Parquet goes to DIR/robot=NAME/stream=STREAM/date=YYYY-MM-DD/part-*.parquet.
 """
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "export",
-        help="export stored windows to MCAP or Parquet",
-        description="Export the windows of a store to an MCAP file or a Parquet data set.",
-        epilog=EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+HELP = "export stored windows to MCAP or Parquet"
+DESCRIPTION = "Export the windows of a store to an MCAP file or a Parquet data set."
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     add_selection(p)
     to = p.add_mutually_exclusive_group(required=True)
     to.add_argument("--mcap", metavar="OUT.mcap", help="write one MCAP file (JSON channels)")
@@ -40,7 +37,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--replace", action="store_true", help="replace this robot's earlier Parquet export"
     )
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -14,16 +14,18 @@ exit status: 0 clean (warnings allowed), 1 damaged data found.
 """
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("fsck", help="verify every record, index and the manifest of a store",
-                       description="Check every record's header CRC and payload hash, sequence "
-                                   "continuity, the manifest's statistics and the time indexes. "
-                                   "Changes nothing.",
-                       epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+HELP = "verify every record, index and the manifest of a store"
+DESCRIPTION = (
+    "Check every record's header CRC and payload hash, sequence "
+    "continuity, the manifest's statistics and the time indexes. "
+    "Changes nothing."
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("store", help="store directory")
     p.add_argument("--deep", action="store_true", help="decode every window's messages too")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -15,14 +15,16 @@ EXAMPLES = """examples:
 """
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("info", help="streams, windows, messages, time span and sizes of a store",
-                       description="Show what a store holds: per stream the windows, messages, time span, "
-                                   "stored bytes, codec and the ratio against the messages' JSON.",
-                       epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+HELP = "streams, windows, messages, time span and sizes of a store"
+DESCRIPTION = (
+    "Show what a store holds: per stream the windows, messages, time span, "
+    "stored bytes, codec and the ratio against the messages' JSON."
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("store", help="store directory")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    p.set_defaults(func=run)
 
 
 def store_info(path: str) -> dict:

@@ -29,11 +29,14 @@ stores what was seen and closes the store cleanly.
 """
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("record", help="log a bag, MCAP file or JSONL stream into a store",
-                       description="Record messages into a store: all of them, or with --model only "
-                                   "the logging windows around anomalies.",
-                       epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+HELP = "log a bag, MCAP file or JSONL stream into a store"
+DESCRIPTION = (
+    "Record messages into a store: all of them, or with --model only "
+    "the logging windows around anomalies."
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("source", help="ROS 1/2 bag, MCAP file, JSONL file, or - for JSONL on stdin")
     p.add_argument("--store", required=True, help="store directory (created when missing)")
     p.add_argument("--topic", action="append", metavar="T", help="record topic T (repeatable; default all)")
@@ -54,7 +57,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--features", default="default", choices=["default", "paper"],
                    help="with --features-out: the feature set")
     p.add_argument("--odom-topic", default="/odom", help="with --features-out: the odometry topic (default /odom)")
-    p.set_defaults(func=run)
 
 
 def _tee_odometry(messages, topic: str, rows: list):

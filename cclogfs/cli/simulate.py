@@ -6,6 +6,7 @@ import argparse
 import time
 
 from ..errors import InvalidInputError
+from ..sim import KINDS
 
 EXAMPLES = """\
 examples:
@@ -31,17 +32,14 @@ def _severity(text: str) -> tuple[float, float]:
     return pair
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
-    from ..sim import KINDS
+HELP = "simulate a robot run with labelled anomalies"
+DESCRIPTION = (
+    "Simulate a BWIBot-like robot driving a building, with injected, labelled "
+    f"anomalies. Kinds: {', '.join(KINDS)}."
+)
 
-    p = subparsers.add_parser(
-        "simulate",
-        help="simulate a robot run with labelled anomalies",
-        description="Simulate a BWIBot-like robot driving a building, with injected, labelled "
-        f"anomalies. Kinds: {', '.join(KINDS)}.",
-        epilog=EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="output directory (created; must not hold a run)")
     p.add_argument("--seed", type=int, default=0,
                    help="random seed (default 0); same seed, same bytes")
@@ -60,7 +58,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="odometry yaw from the wheels (default) or the IMU (slip then shows)")
     p.add_argument("--imu", action="store_true", help="also write /imu (sensor_msgs/msg/Imu)")
     p.add_argument("--tf", action="store_true", help="also write /tf (odom -> base_link)")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -23,10 +23,11 @@ stamps. With --validate, the paper's Table 1 is printed for the disjoint validat
 """
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("train", help="learn mode: fit an anomaly model on nominal odometry",
-                       description="Fit a one-class SVM (RBF kernel) on the odometry of nominal runs.",
-                       epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+HELP = "learn mode: fit an anomaly model on nominal odometry"
+DESCRIPTION = "Fit a one-class SVM (RBF kernel) on the odometry of nominal runs."
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("sources", nargs="+", help="bags, MCAP or JSONL files, or a feature-vector dataset directory")
     p.add_argument("--out", required=True, help="model directory to write")
     p.add_argument("--topic", default="/odom", help="odometry topic (nav_msgs/Odometry; default /odom)")
@@ -37,7 +38,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="threshold: this fraction of held-out nominal vectors may score anomalous")
     p.add_argument("--validate", metavar="SOURCE", help="a disjoint labelled run to validate on")
     p.add_argument("--validate-labels", metavar="JSON", help="labels of --validate")
-    p.set_defaults(func=run)
 
 
 def load_labels(path: str | None):
