@@ -92,7 +92,7 @@ def run_demo(cfg: DemoConfig) -> DemoResult:
     _clean(out)
     res = DemoResult(paths={"store": out / "store", "store_all": out / "store-all", "model": out / "model",
                             "bag": out / "test" / "run", "labels": out / "test" / "labels.json"})  # fmt: skip
-    step = Steps(6 if cfg.plots else 5)
+    step = Steps(7 if cfg.plots else 6)
 
     step(f"simulating {cfg.train_minutes:g} min of nominal driving at {cfg.rate_hz:g} Hz for training")
     per_run = cfg.train_minutes * 60 / len(cfg.train_seeds)
@@ -139,6 +139,7 @@ def run_demo(cfg: DemoConfig) -> DemoResult:
         res.stored_windows = sorted((a, b) for a, b in spans.values())
     res.messages = message_table(odom.stamp_ns, flags, labels)
     res.events = event_table(odom.stamp_ns, res.stored_windows, labels)
+    step(f"waiting for LZMA-6 (the paper's best) to finish compressing all {res.json_bytes / 2**20:.0f} MiB of JSON")
     lzma_thread.join()
     res.storage = [
         ("raw JSON (every message)", res.json_bytes),
