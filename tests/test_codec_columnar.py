@@ -9,15 +9,16 @@ import random
 import struct
 from pathlib import Path
 
+import numpy as np
 import pytest
 import xxhash
 import zstandard
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cclogfs.codecs import codec_from_config, raw_size
+from cclogfs.codecs import codec_from_config, columns, raw_size
 from cclogfs.codecs.columnar import ColumnarCodec
-from cclogfs.codecs.columnar_format import FORMAT_VERSIONS, HEADER, LATEST_VERSION
+from cclogfs.codecs.columnar_format import FORMAT_VERSIONS, HEADER, LATEST_VERSION, ColumnKind
 from cclogfs.errors import CodecError
 
 GOLDEN = Path(__file__).parent / "golden" / "columnar"
@@ -158,6 +159,36 @@ def test_typed_columns_cover_every_kind(version):
     assert len(data) < len(b"".join(texts)) // 2
 
 
+def test_float_delta_order_follows_the_column():
+    t = np.arange(200) / 27.0
+    smooth = np.sin(t) * 3.0  # a position: second or third differences are smallest
+    steps = np.repeat(np.random.default_rng(5).normal(size=20), 10)  # a velocity: first differences
+    orders, planes = columns.float_deltas(np.stack([smooth, steps]).view("<i8"))
+    assert orders[0] in (2, 3) and orders[1] == 1
+    assert all(len(p) == 8 * 200 for p in planes)
+
+
+def test_unknown_float_delta_order_raises():
+    for order in (0, 4, 255):
+        with pytest.raises(CodecError, match=f"delta order {order}"):
+            columns.read_column(ColumnKind.FLOAT_DELTA, columns.Reader(bytes([order]) + bytes(80)), 10, [])
+
+
+def test_column_kind_of_a_later_version_raises():
+    """A v2 payload holding a v3 kind (INT_OFFSET) is corrupt, not silently decoded."""
+    texts = [json.dumps({"i": 7 * i}).encode() for i in range(10)]
+    stamps = [0] * 10
+    data = ColumnarCodec(version=2).encode(stamps, texts)
+    body = bytearray(zstandard.ZstdDecompressor().decompress(data[HEADER.size :]))
+    kind_at = 4 + 2 * 10 + 17 + 8 + 4 * 2 + 4 + len('{"i": }')  # see docs/CODEC_COLUMNAR.md
+    assert body[kind_at] == ColumnKind.INT_PACKED
+    body[kind_at] = ColumnKind.INT_OFFSET
+    frame = zstandard.ZstdCompressor().compress(bytes(body))
+    bad = HEADER.pack(2, len(body), xxhash.xxh32_intdigest(frame)) + frame
+    with pytest.raises(CodecError, match="not one of format version 2"):
+        ColumnarCodec().decode(bad, count=10, raw_len=raw_size(stamps, texts))
+
+
 def test_mixed_shapes_in_one_window():
     texts = [json.dumps({"a": list(range(i % 4)), **({"extra": i} if i % 5 == 0 else {})}).encode() for i in range(40)]
     round_trip(texts + [b"not json at all", b"\x80\x81"])
@@ -173,7 +204,7 @@ def test_empty_window():
 def test_config_round_trips_through_registry():
     codec = codec_from_config({"id": "columnar", "version": 1, "level": 9})
     assert codec.get_config() == {"id": "columnar", "version": 1, "level": 9}
-    assert codec_from_config("columnar").get_config()["version"] == LATEST_VERSION == 2
+    assert codec_from_config("columnar").get_config()["version"] == LATEST_VERSION == 3
     with pytest.raises(CodecError, match="version 99 is unknown"):
         codec_from_config({"id": "columnar", "version": 99})
 
