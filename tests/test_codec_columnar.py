@@ -189,6 +189,14 @@ def test_column_kind_of_a_later_version_raises():
         ColumnarCodec().decode(bad, count=10, raw_len=raw_size(stamps, texts))
 
 
+@pytest.mark.parametrize("version", FORMAT_VERSIONS)
+def test_python_spellings_of_nan_and_inf_stay_exact(version):
+    """repr writes nan and inf, the decoder NaN and Infinity: such a column is not FLOAT."""
+    for odd in ("nan", "inf", "-inf"):
+        texts = [f'{{"a": {odd if i == 0 else i / 3}}}'.encode() for i in range(10)]
+        round_trip(texts, codec=ColumnarCodec(version=version))
+
+
 def test_mixed_shapes_in_one_window():
     texts = [json.dumps({"a": list(range(i % 4)), **({"extra": i} if i % 5 == 0 else {})}).encode() for i in range(40)]
     round_trip(texts + [b"not json at all", b"\x80\x81"])

@@ -83,12 +83,13 @@ def _as_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
         values = list(map(float, tokens))
     except ValueError:
         return None
-    # repr is most of the cost of a float column; it cannot be skipped, since only the
-    # repr spelling of a float comes back from the decoder.
-    if tuple(map(float.__repr__, values)) == tokens:
-        return np.array(values, dtype=np.float64)
-    if tuple(map(_float_text, values)) == tokens:  # NaN, Infinity as json.dumps writes them
-        return np.array(values, dtype=np.float64)
+    parsed = np.array(values, dtype=np.float64)
+    # Render exactly as _render_floats will: repr when every value is finite, else
+    # json.dumps' NaN/Infinity (so "nan" and "inf", which repr writes, are refused).
+    # repr is most of the cost of a float column; it cannot be skipped.
+    render = float.__repr__ if np.isfinite(parsed).all() else _float_text
+    if tuple(map(render, values)) == tokens:
+        return parsed
     return None
 
 
