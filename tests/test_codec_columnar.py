@@ -16,7 +16,7 @@ import zstandard
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cclogfs.codecs import codec_from_config, columns, raw_size
+from cclogfs.codecs import codec_from_config, columns, raw_size, shapes
 from cclogfs.codecs.columnar import ColumnarCodec
 from cclogfs.codecs.columnar_format import FORMAT_VERSIONS, HEADER, LATEST_VERSION, ColumnKind
 from cclogfs.errors import CodecError
@@ -225,6 +225,22 @@ def test_python_spellings_of_nan_and_inf_stay_exact(version):
     for odd in ("nan", "inf", "-inf"):
         texts = [f'{{"a": {odd if i == 0 else i / 3}}}'.encode() for i in range(10)]
         round_trip(texts, codec=ColumnarCodec(version=version))
+
+
+def test_literals_of_equal_length_but_other_text_are_not_skipped_over():
+    """The skipping matcher steps over literals by length: other keys of that length must
+    still split the window (checked by rebuilding the texts), never be taken as the shape."""
+    texts = [json.dumps({"a": i / 7, "bc"[i % 3 == 0]: i}).encode() for i in range(60)]
+    round_trip(texts)
+    literals, kinds = ('{"a": ', ', "b": ', "}"), (False, False)
+    skipper = shapes._skipper(literals, kinds)
+    good, other = '{"a": 0.5, "b": 1}', '{"a": 0.5, "c": 1}'
+    assert skipper.fullmatch(other) is not None  # the skipper alone cannot tell them apart
+    rows = [("0.5", "1"), ("0.5", "1")]
+    assert shapes._rebuilds(literals, rows, [good, good])
+    assert not shapes._rebuilds(literals, rows, [good, other])
+    shape = (literals, shapes._matcher(literals, ["0.5", "1"]), skipper)
+    assert shapes._rows(shape, [good, other, "x", good]) == [("0.5", "1"), None, None, ("0.5", "1")]
 
 
 def test_mixed_shapes_in_one_window():
