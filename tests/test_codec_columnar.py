@@ -189,6 +189,16 @@ def test_float_parsing_without_simdjson_writes_the_same_bytes(monkeypatch):
     round_trip(texts, codec=ColumnarCodec())
 
 
+def test_number_columns_with_commas_or_odd_ints_stay_text():
+    """Float tokens are compared as one list repr; a comma inside a token must not pass."""
+    assert columns.classify(("1.5, 2.5", "3.5"))[0] is ColumnKind.TEXT
+    assert columns.classify(("1.5", "2.5, 3.5"))[0] is ColumnKind.TEXT
+    assert columns.classify(("+5", "6"))[0] is ColumnKind.TEXT
+    assert columns.classify(("5", "1.5"))[0] is ColumnKind.TEXT
+    assert columns.classify(("-5", "6"))[0] is ColumnKind.INT
+    assert columns.classify(("1.5", "-0.0"))[0] is ColumnKind.FLOAT
+
+
 def test_float_delta_order_follows_the_column():
     t = np.arange(200) / 27.0
     smooth = np.sin(t) * 3.0  # a position: second or third differences are smallest

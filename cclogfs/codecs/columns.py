@@ -123,10 +123,13 @@ def _as_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
     # Render exactly as _render_floats will: repr when every value is finite, else
     # json.dumps' NaN/Infinity (so "nan" and "inf", which repr writes, are refused).
     # repr is most of the cost of a float column; it cannot be skipped.
-    render = float.__repr__ if np.isfinite(parsed).all() else _float_text
-    if tuple(map(render, values)) == tokens:
-        return parsed
-    return None
+    if np.isfinite(parsed).all():
+        # One list repr instead of a repr per value: a finite float's repr has no comma,
+        # so equal strings hold n - 1 separators on both sides and split the same way.
+        exact = repr(values) == "[" + ", ".join(tokens) + "]"
+    else:
+        exact = tuple(map(_float_text, values)) == tokens
+    return parsed if exact else None
 
 
 def classify(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
@@ -159,10 +162,15 @@ def classify(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
 
 def _numbers(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
     """INT or FLOAT with the values, if rendering them gives every token back; else TEXT."""
-    try:
-        ints = list(map(int, tokens))
-    except ValueError:
-        ints = None
+    # Only a column of canonical ints is INT, so one whose first token is not digits
+    # (a float) skips int(), which would raise on it: the outcome is the same.
+    first = tokens[0]
+    ints = None
+    if first.isdigit() or (first[:1] == "-" and first[1:].isdigit()):
+        try:
+            ints = list(map(int, tokens))
+        except ValueError:
+            pass
     if ints is not None:
         if list(map(str, ints)) == list(tokens) and _I64_MIN <= min(ints) and max(ints) <= _I64_MAX:
             return ColumnKind.INT, np.array(ints, dtype=np.int64)
