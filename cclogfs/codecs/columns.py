@@ -135,7 +135,7 @@ def _as_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
 def classify(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
     """The most compact kind that reproduces every token, and the values to store."""
     first = tokens[0]
-    if tokens.count(first) == len(tokens):
+    if tokens[-1] == first and tokens.count(first) == len(tokens):  # most columns vary: one compare
         return ColumnKind.CONST, first
     if first[:1] == '"':
         if len(first) >= MIN_BASE64_CHARS + 2 and all(map(_BASE64.fullmatch, tokens)):
