@@ -240,7 +240,10 @@ class ColumnarCodec(Codec):
         # No trial decode: a match rebuilds its text from the literals by construction,
         # and classify() keeps a column kind only if rendering it gives every token back.
         for literals, indices, rows in parts[:MAX_GROUPS]:
-            ids[indices] = len(bodies)
+            if len(indices) == count:  # the usual window: one group holds every message
+                ids.fill(len(bodies))
+            else:
+                ids[indices] = len(bodies)
             bodies.append(_encode_group(literals, rows, self.version))
         raw_indices = np.flatnonzero(ids == RAW_GROUP).tolist()
         body = bytearray(U32.pack(len(bodies)))

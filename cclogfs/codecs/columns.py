@@ -42,6 +42,8 @@ _DEDUP_SAMPLE = 16
 # Deltas per column that float_deltas ranks the orders on.
 _ORDER_SAMPLES = 64
 _local = threading.local()  # a simdjson parser is not thread-safe
+# Columns shorter than this are parsed by float() (see _parse_floats).
+_SIMDJSON_MIN = 16
 _NONFINITE = {"NaN": math.nan, "Infinity": math.inf, "-Infinity": -math.inf}
 
 
@@ -94,10 +96,11 @@ def _simdjson_parser():
 def _parse_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
     """The tokens as float64 parsed by simdjson in one call, or None if it refuses them.
 
-    Four times faster than float() per token. Nothing rests on simdjson parsing right:
-    the caller keeps a value only if its repr is the token.
+    Four times faster than float() per token, but a call costs a few microseconds:
+    short columns (a constant's one token) go to float(). Nothing rests on simdjson
+    parsing right: the caller keeps a value only if its repr is the token.
     """
-    if simdjson is None:
+    if simdjson is None or len(tokens) < _SIMDJSON_MIN:
         return None
     try:
         doc = _simdjson_parser().parse(("[" + ",".join(tokens) + "]").encode())
@@ -172,7 +175,9 @@ def _numbers(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
         except ValueError:
             pass
     if ints is not None:
-        if list(map(str, ints)) == list(tokens) and _I64_MIN <= min(ints) and max(ints) <= _I64_MAX:
+        # As for floats below: an int's repr has no comma, so one list repr compares all.
+        exact = repr(ints) == "[" + ", ".join(tokens) + "]"
+        if exact and _I64_MIN <= min(ints) and max(ints) <= _I64_MAX:
             return ColumnKind.INT, np.array(ints, dtype=np.int64)
         return ColumnKind.TEXT, tokens
     floats = _as_floats(tokens)
