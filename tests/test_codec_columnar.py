@@ -242,6 +242,7 @@ def test_literals_of_equal_length_but_other_text_are_not_skipped_over():
     still split the window (checked by rebuilding the texts), never be taken as the shape."""
     texts = [json.dumps({"a": i / 7, "bc"[i % 3 == 0]: i}).encode() for i in range(60)]
     round_trip(texts)
+    round_trip([b"{}", b"[]", b"{}"] * 10)  # no values at all: the skipper only checks lengths
     literals, kinds = ('{"a": ', ', "b": ', "}"), (False, False)
     skipper = shapes._skipper(literals, kinds)
     good, other = '{"a": 0.5, "b": 1}', '{"a": 0.5, "c": 1}'

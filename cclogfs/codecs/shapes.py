@@ -73,13 +73,16 @@ def _rebuilds(literals: tuple[str, ...], rows: list[tuple], texts: list[str]) ->
     Each rebuilt text has its text's length (the skipper consumed exactly the literal
     lengths plus the values), so equal concatenations mean equal texts one by one.
     """
-    n, step = len(rows), 2 * len(literals) - 1
-    pieces: list[str | None] = [None] * (n * step)
-    for j, lit in enumerate(literals):
-        pieces[2 * j :: step] = [lit] * n
-    for j, column in enumerate(zip(*rows)):
-        pieces[2 * j + 1 :: step] = column
-    return "".join(pieces) == "".join(texts)  # type: ignore[arg-type]
+    n, k = len(rows), len(literals) - 1
+    if k == 0:
+        return all(text == literals[0] for text in texts)
+    # The window is L0 v L1 v ... v Lk+L0 v L1 ... v Lk: values and literals alternate,
+    # so each fills every other piece with one slice assignment.
+    pieces: list[str] = [literals[0]] * (2 * n * k + 1)
+    pieces[1::2] = chain.from_iterable(rows)
+    pieces[2::2] = (literals[1:-1] + (literals[-1] + literals[0],)) * n
+    pieces[-1] = literals[-1]
+    return "".join(pieces) == "".join(texts)
 
 
 def bake(literals: tuple[str, ...], values: list[str], fixed: list[bool]) -> tuple[tuple[str, ...], list[str]]:
