@@ -245,8 +245,12 @@ def write_packed(words: np.ndarray, out: bytearray, offset: bool = False) -> Non
     n = len(words)
     if n == 0:
         return
-    deltas = np.diff(words.astype("<i8"))  # wraps modulo 2**64, as the cumsum that undoes it
-    step = math.gcd(*deltas.tolist()) if n > 1 else 0
+    words = words.astype("<i8", copy=False)
+    deltas = words[1:] - words[:-1]  # wraps modulo 2**64, as the cumsum that undoes it
+    if n > 1 and deltas.min() > _I64_MIN:  # numpy's gcd takes abs(), which -2**63 overflows
+        step = int(np.gcd.reduce(deltas))
+    else:
+        step = math.gcd(*deltas.tolist())
     if step > _I64_MAX:  # every delta is 0 or -2**63: keep them whole
         step = 1
     q = deltas // step if step else np.zeros(n - 1, dtype="<i8")
