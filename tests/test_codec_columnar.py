@@ -9,15 +9,16 @@ import random
 import struct
 from pathlib import Path
 
+import numpy as np
 import pytest
 import xxhash
 import zstandard
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cclogfs.codecs import codec_from_config, raw_size
+from cclogfs.codecs import codec_from_config, columns, raw_size, shapes
 from cclogfs.codecs.columnar import ColumnarCodec
-from cclogfs.codecs.columnar_format import FORMAT_VERSIONS, HEADER, LATEST_VERSION
+from cclogfs.codecs.columnar_format import FORMAT_VERSIONS, HEADER, LATEST_VERSION, ColumnKind
 from cclogfs.errors import CodecError
 
 GOLDEN = Path(__file__).parent / "golden" / "columnar"
@@ -158,6 +159,101 @@ def test_typed_columns_cover_every_kind(version):
     assert len(data) < len(b"".join(texts)) // 2
 
 
+# Spellings a float or int column may hold, several the decoder would never write back.
+NUMBER_SPELLINGS = [
+    "0.0", "-0.0", "0", "-0", "1.5", "1.50", "1e16", "1e+16", "1E16", "10000000000000000.0",
+    "0.1", "0.10000000000000001", "NaN", "Infinity", "-Infinity", "nan", "1_0", "7", "007",
+    "-2.8019166340612314", "9223372036854775807", "9223372036854775808", "0.00001", "1e-05",
+]
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(NUMBER_SPELLINGS), st.sampled_from(NUMBER_SPELLINGS[:6])),
+                min_size=17))
+def test_repeated_tokens_in_any_spelling_round_trip(rows):
+    """Columns with repeats are checked token by distinct token: every spelling stays exact."""
+    texts = [f'{{"a": {a}, "b": [{b}]}}'.encode() for a, b in rows[:60]]
+    for version in FORMAT_VERSIONS:
+        round_trip(texts, codec=ColumnarCodec(version=version))
+
+
+def test_float_parsing_without_simdjson_writes_the_same_bytes(monkeypatch):
+    steps = random.Random(3)
+    xs = [0.0]
+    for _ in range(199):
+        xs.append(xs[-1] + steps.uniform(0, 0.01))
+    texts = [json.dumps({"x": x, "v": steps.choice([0.0, 0.1, -0.25]), "n": math.nan}).encode() for x in xs]
+    fast = ColumnarCodec().encode(list(range(200)), texts)
+    monkeypatch.setattr(columns, "simdjson", None)
+    assert ColumnarCodec().encode(list(range(200)), texts) == fast
+    round_trip(texts, codec=ColumnarCodec())
+
+
+def test_number_columns_with_commas_or_odd_ints_stay_text():
+    """Float tokens are compared as one list repr; a comma inside a token must not pass."""
+    assert columns.classify(("1.5, 2.5", "3.5"))[0] is ColumnKind.TEXT
+    assert columns.classify(("1.5", "2.5, 3.5"))[0] is ColumnKind.TEXT
+    assert columns.classify(("+5", "6"))[0] is ColumnKind.TEXT
+    assert columns.classify(("5", "1.5"))[0] is ColumnKind.TEXT
+    assert columns.classify(("-5", "6"))[0] is ColumnKind.INT
+    assert columns.classify(("1.5", "-0.0"))[0] is ColumnKind.FLOAT
+
+
+def test_float_delta_order_follows_the_column():
+    t = np.arange(200) / 27.0
+    smooth = np.sin(t) * 3.0  # a position: second or third differences are smallest
+    steps = np.repeat(np.random.default_rng(5).normal(size=20), 10)  # a velocity: first differences
+    orders, planes = columns.float_deltas(np.stack([smooth, steps]).view("<i8"))
+    assert orders[0] in (2, 3) and orders[1] == 1
+    assert all(len(p) == 8 * 200 for p in planes)
+
+
+def test_unknown_float_delta_order_raises():
+    for order in (0, 4, 255):
+        with pytest.raises(CodecError, match=f"delta order {order}"):
+            columns.read_column(ColumnKind.FLOAT_DELTA, columns.Reader(bytes([order]) + bytes(80)), 10, [])
+
+
+def test_column_kind_of_a_later_version_raises():
+    """A v2 payload holding a v3 kind (INT_OFFSET) is corrupt, not silently decoded."""
+    texts = [json.dumps({"i": 7 * i}).encode() for i in range(10)]
+    stamps = [0] * 10
+    data = ColumnarCodec(version=2).encode(stamps, texts)
+    body = bytearray(zstandard.ZstdDecompressor().decompress(data[HEADER.size :]))
+    kind_at = 4 + 2 * 10 + 17 + 8 + 4 * 2 + 4 + len('{"i": }')  # see docs/CODEC_COLUMNAR.md
+    assert body[kind_at] == ColumnKind.INT_PACKED
+    body[kind_at] = ColumnKind.INT_OFFSET
+    frame = zstandard.ZstdCompressor().compress(bytes(body))
+    bad = HEADER.pack(2, len(body), xxhash.xxh32_intdigest(frame)) + frame
+    with pytest.raises(CodecError, match="not one of format version 2"):
+        ColumnarCodec().decode(bad, count=10, raw_len=raw_size(stamps, texts))
+
+
+@pytest.mark.parametrize("version", FORMAT_VERSIONS)
+def test_python_spellings_of_nan_and_inf_stay_exact(version):
+    """repr writes nan and inf, the decoder NaN and Infinity: such a column is not FLOAT."""
+    for odd in ("nan", "inf", "-inf"):
+        texts = [f'{{"a": {odd if i == 0 else i / 3}}}'.encode() for i in range(10)]
+        round_trip(texts, codec=ColumnarCodec(version=version))
+
+
+def test_literals_of_equal_length_but_other_text_are_not_skipped_over():
+    """The skipping matcher steps over literals by length: other keys of that length must
+    still split the window (checked by rebuilding the texts), never be taken as the shape."""
+    texts = [json.dumps({"a": i / 7, "bc"[i % 3 == 0]: i}).encode() for i in range(60)]
+    round_trip(texts)
+    round_trip([b"{}", b"[]", b"{}"] * 10)  # no values at all: the skipper only checks lengths
+    literals, kinds = ('{"a": ', ', "b": ', "}"), (False, False)
+    skipper = shapes._skipper(literals, kinds)
+    good, other = '{"a": 0.5, "b": 1}', '{"a": 0.5, "c": 1}'
+    assert skipper.fullmatch(other) is not None  # the skipper alone cannot tell them apart
+    rows = [("0.5", "1"), ("0.5", "1")]
+    assert shapes._rebuilds(literals, rows, [good, good])
+    assert not shapes._rebuilds(literals, rows, [good, other])
+    shape = (literals, shapes._matcher(literals, ["0.5", "1"]), skipper)
+    assert shapes._rows(shape, [good, other, "x", good]) == [("0.5", "1"), None, None, ("0.5", "1")]
+
+
 def test_mixed_shapes_in_one_window():
     texts = [json.dumps({"a": list(range(i % 4)), **({"extra": i} if i % 5 == 0 else {})}).encode() for i in range(40)]
     round_trip(texts + [b"not json at all", b"\x80\x81"])
@@ -173,7 +269,7 @@ def test_empty_window():
 def test_config_round_trips_through_registry():
     codec = codec_from_config({"id": "columnar", "version": 1, "level": 9})
     assert codec.get_config() == {"id": "columnar", "version": 1, "level": 9}
-    assert codec_from_config("columnar").get_config()["version"] == LATEST_VERSION == 2
+    assert codec_from_config("columnar").get_config()["version"] == LATEST_VERSION == 3
     with pytest.raises(CodecError, match="version 99 is unknown"):
         codec_from_config({"id": "columnar", "version": 99})
 

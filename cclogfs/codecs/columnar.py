@@ -32,6 +32,7 @@ from .columnar_format import (
     MAX_GROUPS,
     RAW_GROUP,
     U32,
+    VERSION_KINDS,
     ColumnKind,
 )
 from .columns import (
@@ -44,6 +45,7 @@ from .columns import (
     _write_blob,
     _zigzag_delta,
     classify,
+    float_deltas,
     quaternion_prediction,
     read_column,
     read_packed,
@@ -86,6 +88,23 @@ def _split_by_label(
     return [(literals, indices, rows)]
 
 
+def _maybe_unit(xyz: list, w: np.ndarray) -> bool:
+    """Whether the first or middle row of x, y, z, w is near unit: a cheap filter.
+
+    A quaternion column has at least 90% unit rows, so it all but always passes; most
+    float columns fail here without the numpy work of the full test.
+    """
+    for row in (0, len(w) // 2):
+        try:
+            parts = [float(e[row] if isinstance(e, np.ndarray) else e) for e in xyz]
+        except (TypeError, ValueError):
+            return False
+        parts.append(float(w[row]))
+        if abs(sum(c * c for c in parts) - 1.0) < 1e-6:  # c * c overflows to inf, not an error
+            return True
+    return False
+
+
 def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]], version: int) -> bytes:
     """One group: header, literals, kinds, then each column's data."""
     n = len(rows)
@@ -94,7 +113,7 @@ def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]], versio
     for tokens in zip(*rows):
         kind, vals = classify(tokens)
         fl = vals if kind in (ColumnKind.FLOAT, ColumnKind.CONST) else None
-        if kind is ColumnKind.FLOAT and len(floats) >= 3:
+        if kind is ColumnKind.FLOAT and len(floats) >= 3 and _maybe_unit(floats[-3:], vals):
             xyz = [slot_floats(f, n) for f in floats[-3:]]
             if all(f is not None for f in xyz):
                 x, y, z = xyz
@@ -103,11 +122,18 @@ def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]], versio
                 if near_unit.mean() >= _QUATERNION_SHARE:
                     kind = ColumnKind.QUAT_W
                     vals = vals.view("<u8") ^ quaternion_prediction(x, y, z).view("<u8")
+        if kind is ColumnKind.FLOAT and version >= 3:
+            kind = ColumnKind.FLOAT_DELTA
         elif kind is ColumnKind.INT and version >= 2:
-            kind = ColumnKind.INT_PACKED
+            kind = ColumnKind.INT_OFFSET if version >= 3 else ColumnKind.INT_PACKED
         kinds.append(kind)
         values.append(vals)
         floats.append(fl)
+    deltas = [j for j, kind in enumerate(kinds) if kind is ColumnKind.FLOAT_DELTA]
+    if deltas:
+        orders, planes = float_deltas(np.stack([values[j] for j in deltas]).view("<i8"))
+        for j, order, data in zip(deltas, orders, planes):
+            values[j] = (order, data)
     out = bytearray(GROUP_HEADER.pack(n, len(kinds)))
     _write_blob([lit.encode() for lit in literals], [len(lit) for lit in literals], out)
     out += bytes(kinds)
@@ -116,7 +142,7 @@ def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]], versio
     return bytes(out)
 
 
-def _decode_group(reader: Reader, n: int, budget: int) -> list[str]:
+def _decode_group(reader: Reader, n: int, budget: int, version: int) -> list[str]:
     """The texts of one group; `budget` bounds the characters they may add up to."""
     count, slots = GROUP_HEADER.unpack(reader.take(GROUP_HEADER.size, "group header"))
     if count != n:
@@ -130,6 +156,8 @@ def _decode_group(reader: Reader, n: int, budget: int) -> list[str]:
     ends = np.cumsum(counts, dtype=np.int64).tolist()
     literals = [text[a:b] for a, b in zip([0] + ends[:-1], ends)]
     kinds = reader.take(slots, "column kinds").tolist()
+    if not VERSION_KINDS[version].issuperset(kinds):
+        raise CodecError(f"columnar payload is corrupt: a column kind is not one of format version {version}")
     pieces = [literals[0].replace("%", "%%")]
     plain = [literals[0]]  # the template text, for groups where no slot varies
     static, varying = len(text), []
@@ -212,7 +240,10 @@ class ColumnarCodec(Codec):
         # No trial decode: a match rebuilds its text from the literals by construction,
         # and classify() keeps a column kind only if rendering it gives every token back.
         for literals, indices, rows in parts[:MAX_GROUPS]:
-            ids[indices] = len(bodies)
+            if len(indices) == count:  # the usual window: one group holds every message
+                ids.fill(len(bodies))
+            else:
+                ids[indices] = len(bodies)
             bodies.append(_encode_group(literals, rows, self.version))
         raw_indices = np.flatnonzero(ids == RAW_GROUP).tolist()
         body = bytearray(U32.pack(len(bodies)))
@@ -220,7 +251,7 @@ class ColumnarCodec(Codec):
         if self.version == 1:
             body += _shuffle(_zigzag_delta(stamp_words, 1))
         else:
-            write_packed(stamp_words, body)
+            write_packed(stamp_words, body, offset=self.version >= 3)
         for data in bodies:
             body += data
         _write_blob([texts[i] for i in raw_indices], [len(texts[i]) for i in raw_indices], body)
@@ -257,7 +288,7 @@ class ColumnarCodec(Codec):
             words = _unshuffle(reader.array("u1", 8 * count, "stamps"), count)
             stamps = _undo_zigzag_delta(words, 1).tolist()
         else:
-            stamps = read_packed(reader, count, "stamps").tolist()
+            stamps = read_packed(reader, count, "stamps", offset=version >= 3).tolist()
         order = np.argsort(ids, kind="stable")
         sizes = np.bincount(ids[ids != RAW_GROUP], minlength=n_groups).tolist()
         out: list[bytes] = [b""] * count
@@ -265,7 +296,7 @@ class ColumnarCodec(Codec):
         for g in range(n_groups):
             if sizes[g] == 0:
                 raise CodecError(f"columnar payload is corrupt: group {g} has no messages")
-            encoded = [t.encode("utf-8") for t in _decode_group(reader, sizes[g], text_budget)]
+            encoded = [t.encode("utf-8") for t in _decode_group(reader, sizes[g], text_budget, version)]
             total += sum(map(len, encoded))
             if sizes[g] == count:  # one group holds the whole window, in order
                 out = encoded

@@ -6,14 +6,18 @@ import struct
 from enum import IntEnum
 
 # Payload versions this code decodes; the encoder writes the one its config names.
-FORMAT_VERSIONS = (1, 2)
-LATEST_VERSION = 2
+FORMAT_VERSIONS = (1, 2, 3)
+LATEST_VERSION = 3
 
 HEADER = struct.Struct("<BII")  # format version, body length (before zstd), xxh32 of the frame
 GROUP_HEADER = struct.Struct("<II")  # messages in the group, value slots per message
 U32 = struct.Struct("<I")
 # Packed integers (version 2): first value, step dividing every delta, bytes per delta.
 PACKED_HEADER = struct.Struct("<qQB")
+# Offset-packed integers (version 3): first value, step, smallest quotient, bytes per delta.
+OFFSET_HEADER = struct.Struct("<qQqB")
+# Delta orders a FLOAT_DELTA column may name (version 3).
+FLOAT_ORDERS = (1, 2, 3)
 
 # Group id of messages stored as plain text (no shape, or the shape did not reproduce them).
 RAW_GROUP = 0xFFFF
@@ -39,3 +43,13 @@ class ColumnKind(IntEnum):
     BASE64 = 6  # decoded bytes: u32 length each, then the bytes; rendered as "base64"
     QUAT_W = 7  # f64 bits XOR sqrt(1 - x^2 - y^2 - z^2) of the three slots before
     INT_PACKED = 8  # version 2: i64 as packed integers (first, step, narrow zigzag deltas)
+    FLOAT_DELTA = 9  # version 3: u8 delta order, then f64 bits as in FLOAT with that order
+    INT_OFFSET = 10  # version 3: i64 as offset-packed integers (first, step, base, narrow deltas)
+
+
+# The kinds each format version may hold; the decoder refuses any other.
+VERSION_KINDS = {
+    1: frozenset(range(1, 8)),
+    2: frozenset(range(1, 9)),
+    3: frozenset(range(1, 11)) - {ColumnKind.INT_PACKED, ColumnKind.FLOAT},
+}

@@ -10,18 +10,25 @@ import base64
 import binascii
 import math
 import re
+import threading
 from typing import Any
 
 import numpy as np
 
+try:
+    import simdjson
+except ImportError:  # the fast float parser is optional: float() gives the same values
+    simdjson = None
+
 from ..errors import CodecError
-from .columnar_format import MIN_BASE64_CHARS, PACKED_HEADER, U32, ColumnKind
+from .columnar_format import FLOAT_ORDERS, MIN_BASE64_CHARS, OFFSET_HEADER, PACKED_HEADER, U32, ColumnKind
 
 __all__ = [
     "Reader",
     "read_packed",
     "write_packed",
     "classify",
+    "float_deltas",
     "quaternion_prediction",
     "read_column",
     "slot_floats",
@@ -30,6 +37,13 @@ __all__ = [
 
 _I64_MIN, _I64_MAX = -(1 << 63), (1 << 63) - 1
 _BASE64 = re.compile(r'"(?:[A-Za-z0-9+/]{4})*(?:[A-Za-z0-9+/]{2}==|[A-Za-z0-9+/]{3}=)?"')
+# Leading tokens of a column that decide whether its distinct tokens are checked apart.
+_DEDUP_SAMPLE = 16
+# Deltas per column that float_deltas ranks the orders on.
+_ORDER_SAMPLES = 64
+_local = threading.local()  # a simdjson parser is not thread-safe
+# Columns shorter than this are parsed by float() (see _parse_floats).
+_SIMDJSON_MIN = 16
 _NONFINITE = {"NaN": math.nan, "Infinity": math.inf, "-Infinity": -math.inf}
 
 
@@ -72,27 +86,59 @@ def _render_floats(values: np.ndarray) -> list[str]:
     return list(map(_float_text, values.tolist()))
 
 
+def _simdjson_parser():
+    parser = getattr(_local, "parser", None)
+    if parser is None:
+        parser = _local.parser = simdjson.Parser()
+    return parser
+
+
+def _parse_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
+    """The tokens as float64 parsed by simdjson in one call, or None if it refuses them.
+
+    Four times faster than float() per token, but a call costs a few microseconds:
+    short columns (a constant's one token) go to float(). Nothing rests on simdjson
+    parsing right: the caller keeps a value only if its repr is the token.
+    """
+    if simdjson is None or len(tokens) < _SIMDJSON_MIN:
+        return None
+    try:
+        doc = _simdjson_parser().parse(("[" + ",".join(tokens) + "]").encode())
+        values = np.frombuffer(doc.as_buffer(of_type="d"), dtype=np.float64).copy()
+    except Exception:  # noqa: BLE001 - NaN, huge exponents, non-numbers: float() decides
+        return None
+    return values if len(values) == len(tokens) else None
+
+
 def _as_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
     """The tokens as float64, or None unless rendering them gives every token back."""
-    try:
-        # float() also reads "NaN", "nan", "inf", "1_0", ...: the rendering check
-        # below rejects every spelling the decoder would not write back.
-        values = list(map(float, tokens))
-    except ValueError:
-        return None
-    # repr is most of the cost of a float column; it cannot be skipped, since only the
-    # repr spelling of a float comes back from the decoder.
-    if tuple(map(float.__repr__, values)) == tokens:
-        return np.array(values, dtype=np.float64)
-    if tuple(map(_float_text, values)) == tokens:  # NaN, Infinity as json.dumps writes them
-        return np.array(values, dtype=np.float64)
-    return None
+    parsed = _parse_floats(tokens)
+    if parsed is not None:
+        values = parsed.tolist()
+    else:
+        try:
+            # float() also reads "NaN", "nan", "inf", "1_0", ...: the rendering check
+            # below rejects every spelling the decoder would not write back.
+            values = list(map(float, tokens))
+        except ValueError:
+            return None
+        parsed = np.array(values, dtype=np.float64)
+    # Render exactly as _render_floats will: repr when every value is finite, else
+    # json.dumps' NaN/Infinity (so "nan" and "inf", which repr writes, are refused).
+    # repr is most of the cost of a float column; it cannot be skipped.
+    if np.isfinite(parsed).all():
+        # One list repr instead of a repr per value: a finite float's repr has no comma,
+        # so equal strings hold n - 1 separators on both sides and split the same way.
+        exact = repr(values) == "[" + ", ".join(tokens) + "]"
+    else:
+        exact = tuple(map(_float_text, values)) == tokens
+    return parsed if exact else None
 
 
 def classify(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
     """The most compact kind that reproduces every token, and the values to store."""
     first = tokens[0]
-    if tokens.count(first) == len(tokens):
+    if tokens[-1] == first and tokens.count(first) == len(tokens):  # most columns vary: one compare
         return ColumnKind.CONST, first
     if first[:1] == '"':
         if len(first) >= MIN_BASE64_CHARS + 2 and all(map(_BASE64.fullmatch, tokens)):
@@ -103,12 +149,35 @@ def classify(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
         return ColumnKind.TEXT, tokens
     if first in ("true", "false") and all(t in ("true", "false") for t in tokens):
         return ColumnKind.BOOL, np.array([t == "true" for t in tokens], dtype=np.uint8)
-    try:
-        ints = list(map(int, tokens))
-    except ValueError:
-        ints = None
+    sample = tokens[:_DEDUP_SAMPLE]
+    if len(set(sample)) == len(sample):
+        return _numbers(tokens)
+    # Seconds of a stamp, a velocity at rest: checking each distinct token once saves
+    # most of the parsing and rendering. (A column whose first tokens are all distinct
+    # skips this: collecting and mapping back would only add cost.)
+    keys = tuple(dict.fromkeys(tokens))
+    kind, values = _numbers(keys)
+    if kind is ColumnKind.TEXT:
+        return kind, tokens
+    index = dict(zip(keys, range(len(keys))))
+    return kind, values[np.array(list(map(index.__getitem__, tokens)), dtype=np.intp)]
+
+
+def _numbers(tokens: tuple[str, ...]) -> tuple[ColumnKind, Any]:
+    """INT or FLOAT with the values, if rendering them gives every token back; else TEXT."""
+    # Only a column of canonical ints is INT, so one whose first token is not digits
+    # (a float) skips int(), which would raise on it: the outcome is the same.
+    first = tokens[0]
+    ints = None
+    if first.isdigit() or (first[:1] == "-" and first[1:].isdigit()):
+        try:
+            ints = list(map(int, tokens))
+        except ValueError:
+            pass
     if ints is not None:
-        if list(map(str, ints)) == list(tokens) and _I64_MIN <= min(ints) and max(ints) <= _I64_MAX:
+        # As for floats below: an int's repr has no comma, so one list repr compares all.
+        exact = repr(ints) == "[" + ", ".join(tokens) + "]"
+        if exact and _I64_MIN <= min(ints) and max(ints) <= _I64_MAX:
             return ColumnKind.INT, np.array(ints, dtype=np.int64)
         return ColumnKind.TEXT, tokens
     floats = _as_floats(tokens)
@@ -164,43 +233,90 @@ def _undo_zigzag_delta(z: np.ndarray, order: int) -> np.ndarray:
     return d
 
 
-def write_packed(words: np.ndarray, out: bytearray) -> None:
-    """Append i64 values as: first, step (gcd of the deltas), width, width byte planes.
+def write_packed(words: np.ndarray, out: bytearray, offset: bool = False) -> None:
+    """Append i64 values as: first, step (gcd of the deltas), [base,] width, width byte planes.
 
     Stamps in microseconds or a 36 ms period leave the low bits of every delta zero and
     its high bytes empty; dividing by the step and dropping empty planes saves both.
+    With `offset` (version 3) the smallest quotient is subtracted instead of zigzag
+    coding: deltas of a steady rate (36 ms +- jitter) then need 2 planes, not 3.
     Nothing is written for no values.
     """
     n = len(words)
     if n == 0:
         return
-    deltas = np.diff(words.astype("<i8"))  # wraps modulo 2**64, as the cumsum that undoes it
-    step = math.gcd(*deltas.tolist()) if n > 1 else 0
+    words = words.astype("<i8", copy=False)
+    deltas = words[1:] - words[:-1]  # wraps modulo 2**64, as the cumsum that undoes it
+    if n > 1 and deltas.min() > _I64_MIN:  # numpy's gcd takes abs(), which -2**63 overflows
+        step = int(np.gcd.reduce(deltas))
+    else:
+        step = math.gcd(*deltas.tolist())
     if step > _I64_MAX:  # every delta is 0 or -2**63: keep them whole
         step = 1
     q = deltas // step if step else np.zeros(n - 1, dtype="<i8")
-    z = ((q << 1) ^ (q >> 63)).view("<u8")
+    if offset:
+        base = int(q.min()) if n > 1 else 0
+        z = (q - np.int64(base)).view("<u8")  # wraps: max - min < 2**64 always fits in u64
+    else:
+        z = ((q << 1) ^ (q >> 63)).view("<u8")
     width = (int(z.max()).bit_length() + 7) // 8 if n > 1 else 0
-    out += PACKED_HEADER.pack(int(words[0]), step, width)
+    if offset:
+        out += OFFSET_HEADER.pack(int(words[0]), step, base, width)
+    else:
+        out += PACKED_HEADER.pack(int(words[0]), step, width)
     out += z.view(np.uint8).reshape(n - 1, 8)[:, :width].T.tobytes()
 
 
-def read_packed(reader: "Reader", n: int, what: str) -> np.ndarray:
+def read_packed(reader: "Reader", n: int, what: str, offset: bool = False) -> np.ndarray:
     """The n i64 values write_packed wrote."""
     if n == 0:
         return np.zeros(0, dtype="<i8")
-    first, step, width = PACKED_HEADER.unpack(reader.take(PACKED_HEADER.size, f"{what} header"))
+    if offset:
+        first, step, base, width = OFFSET_HEADER.unpack(reader.take(OFFSET_HEADER.size, f"{what} header"))
+    else:
+        first, step, width = PACKED_HEADER.unpack(reader.take(PACKED_HEADER.size, f"{what} header"))
+        base = 0
     if width > 8 or step > _I64_MAX:
         raise CodecError(f"columnar payload is corrupt: {what} claims step {step} and {width}-byte deltas")
     planes = reader.array("u1", width * (n - 1), what).reshape(width, n - 1)
     full = np.zeros((n - 1, 8), dtype=np.uint8)
     full[:, :width] = planes.T
     z = full.view("<u8").reshape(n - 1)
-    q = ((z >> 1) ^ (np.uint64(0) - (z & 1))).view("<i8")
+    if offset:
+        q = z.view("<i8") + np.int64(base)  # wraps like the encoder's subtraction
+    else:
+        q = ((z >> 1) ^ (np.uint64(0) - (z & 1))).view("<i8")
     values = np.empty(n, dtype="<i8")
     values[0] = first
     values[1:] = q * np.int64(step)  # wraps like the deltas did
     return np.cumsum(values, dtype="<i8")
+
+
+def float_deltas(bits: np.ndarray) -> tuple[list[int], list[bytes]]:
+    """For rows of f64 bits (k x n): each row's delta order and its FLOAT_DELTA planes.
+
+    The order is the one in FLOAT_ORDERS leaving the fewest significant bits (sum of
+    log2 over a sample of deltas): positions are smooth (second or third order wins),
+    velocities are noisy steps (first order wins). All float columns of a group go
+    through numpy at once: per column, the calls would cost more than the arithmetic.
+    """
+    k, n = bits.shape
+    levels = [bits]
+    for _ in FLOAT_ORDERS:  # level r: the r-th repeated difference, first value kept
+        d = levels[-1].copy()
+        np.subtract(levels[-1][:, 1:], levels[-1][:, :-1], out=d[:, 1:])  # wraps modulo 2**64
+        levels.append(d)
+    if n > max(FLOAT_ORDERS):
+        stride = max(1, n // _ORDER_SAMPLES)  # a sample ranks the orders as well as all rows
+        sample = np.stack([levels[r][:, max(FLOAT_ORDERS) :: stride] for r in FLOAT_ORDERS])
+        cost = np.log2(np.abs(sample.astype(np.float64)) + 1.0).sum(axis=2)  # orders x k
+        orders = [FLOAT_ORDERS[i] for i in cost.argmin(axis=0).tolist()]
+    else:
+        orders = [2] * k
+    chosen = np.stack([levels[r][j] for j, r in enumerate(orders)])
+    z = ((chosen << 1) ^ (chosen >> 63)).view("<u8")
+    planes = z.view(np.uint8).reshape(k, n, 8).transpose(0, 2, 1).tobytes()
+    return orders, [planes[8 * n * j : 8 * n * (j + 1)] for j in range(k)]
 
 
 def _write_blob(parts: list[bytes], counts: list[int], out: bytearray) -> None:
@@ -221,8 +337,14 @@ def write_column(kind: ColumnKind, values: Any, out: bytearray) -> None:
         out += _shuffle(_zigzag_delta(values, 1))
     elif kind is ColumnKind.INT_PACKED:
         write_packed(values, out)
+    elif kind is ColumnKind.INT_OFFSET:
+        write_packed(values, out, offset=True)
     elif kind is ColumnKind.FLOAT:
         out += _shuffle(_zigzag_delta(values.view("<i8"), 2))
+    elif kind is ColumnKind.FLOAT_DELTA:
+        order, planes = values  # from float_deltas
+        out.append(order)
+        out += planes
     elif kind is ColumnKind.QUAT_W:
         out += _shuffle(values)  # the residual bits, computed by the caller
     elif kind is ColumnKind.BOOL:
@@ -261,8 +383,15 @@ def read_column(
         return list(map(str, ints.tolist())), None
     if kind == ColumnKind.INT_PACKED:
         return list(map(str, read_packed(reader, n, "int column").tolist())), None
-    if kind == ColumnKind.FLOAT:
-        words = _undo_zigzag_delta(_unshuffle(reader.array("u1", 8 * n, "float column"), n), 2)
+    if kind == ColumnKind.INT_OFFSET:
+        return list(map(str, read_packed(reader, n, "int column", offset=True).tolist())), None
+    if kind in (ColumnKind.FLOAT, ColumnKind.FLOAT_DELTA):
+        order = 2
+        if kind == ColumnKind.FLOAT_DELTA:
+            order = int(reader.take(1, "float delta order")[0])
+            if order not in FLOAT_ORDERS:
+                raise CodecError(f"columnar payload is corrupt: a float column names delta order {order}")
+        words = _undo_zigzag_delta(_unshuffle(reader.array("u1", 8 * n, "float column"), n), order)
         values = words.view("<f8")
         return _render_floats(values), values
     if kind == ColumnKind.QUAT_W:

@@ -52,6 +52,39 @@ def _matcher(literals: tuple[str, ...], values: list[str]) -> re.Pattern[str] | 
     return re.compile("".join(parts), re.S)
 
 
+def _skipper(literals: tuple[str, ...], kinds: tuple[bool, ...]) -> re.Pattern[str] | None:
+    """A regex that skips each literal by its length and captures the values between.
+
+    Cheaper than matching the literal characters (one step per literal, not per
+    character); what it finds must be checked against the literals (see _rows).
+    """
+    if len(kinds) > _MAX_MATCHER_SLOTS:
+        return None
+    parts = []
+    for lit, is_string in zip(literals, kinds):
+        parts.append(".{%d}(%s)" % (len(lit), _STRING if is_string else _NUMBER))
+    parts.append(".{%d}" % len(literals[-1]))
+    return re.compile("".join(parts), re.S)
+
+
+def _rebuilds(literals: tuple[str, ...], rows: list[tuple], texts: list[str]) -> bool:
+    """Whether literals and value rows rebuild the texts, compared all at once.
+
+    Each rebuilt text has its text's length (the skipper consumed exactly the literal
+    lengths plus the values), so equal concatenations mean equal texts one by one.
+    """
+    n, k = len(rows), len(literals) - 1
+    if k == 0:
+        return all(text == literals[0] for text in texts)
+    # The window is L0 v L1 v ... v Lk+L0 v L1 ... v Lk: values and literals alternate,
+    # so each fills every other piece with one slice assignment.
+    pieces: list[str] = [literals[0]] * (2 * n * k + 1)
+    pieces[1::2] = chain.from_iterable(rows)
+    pieces[2::2] = (literals[1:-1] + (literals[-1] + literals[0],)) * n
+    pieces[-1] = literals[-1]
+    return "".join(pieces) == "".join(texts)
+
+
 def bake(literals: tuple[str, ...], values: list[str], fixed: list[bool]) -> tuple[tuple[str, ...], list[str]]:
     """The shape with the fixed values folded into the literals around them."""
     merged, kept = [literals[0]], []
@@ -77,13 +110,42 @@ def _keep_quaternions(values: list[str], fixed: list[bool]) -> None:
             fixed[j - 3 : j] = [False] * 3
 
 
+def _rows(shape: tuple, texts: list[str]) -> list[tuple | None]:
+    """Value rows of texts in a (literals, regex, skipper) shape; None where one misses.
+
+    The skipper finds the values without reading the literals; _rebuilds then checks
+    them for the whole window at once. Where the regex matches, the skipper matches with
+    the same values (both take each value possessively at the same offset), so a text the
+    skipper misses is a miss; if the rebuild fails, the regex decides text by text.
+    """
+    literals, pattern, skipper = shape
+    if skipper is None or len(texts) < 2:
+        return [None if m is None else m.groups() for m in map(pattern.fullmatch, texts)]
+    matches = list(map(skipper.fullmatch, texts))
+    if None not in matches:  # the usual case
+        rows = list(map(re.Match.groups, matches))
+        if _rebuilds(literals, rows, texts):
+            return rows
+    hits = [i for i, m in enumerate(matches) if m is not None]
+    out: list[tuple | None] = [None] * len(texts)
+    rows = [matches[i].groups() for i in hits]  # type: ignore[union-attr]
+    if hits and _rebuilds(literals, rows, [texts[i] for i in hits]):
+        for i, row in zip(hits, rows):
+            out[i] = row
+        return out
+    for i in hits:
+        match = pattern.fullmatch(texts[i])
+        out[i] = None if match is None else match.groups()
+    return out
+
+
 class ShapeMatcher:
     """Finds the shape of each text; reuses compiled shapes across windows (bounded LRU)."""
 
     def __init__(self, capacity: int = 256):
         self._capacity = capacity
         self._compiled: OrderedDict[tuple, re.Pattern[str] | None] = OrderedDict()
-        self._last: tuple[tuple[str, ...], re.Pattern[str]] | None = None
+        self._last: tuple[tuple[str, ...], re.Pattern[str], re.Pattern[str] | None] | None = None
 
     def _pattern(self, key: tuple, literals, values) -> re.Pattern[str] | None:
         pattern = self._compiled.get(key, False)
@@ -115,7 +177,7 @@ class ShapeMatcher:
             # (So the bytes of a window may depend on the one before; either decodes exactly.)
             last = self._last
             if last is not None and last[1].fullmatch(texts[pending[0]]) and last[1].fullmatch(texts[pending[-1]]):
-                merged, special = self._last
+                shape = last
                 self._last = None
             else:
                 found = self._specialize(texts, pending)
@@ -124,21 +186,21 @@ class ShapeMatcher:
                     continue
                 if not found:
                     break
-                merged, special = found
-            matches = list(map(special.fullmatch, [texts[i] for i in pending]))
-            if None not in matches:  # the usual case: the whole window has one shape
-                out.append((merged, pending, list(map(re.Match.groups, matches))))
-                self._last = (merged, special)
+                shape = found
+            rows = _rows(shape, [texts[i] for i in pending])
+            if None not in rows:  # the usual case: the whole window has one shape
+                out.append((shape[0], pending, rows))
+                self._last = shape
                 pending = []
                 continue
-            indices, rows, rest = [], [], []
-            for i, match in zip(pending, matches):
-                if match is None:
+            indices, kept, rest = [], [], []
+            for i, row in zip(pending, rows):
+                if row is None:
                     rest.append(i)
                 else:
                     indices.append(i)
-                    rows.append(match.groups())
-            out.append((merged, indices, rows))
+                    kept.append(row)
+            out.append((shape[0], indices, kept))
             pending = rest
         if pending:
             sub = [texts[i] for i in pending]
@@ -148,7 +210,7 @@ class ShapeMatcher:
         return out, sorted(unshaped)
 
     def _specialize(self, texts: list, pending: list[int]) -> tuple | None:
-        """(literals, regex) of the first pending text's shape with its constants baked in.
+        """(literals, regex, skipper) of the first pending text's shape, constants baked in.
 
         None when that text has no shape; () when its shape is too large for a regex.
         """
@@ -172,7 +234,8 @@ class ShapeMatcher:
         _keep_quaternions(values, fixed)
         merged, kept = bake(literals, values, fixed)
         key = (merged, tuple(v.startswith('"') for v in kept))
-        return merged, self._pattern(key, merged, kept)
+        pattern = self._pattern(key, merged, kept)
+        return merged, pattern, None if pattern is None else _skipper(merged, key[1])
 
     def group(self, texts: list[str | None]) -> tuple[dict[tuple, tuple[list[int], list]], list[int]]:
         """Group texts by shape: ({literals: (indices, value rows)}, indices without shape).
