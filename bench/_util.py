@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 SHARED = Path(__file__).resolve().parent.parent.parent / "shared" / "data"
+DATA = SHARED  # the name the codec benchmarks use
 OUT = Path(__file__).resolve().parent.parent / "out"
 
 
@@ -35,20 +36,27 @@ def median_time(fn, runs: int = 5) -> float:
     return statistics.median(times)
 
 
-def topic_messages(path: Path, topic: str) -> list[tuple[int, str]]:
-    """(stamp_ns, rosbridge JSON) of one topic of a bag, the way cclogfs converts it."""
+def topic_messages(path: Path, topic: str, *, stamp: str = "header") -> list[tuple[int, str]]:
+    """(stamp_ns, rosbridge JSON) of one topic of a bag, the way cclogfs converts it; the
+    stamp is header.stamp (the log time when there is none), or the log time (stamp="log")."""
     from rosbags.highlevel import AnyReader
 
-    from cclogfs.rosjson import message_stamp_ns, message_to_json
+    from cclogfs.rosjson import MessageConverter, message_stamp_ns
 
+    to_json = MessageConverter().to_json
     out = []
     with AnyReader([path]) as reader:
         conns = [c for c in reader.connections if c.topic == topic]
         for con, logtime, raw in reader.messages(connections=conns):
             msg = reader.deserialize(raw, con.msgtype)
-            stamp = message_stamp_ns(msg)
-            out.append((logtime if stamp is None else stamp, message_to_json(msg)))
+            header = message_stamp_ns(msg) if stamp == "header" else None
+            out.append((logtime if header is None else header, to_json(msg)))
     return out
+
+
+def load_topic(file: str, topic: str) -> list[tuple[int, bytes]]:
+    """(log time ns, rosbridge JSON bytes) of every message of one topic of a shared file."""
+    return [(t, text.encode()) for t, text in topic_messages(SHARED / file, topic, stamp="log")]
 
 
 def odom_messages() -> list[tuple[int, str]]:
@@ -64,3 +72,13 @@ def save_json(name: str, data: dict) -> Path:
     path = OUT / name
     path.write_text(json.dumps(data, indent=2) + "\n")
     return path
+
+
+def peak_rss_mib() -> float:
+    """This process's peak resident memory (VmHWM). Not ru_maxrss: Linux keeps that across
+    execve, so a child started from a big benchmark process would report its parent's peak."""
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
+    raise RuntimeError("no VmHWM in /proc/self/status")

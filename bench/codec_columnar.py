@@ -14,7 +14,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bench.common import load_topic, median_time  # noqa: E402
+from bench._util import load_topic, median_time  # noqa: E402
 from cclogfs.codecs import codec_from_config, raw_size  # noqa: E402
 
 TOPICS = [

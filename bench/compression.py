@@ -25,7 +25,7 @@ import zstandard
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bench.common import DATA, median_time  # noqa: E402
+from bench._util import DATA, median_time  # noqa: E402
 from cclogfs.codecs import codec_from_config, raw_size  # noqa: E402
 from cclogfs.rosjson import message_to_json  # noqa: E402
 

@@ -28,12 +28,13 @@ from ._util import OUT, machine, save_json
 ROOT = Path(__file__).resolve().parent.parent
 
 CHILD = """
-import resource, sys, time
+import sys, time
+from bench._util import peak_rss_mib
 from cclogfs.cli import main
 argv = sys.argv[1:]
 t = time.perf_counter()
 code = main(argv)
-print(time.perf_counter() - t, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, code)
+print(time.perf_counter() - t, peak_rss_mib(), code)
 """
 
 
@@ -42,10 +43,10 @@ def run_cli(args: list[str], stdin: Path | None = None) -> tuple[float, float]:
     with open(stdin, "rb") if stdin else open("/dev/null", "rb") as f:
         out = subprocess.run([sys.executable, "-c", CHILD, *args], stdin=f, capture_output=True,
                              text=True, cwd=ROOT, check=True)  # fmt: skip
-    secs, rss_kib, code = out.stdout.split()
+    secs, rss_mib, code = out.stdout.split()
     if code != "0":
         raise RuntimeError(f"cclog {' '.join(args)} exited {code}: {out.stderr}")
-    return float(secs), int(rss_kib) / 1024
+    return float(secs), float(rss_mib)
 
 
 def median_run(make_args, runs: int, stdin: Path | None = None) -> tuple[float, float]:

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import random
-import resource
 import shutil
 import statistics
 import subprocess
@@ -102,10 +101,10 @@ def bench_growth(work: Path, sizes: list[int]) -> list[dict]:
 
 
 RSS_CHILD = """
-import resource, sys, cclogfs
+import sys, cclogfs
 sys.path.insert(0, {root!r})
 from bench.store import windows_of
-from bench._util import odom_messages
+from bench._util import odom_messages, peak_rss_mib
 ws = windows_of(odom_messages(), count=50)
 marks = {{}}
 with cclogfs.open_store({path!r}, create=True, segment_bytes=8 << 20) as s:
@@ -114,7 +113,7 @@ with cclogfs.open_store({path!r}, create=True, segment_bytes=8 << 20) as s:
         shift = (i // len(ws)) * 10**12
         s.put_window("/odom", [(t + shift, m) for t, m in w])
         if i + 1 in ({n} // 10, {n}):
-            marks[i + 1] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+            marks[i + 1] = peak_rss_mib()
 print(marks[{n} // 10], marks[{n}])
 """
 
@@ -125,7 +124,7 @@ def bench_rss(work: Path, n: int) -> dict:
     root = str(Path(__file__).resolve().parent.parent)
     out = subprocess.run([sys.executable, "-c", RSS_CHILD.format(root=root, path=str(path), n=n)],
                          capture_output=True, text=True, check=True, cwd=root).stdout.split()  # fmt: skip
-    early, late = int(out[0]) / 1024, int(out[1]) / 1024
+    early, late = float(out[0]), float(out[1])
     disk = sum(f.stat().st_size for f in path.iterdir()) / 1e6
     return {"windows": n, "store_mb": disk, "peak_rss_mb_at_10pct": early, "peak_rss_mb_at_end": late,
             "growth_ratio": late / early}  # fmt: skip
