@@ -11,7 +11,6 @@ The payload layout is specified in docs/CODEC_COLUMNAR.md.
 
 from __future__ import annotations
 
-import io
 import threading
 from collections.abc import Sequence
 from typing import Any
@@ -54,6 +53,7 @@ from .columns import (
     write_packed,
 )
 from .shapes import ShapeMatcher
+from .simple import read_zstd
 
 __all__ = ["ColumnarCodec"]
 
@@ -324,12 +324,4 @@ class ColumnarCodec(Codec):
         return stamps, out
 
     def _decompress(self, data: memoryview, body_len: int) -> bytes:
-        # Read as a stream, at most body_len + 1 bytes: a forged frame size is never trusted.
-        try:
-            with self._state()[1].stream_reader(io.BytesIO(data), read_across_frames=False) as r:
-                body = r.read(body_len + 1)
-        except zstandard.ZstdError as err:
-            raise CodecError(f"columnar payload does not decompress: {err}") from err
-        if len(body) != body_len:
-            raise CodecError(f"columnar payload decompresses to other than the {body_len} bytes stated")
-        return body
+        return read_zstd(self._state()[1], data, body_len, "columnar payload")

@@ -12,6 +12,23 @@ from ..errors import CodecError
 from .base import ByteCodec
 
 
+def read_zstd(dctx: zstandard.ZstdDecompressor, data: bytes | memoryview, size: int, what: str) -> bytes:
+    """Exactly `size` bytes from one zstd frame, else CodecError naming `what`.
+
+    zstd would trust a frame's declared content size and allocate it, so the frame is read
+    as a stream, at most size + 1 bytes: a forged frame cannot make us allocate more than
+    the checksummed header allows.
+    """
+    try:
+        with dctx.stream_reader(io.BytesIO(data), read_across_frames=False) as reader:
+            out = reader.read(size + 1)
+    except zstandard.ZstdError as err:
+        raise CodecError(f"{what} does not decode: {err}") from err
+    if len(out) != size:
+        raise CodecError(f"{what} decodes to more or less than the {size} bytes stated")
+    return out
+
+
 class NoneCodec(ByteCodec):
     """Stores the framing as it is."""
 
@@ -49,17 +66,7 @@ class ZstdCodec(ByteCodec):
         return self._contexts()[0].compress(raw)
 
     def decompress(self, data: bytes, raw_len: int) -> bytes:
-        # zstd would trust a frame's declared content size and allocate it, so the frame
-        # is read as a stream, at most raw_len + 1 bytes: a forged frame cannot make us
-        # allocate more than the checksummed header allows.
-        try:
-            with self._contexts()[1].stream_reader(io.BytesIO(data)) as reader:
-                out = reader.read(raw_len + 1)
-        except zstandard.ZstdError as err:
-            raise CodecError(f"zstd payload does not decode: {err}") from err
-        if len(out) != raw_len:
-            raise CodecError(f"zstd payload decodes to more or less than the {raw_len} bytes stated")
-        return out
+        return read_zstd(self._contexts()[1], data, raw_len, "zstd payload")
 
 
 class LzmaCodec(ByteCodec):
