@@ -20,7 +20,9 @@ __all__ = ["Detector", "SmartLogger", "collect", "event_masks", "load_dataset", 
 # Noise floors of the default features (rad/s, m/s^2, rad/s^2, m/s, ...), in the order of
 # features.DEFAULT_NAMES: standardizing by a spread smaller than this would make sensor
 # noise look anomalous on a robot other than the one the model was trained on.
-DEFAULT_FLOORS = np.array([0.3, 0.3, 0.3, 1.0, 0.1, 0.005, 0.02, 0.02, 0.5, 1.0, 1.0])
+# direction_reversals is a count: 0.3 makes 2-4 reversals in 8 s (mild `stuck` nudges)
+# stand out, while a base that never reverses in training still gets a finite scale.
+DEFAULT_FLOORS = np.array([0.3, 0.3, 0.3, 1.0, 0.1, 0.005, 0.02, 0.02, 0.5, 1.0, 0.3])
 
 
 def _as_odom(source) -> OdomArrays:
