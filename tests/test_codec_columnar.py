@@ -398,3 +398,36 @@ def test_forged_lengths_inside_body_raise():
                 continue
             assert len(got[1]) == len(WINDOW_TEXTS)
             assert sum(map(len, got[1])) == sum(map(len, WINDOW_TEXTS))
+
+
+def test_forged_zero_width_columns_cannot_amplify_memory():
+    # 2,000 integer columns of width 0 cost a few bytes each but would render 200 twenty-digit
+    # numbers apiece: the decoder must stop at the window size the header states (found by
+    # review: before, a ~50-byte payload held hundreds of MB before failing).
+    import struct
+    import tracemalloc
+
+    import numpy as np
+    import xxhash
+    import zstandard
+
+    from cclogfs.errors import CodecError
+
+    count, k = 200, 2000
+    raw_len = 4 + 12 * count + 60_000
+    body = bytearray(struct.pack("<I", 1)) + np.zeros(count, "<u2").tobytes()
+    body += struct.pack("<qQqB", 0, 0, 0, 0)  # stamps: offset packing, width 0
+    body += struct.pack("<II", count, k) + np.zeros(k + 1, "<u4").tobytes() + struct.pack("<I", 0)
+    body += bytes([10]) * k  # INT_OFFSET columns
+    for _ in range(k):
+        body += struct.pack("<qQqB", -(2**63 - 1), 0, 0, 0)
+    frame = zstandard.ZstdCompressor().compress(bytes(body))
+    payload = struct.pack("<BII", 3, len(body), xxhash.xxh32_intdigest(frame)) + frame
+    tracemalloc.start()
+    try:
+        with pytest.raises(CodecError, match="renders beyond the window size"):
+            codec_from_config("columnar").decode(payload, count=count, raw_len=raw_len)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 8 << 20, f"decoding allocated {peak} bytes"
