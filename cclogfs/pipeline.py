@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 from typing import Any, NamedTuple, Protocol
 
 from ._signals import signals_deferred as _signals_deferred
+from .errors import InvalidInputError, StoreError
+from .jsoncheck import json_error
 from .store import Store, open_store
 
 # Default logging-window extents, in seconds so they mean the same at any odometry rate.
@@ -98,6 +100,15 @@ class RecordStats:
     interrupted: bool = False
 
 
+def check_message(topic: str, stamp_ns: Any, text: Any) -> None:
+    """InvalidInputError for a message the store would refuse, before any policy holds it
+    (a window refused later would lose the good messages it holds too)."""
+    if not isinstance(text, str):
+        raise InvalidInputError(f"message on {topic!r} at {stamp_ns}: the JSON text must be a str")
+    if (why := json_error(text)) is not None:
+        raise InvalidInputError(f"message on {topic!r} at {stamp_ns} is not well-formed JSON: {why}")
+
+
 def store_window(store: Store, window: Any, stats: RecordStats, *, check_json: bool = True) -> None:
     """Put one window (several records when its stamps go backwards)."""
     runs = list(monotonic_runs(window.messages))
@@ -126,6 +137,8 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
     check = not trusted_json
     try:
         for m in messages:
+            if check:
+                check_message(m.topic, m.stamp_ns, m.text)
             stats.messages_in += 1
             stats.json_bytes_in += len(m.text)
             stats.topics_in[m.topic] = stats.topics_in.get(m.topic, 0) + 1
@@ -134,7 +147,7 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
             INTERRUPTS.critical = True
             try:
                 for window in policy.push(m.topic, m.stamp_ns, m.text):
-                    store_window(store, window, stats, check_json=check)
+                    store_window(store, window, stats, check_json=False)  # checked at the door
             finally:
                 INTERRUPTS.critical = False
             if INTERRUPTS.pending:
@@ -147,7 +160,7 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
     finally:
         with _signals_deferred():  # a second Ctrl-C must not cut the flush short
             for window in policy.flush():
-                store_window(store, window, stats, check_json=check)
+                store_window(store, window, stats, check_json=False)
         stats.seconds = time.perf_counter() - started
     return stats
 
@@ -202,11 +215,14 @@ class Logger:
         topic = topic_or_message
         if self.topics is not None and topic not in self.topics and topic != getattr(self.policy, "odom_topic", None):
             return
+        check_message(topic, stamp_ns, text)  # at the door: a bad message must not take a window with it
         with self._lock:
+            if self.store is None:
+                raise StoreError("this Logger is closed")
             self.stats.messages_in += 1
             self.stats.json_bytes_in += len(text)
             for window in self.policy.push(topic, stamp_ns, text):
-                store_window(self.store, window, self.stats)
+                store_window(self.store, window, self.stats, check_json=False)
 
     def close(self) -> None:
         with self._lock:

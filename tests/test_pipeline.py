@@ -235,3 +235,18 @@ def test_collect_mode_writes_a_labelled_dataset_that_train_learns_from(tmp_path,
     assert main(["train", p("vectors"), "--out", p("model")]) == 0
     assert "trained model" in capsys.readouterr().out
     assert events
+
+
+def test_a_bad_message_is_refused_at_the_door_and_takes_no_window_with_it(tmp_path):
+    from cclogfs.pipeline import Logger
+
+    with Logger(str(tmp_path / "s"), chunk=3) as log:
+        log("/a", 1, '{"v":1}')
+        log("/a", 2, '{"v":2}')
+        with pytest.raises(cclogfs.InvalidInputError, match="'/a' at 3 is not well-formed JSON"):
+            log("/a", 3, '{"v":3')
+        log("/a", 4, '{"v":4}')
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        assert [t for w in store.query() for t, _ in w.messages()] == [1, 2, 4]
+    with pytest.raises(cclogfs.StoreError, match="closed"):
+        log("/a", 5, "{}")
