@@ -100,3 +100,66 @@ def test_summary_per_minute():
     assert stats[0]["distance_m"] == pytest.approx(29.95)
     assert stats[1]["anomalies"] == 1 and stats[1]["peak_speed"] == 0.5
     assert stats[0]["moving_s"] == pytest.approx(59.9)
+
+
+def test_out_of_order_other_topic_is_taken_by_its_window():
+    b = WindowBuilder(before=1, after=1, topics=["/a"])
+    out = []
+    for topic, stamp, flag in [("/odom", 100, True), ("/odom", 110, False), ("/a", 200, False),
+                               ("/a", 105, False), ("/odom", 120, False), ("/odom", 130, False),
+                               ("/odom", 300, False), ("/odom", 310, True)]:  # fmt: skip
+        out += b.push(topic, stamp, f"{topic}{stamp}", anomalous=flag)
+    out += b.flush()
+    spans = [(w.start_ns, w.end_ns) for w in out if w.topic == "/odom"]
+    kept = [(s, w) for w in out if w.topic == "/a" for s, _ in w.messages]
+    assert spans == [(100, 110), (300, 310)]
+    assert [s for s, _ in kept] == [105]
+    assert spans[0][0] <= kept[0][0] <= spans[0][1]
+
+
+def test_ring_is_bounded_by_count_when_stamps_freeze():
+    b = WindowBuilder(before_s=8, after_s=8)  # default max_ring
+    for _ in range(200_000):
+        b.push("/odom", 1000 * MS, "odom")
+    assert len(b.ring) <= b.max_ring + 1 <= 100_001
+
+
+def test_held_window_with_frozen_stamps_closes_at_the_ring_cap():
+    b = WindowBuilder(before_s=8, after_s=1, max_ring=500)
+    b.push("/odom", 0, "a", anomalous=True)
+    b.push("/odom", 2000 * MS, "b")  # after_s has passed: the window is held
+    out = []
+    for i in range(5000):
+        out += b.push("/odom", 2000 * MS, f"c{i}")
+        assert len(b.ring) <= 501
+    assert [len(w.messages) for w in out if w.topic == "/odom"] == [2]
+
+
+def test_clock_reset_is_a_gap():
+    b = WindowBuilder(before_s=8, after_s=8)
+    out = []
+    for i in range(100):
+        out += b.push("/odom", (5000 + i) * 1000 * MS, f"old{i}", anomalous=(i == 90))
+    for i in range(100):  # the clock restarts near zero
+        out += b.push("/odom", i * 1000 * MS, f"new{i}")
+        assert len(b.ring) <= 9
+    (w,) = [w for w in out if w.topic == "/odom"]
+    assert {t for _, t in w.messages} == {f"old{i}" for i in range(82, 99)}
+    assert b.window is None
+
+
+def test_after_zero_logs_only_the_anomaly():
+    flags = [False] * 20
+    flags[5] = True
+    assert odom_indices(feed(WindowBuilder(before=0, after=0), flags)) == [[5]]
+    assert odom_indices(feed(WindowBuilder(before=2, after=0), flags)) == [[3, 4, 5]]
+
+
+def test_latched_topic_keeps_the_newest_texts():
+    b = WindowBuilder(before=1, after=1)
+    for i in range(70):
+        b.push("/tf_static", i, f"static{i}")
+    out = b.push("/odom", 100, "odom", anomalous=True) + b.flush()
+    (latched,) = [w for w in out if w.topic == "/tf_static"]
+    assert [t for _, t in latched.messages] == [f"static{i}" for i in range(70 - 64, 70)]
+    assert latched.meta["latched_dropped"] == 6

@@ -6,13 +6,21 @@ window stays open until `after` messages (or `after_s` seconds) have passed sinc
 anomalous one. The window is then held until `before` more messages have passed: if an
 anomaly comes first, its context would overlap (or touch) the window, so the two merge
 and no message is logged twice. Other topics are logged over the window's time span
-[first, last trigger-topic stamp]. Latched topics (e.g. /tf_static) are kept and added to
-every window so each window can be read alone. A window longer than `max_part` messages
-of a topic is emitted in parts that share its window_id.
+[first, last trigger-topic stamp], whatever order they arrive in. Latched topics (e.g.
+/tf_static) are kept and added to every window so each window can be read alone: the newest
+MAX_LATCHED distinct texts per topic, the count of older ones dropped in "latched_dropped".
+A window longer than `max_part` messages of a topic is emitted in parts that share its
+window_id.
+
+Memory stays bounded however the stamps behave: in seconds mode the ring holds at most
+`max_ring` messages (a held window closes when it fills), each pending queue at most
+`max_pending`, and a trigger stamp more than CLOCK_RESET_NS behind the previous one (a clock
+reset) is a gap: the open window closes and nothing queued before it joins a later window.
 """
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections import deque
 from dataclasses import dataclass, field
@@ -22,6 +30,8 @@ from ..errors import InvalidInputError
 __all__ = ["LoggedWindow", "WindowBuilder"]
 
 MAX_TRIGGERS_IN_META = 100
+MAX_LATCHED = 64  # distinct texts kept per latched topic
+CLOCK_RESET_NS = 1_000_000_000  # small backward jitter is not a reset
 
 
 @dataclass
@@ -72,10 +82,13 @@ class WindowBuilder:
         after_s: float | None = None,
         max_part: int = 10_000,
         max_pending: int = 100_000,
+        max_ring: int = 100_000,
         model_id: str = "",
     ):
-        if before < 0 or after < 0 or max_part < 1:
-            raise InvalidInputError("Window sizes need before >= 0, after >= 0, max_part >= 1.")
+        if before < 0 or after < 0 or max_part < 1 or max_ring < 1:
+            raise InvalidInputError(
+                "Window sizes need before >= 0, after >= 0, max_part >= 1, max_ring >= 1."
+            )
         self.trigger_topic = trigger_topic
         self.topics = None if topics is None else set(topics) | {trigger_topic}
         self.latched_topics = set(latched)
@@ -84,10 +97,13 @@ class WindowBuilder:
         self.after_ns = None if after_s is None else int(after_s * 1e9)
         self.max_part = max_part
         self.max_pending = max_pending
+        self.max_ring = max_ring
         self.model_id = model_id
         self.ring: deque[tuple[int, str]] = deque()  # trigger-topic context, not yet logged
         self.pending: dict[str, deque[tuple[int, str]]] = {}  # other topics, not yet logged
-        self.latched: dict[str, dict[str, int]] = {}  # topic -> text -> stamp
+        self.latched: dict[str, dict[str, int]] = {}  # topic -> text -> stamp, oldest first
+        self.latched_dropped: dict[str, int] = {}
+        self.last_trigger_ns: int | None = None
         self.window: _Open | None = None
         self.windows_emitted = 0
 
@@ -100,7 +116,10 @@ class WindowBuilder:
         """One message; `anomalous`/`score` matter only on the trigger topic."""
         if topic in self.latched_topics:
             kept = self.latched.setdefault(topic, {})
-            if text not in kept and len(kept) < 64:
+            if text not in kept:
+                if len(kept) >= MAX_LATCHED:  # the newest state matters most: drop the oldest
+                    del kept[next(iter(kept))]
+                    self.latched_dropped[topic] = self.latched_dropped.get(topic, 0) + 1
                 kept[text] = stamp_ns
             return []
         if self.topics is not None and topic not in self.topics:
@@ -108,6 +127,9 @@ class WindowBuilder:
         if topic != self.trigger_topic:
             return self._push_other(topic, stamp_ns, text)
         out: list[LoggedWindow] = []
+        last, self.last_trigger_ns = self.last_trigger_ns, stamp_ns
+        if last is not None and stamp_ns < last - CLOCK_RESET_NS:
+            self._reset(out)
         w = self.window
         if w is None:
             self.ring.append((stamp_ns, text))
@@ -137,7 +159,7 @@ class WindowBuilder:
             elif (
                 len(self.ring) > self.before
                 if self.before_ns is None
-                else stamp_ns - w.last_ns > self.before_ns
+                else stamp_ns - w.last_ns > self.before_ns or len(self.ring) > self.max_ring
             ):
                 self._close(out)
                 self._trim_ring(stamp_ns)
@@ -159,7 +181,10 @@ class WindowBuilder:
             self._add(topic, [(stamp_ns, text)], out)
             return out
         q = self.pending.setdefault(topic, deque())
-        q.append((stamp_ns, text))
+        if q and stamp_ns < q[-1][0]:  # keep the queue sorted, arrival order among equal stamps
+            q.insert(bisect.bisect_right(q, stamp_ns, key=lambda m: m[0]), (stamp_ns, text))
+        else:
+            q.append((stamp_ns, text))
         if len(q) > self.max_pending:
             q.popleft()
         if w is None:
@@ -174,11 +199,20 @@ class WindowBuilder:
         else:
             while self.ring and self.ring[0][0] < now_ns - self.before_ns:
                 self.ring.popleft()
+            while len(self.ring) > self.max_ring:
+                self.ring.popleft()
         for topic in self.pending:
             self._trim_pending(topic)
 
+    def _reset(self, out: list[LoggedWindow]) -> None:
+        """Clock reset: close the open window; nothing before the gap joins a later one."""
+        if self.window is not None:
+            self._close(out)
+        self.ring.clear()
+        self.pending.clear()
+
     def _trim_pending(self, topic: str) -> None:
-        """Drop other-topic messages older than any window could start."""
+        """Drop other-topic messages older than any window could start (queues are sorted)."""
         if not self.ring:
             return
         q, oldest = self.pending[topic], self.ring[0][0]
@@ -205,6 +239,8 @@ class WindowBuilder:
         w.left = self.after
         if self.after_ns is not None:
             w.until_ns = stamp_ns + self.after_ns
+        if (self.after if self.after_ns is None else self.after_ns) == 0:
+            w.closing = True  # nothing to log after the anomaly
 
     def _take_pending(self, upto_ns: int, out: list[LoggedWindow]) -> None:
         for topic, q in self.pending.items():
@@ -249,6 +285,8 @@ class WindowBuilder:
                 out.append(self._emit(topic, final=True))
         for topic, kept in self.latched.items():
             msgs = sorted(((s, t) for t, s in kept.items()), key=lambda m: m[0])
-            out.append(LoggedWindow(topic, msgs, self._meta(True) | {"part": 0, "latched": True}))
+            dropped = self.latched_dropped.get(topic, 0)
+            meta = {"part": 0, "latched": True, "latched_dropped": dropped}
+            out.append(LoggedWindow(topic, msgs, self._meta(True) | meta))
         self.window = None
         self.windows_emitted += 1
