@@ -399,54 +399,20 @@ def _flips(x: np.ndarray, h: float) -> np.ndarray:
     return out
 
 
-class _Flips:
-    """Live `_flips` and the count of flips in the last `span_ns`."""
-
-    __slots__ = ("h", "span", "state", "q")
-
-    def __init__(self, h: float, span_ns: int):
-        self.h, self.span, self.state = h, span_ns, 0
-        self.q: deque = deque()
-
-    def push(self, t: int, x: float) -> int:
-        if x > self.h or x < -self.h:
-            sign = 1 if x > 0 else -1
-            if self.state and sign != self.state:
-                self.q.append(t)
-            self.state = sign
-        bound = t - self.span
-        q = self.q
-        while q and q[0] < bound:
-            q.popleft()
-        return len(q)
-
-
-class _MaxWindow:
-    """Running maximum over the values of the last `span_ns` (monotonic deque): O(1)."""
-
-    __slots__ = ("span", "q")
-
-    def __init__(self, span_ns: int):
-        self.span = span_ns
-        self.q: deque = deque()
-
-    def push(self, t: int, v: float) -> float:
-        q = self.q
-        while q and q[-1][1] <= v:
-            q.pop()
-        q.append((t, v))
-        bound = t - self.span
-        while q[0][0] < bound:
-            q.popleft()
-        return q[0][1]
-
-
 class _DefaultStream:
-    """Live extraction in O(1) per message: running sums, baseline queues and running
-    maxima give the same vector `DefaultFeatures._segment` computes for the newest row."""
+    """Live extraction in O(1) per message: running sums, baseline queues, running maxima
+    (monotonic deques) and flip queues give the same vector `DefaultFeatures._segment`
+    computes for the newest row.
+
+    This runs once per live odometry message, so it works on plain floats and tuples
+    with the queue helpers written out inline (method calls and numpy scalars cost more
+    here than the arithmetic).
+    """
 
     def __init__(self, fs: DefaultFeatures):
         self.fs = fs
+        self.deriv_ns, self.match_ns, self.short_ns = fs._deriv, fs._match, fs._short
+        self.long_ns, self.flip_ns, self.gap_ns, self.warmup_ns = fs._long, fs._flip, fs._gap, fs._warmup
         self.last: tuple[np.ndarray, bool] | None = None
         self.prev: tuple | None = None  # (t, yaw, vx, vy, wz) of the last accepted message
         self._reset()
@@ -454,32 +420,34 @@ class _DefaultStream:
     def _reset(self) -> None:
         self.prev = None
         self.seg_start = 0
-        self.cum = [0.0] * 5
+        self.cum = (0.0,) * 5
         self.deriv: deque = deque()  # (t, vx, vy, wz): the baseline is the first entry
         self.match: deque = deque()  # (t, x, y, cum0, cum1, cum2, cum3)
         self.long: deque = deque()  # (t, cum4)
-        self.maxima = [_MaxWindow(self.fs._short) for _ in range(_SHORT.stop - _SHORT.start)]
-        self.yaw_flips = _Flips(self.fs.yaw_flip, self.fs._flip)
-        self.dir_flips = _Flips(self.fs.dir_flip, self.fs._long)
+        # Short-window maxima of each instantaneous value: (t, v), v decreasing.
+        self.maxima = tuple(deque() for _ in range(_SHORT.stop - _SHORT.start))
+        # `_flips` live: the last sign beyond +-h and the stamps of flips still counted.
+        self.yaw_state = self.dir_state = 0
+        self.yaw_q: deque = deque()
+        self.dir_q: deque = deque()
 
     def push(self, stamp_ns: int, row: Any) -> tuple[np.ndarray, bool] | None:
         """Vector and validity after this message (None before the first usable message)."""
-        fs = self.fs
+        if type(row) is not tuple and type(row) is not list:
+            row = row.tolist() if isinstance(row, np.ndarray) else [float(v) for v in row]
         if not isfinite(sum(row)) and not all(isfinite(v) for v in row):
             return self.last
         prev = self.prev
+        t = stamp_ns
         if prev is not None:
-            if stamp_ns <= prev[0]:
+            if t <= prev[0]:
                 return self.last
-            if stamp_ns - prev[0] > fs._gap:
+            if t - prev[0] > self.gap_ns:
                 self._reset()
                 prev = None
-        t = stamp_ns
-        x, y = float(row[0]), float(row[1])
-        qx, qy, qz, qw = float(row[3]), float(row[4]), float(row[5]), float(row[6])
-        vx, vy, wz = float(row[7]), float(row[8]), float(row[12])
+        x, y, _, qx, qy, qz, qw, vx, vy, _, _, _, wz = row
         yaw = atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-        cum = self.cum
+        c0, c1, c2, c3, c4 = self.cum
         if prev is None:
             self.seg_start = t
         else:
@@ -489,46 +457,81 @@ class _DefaultStream:
             mid = pyaw + 0.5 * dyaw
             mvx, mvy, mw = 0.5 * (vx + pvx), 0.5 * (vy + pvy), 0.5 * (wz + pwz)
             c, s = cos(mid), sin(mid)
-            cum[0] += (c * mvx - s * mvy) * dt
-            cum[1] += (s * mvx + c * mvy) * dt
-            cum[2] += mw * dt
-            cum[3] += dyaw
-            if hypot(mvx, mvy) < fs.creep:
-                cum[4] += mw * dt
+            c0 += (c * mvx - s * mvy) * dt
+            c1 += (s * mvx + c * mvy) * dt
+            c2 += mw * dt
+            c3 += dyaw
+            if hypot(mvx, mvy) < self.fs.creep:
+                c4 += mw * dt
+            self.cum = (c0, c1, c2, c3, c4)
         self.prev = (t, yaw, vx, vy, wz)
 
         # Baselines: the newest entry at least `lag` back, else the segment's first.
         d = self.deriv
         d.append((t, vx, vy, wz))
-        bound = t - fs._deriv
+        bound = t - self.deriv_ns
         while len(d) > 1 and d[1][0] <= bound:
             d.popleft()
         kt, kvx, kvy, kwz = d[0]
         span = (t - kt) * 1e-9 if t > kt else inf
         ax = (vx - kvx) / span
-        accel = hypot(ax, (vy - kvy) / span)
-        alpha = abs((wz - kwz) / span)
         m = self.match
-        m.append((t, x, y, cum[0], cum[1], cum[2], cum[3]))
-        bound = t - fs._match
+        m.append((t, x, y, c0, c1, c2, c3))
+        bound = t - self.match_ns
         while len(m) > 1 and m[1][0] <= bound:
             m.popleft()
         mt, mx, my, m0, m1, m2, m3 = m[0]
         mspan = (t - mt) * 1e-9 if t > mt else inf
-        mis_lin = hypot((x - mx) - (cum[0] - m0), (y - my) - (cum[1] - m1)) / mspan
-        mis_yaw = abs((cum[3] - m3) - (cum[2] - m2)) / mspan
-        inst = (accel, -ax, alpha, hypot(vx, vy) * abs(wz), -vx, mis_lin, mis_yaw)
-        short = [w.push(t, v) for w, v in zip(self.maxima, inst)]
-        short[4] = max(short[4], 0.0)
+        inst = (
+            hypot(ax, (vy - kvy) / span),  # accel
+            -ax,  # brake
+            abs((wz - kwz) / span),  # angular acceleration
+            hypot(vx, vy) * abs(wz),  # lateral
+            -vx,  # reverse
+            hypot((x - mx) - (c0 - m0), (y - my) - (c1 - m1)) / mspan,  # pose/twist mismatch
+            abs((c3 - m3) - (c2 - m2)) / mspan,  # yaw mismatch
+        )
+        vec = [abs(wz)]
+        bound = t - self.short_ns
+        for q, v in zip(self.maxima, inst):
+            while q and q[-1][1] <= v:
+                q.pop()
+            q.append((t, v))
+            while q[0][0] < bound:
+                q.popleft()
+            vec.append(q[0][1])
+        if vec[5] < 0.0:
+            vec[5] = 0.0  # reverse speed: none is 0, not -speed
 
         lq = self.long
-        lq.append((t, cum[4]))
-        bound = t - fs._long
+        lq.append((t, c4))
+        bound = t - self.long_ns
         while lq[0][0] < bound:
             lq.popleft()
-        vec = np.array([abs(wz), *short, abs(cum[4] - lq[0][1]),
-                        self.yaw_flips.push(t, wz), self.dir_flips.push(t, vx)])  # fmt: skip
-        self.last = (vec, t - self.seg_start >= fs._warmup)
+        vec.append(abs(c4 - lq[0][1]))
+        h = self.fs.yaw_flip
+        if wz > h or wz < -h:
+            sign = 1 if wz > 0 else -1
+            if self.yaw_state and sign != self.yaw_state:
+                self.yaw_q.append(t)
+            self.yaw_state = sign
+        q = self.yaw_q
+        bound = t - self.flip_ns
+        while q and q[0] < bound:
+            q.popleft()
+        vec.append(len(q))
+        h = self.fs.dir_flip
+        if vx > h or vx < -h:
+            sign = 1 if vx > 0 else -1
+            if self.dir_state and sign != self.dir_state:
+                self.dir_q.append(t)
+            self.dir_state = sign
+        q = self.dir_q
+        bound = t - self.long_ns
+        while q and q[0] < bound:
+            q.popleft()
+        vec.append(len(q))
+        self.last = (np.array(vec, dtype=np.float64), t - self.seg_start >= self.warmup_ns)
         return self.last
 
 
