@@ -37,39 +37,50 @@ class SummaryBuilder:
 
     def update(self, stamp_ns: int, x: float, y: float, speed: float, anomalous: bool) -> list:
         """One odometry sample; returns the records of periods that ended before it."""
+        # Once per odometry message: locals and plain comparisons, no helper calls.
         out = []
         bucket = stamp_ns // self.period
-        if self.bucket is not None and bucket != self.bucket and self.stats["messages"]:
-            out.append(self._record())
-            self._reset()
-        self.bucket = bucket
         s = self.stats
+        if bucket != self.bucket:
+            if self.bucket is not None and s["messages"]:
+                out.append(self._record())
+                self._reset()
+                s = self.stats
+            self.bucket = bucket
         s["messages"] += 1
-        s["anomalies"] += bool(anomalous)
-        if math.isfinite(speed):
-            s["peak_speed"] = max(s["peak_speed"], abs(speed))
-        self.first_ns = stamp_ns if self.first_ns is None else self.first_ns
+        if anomalous:
+            s["anomalies"] += 1
+        a = abs(speed)
+        if math.isfinite(a) and a > s["peak_speed"]:
+            s["peak_speed"] = a
+        if self.first_ns is None:
+            self.first_ns = stamp_ns
         self.last_ns = stamp_ns
-        if self.prev is not None and 0 < stamp_ns - self.prev[0] <= self.gap:
-            dt = (stamp_ns - self.prev[0]) / NS
-            step = math.hypot(x - self.prev[1], y - self.prev[2])
-            if math.isfinite(step):
-                s["distance_m"] += step
-            if abs(speed) > self.moving_speed:
-                s["moving_s"] += dt
-        elif self.prev is not None:
-            self.recent.clear()
-        if self.prev is None or stamp_ns > self.prev[0]:
-            self.prev = (stamp_ns, x, y, speed)
-            # Acceleration against the newest sample at least `baseline` older (rate-robust).
-            self.recent.append((stamp_ns, speed))
-            while len(self.recent) > 1 and self.recent[1][0] <= stamp_ns - self.baseline:
-                self.recent.popleft()
-            t0, v0 = self.recent[0]
-            if stamp_ns - t0 >= self.baseline:
-                accel = abs(speed - v0) / ((stamp_ns - t0) / NS)
-                if math.isfinite(accel):
-                    s["peak_accel"] = max(s["peak_accel"], accel)
+        prev = self.prev
+        if prev is not None:
+            dt_ns = stamp_ns - prev[0]
+            if 0 < dt_ns <= self.gap:
+                step = math.hypot(x - prev[1], y - prev[2])
+                if math.isfinite(step):
+                    s["distance_m"] += step
+                if a > self.moving_speed:
+                    s["moving_s"] += dt_ns / NS
+            else:
+                self.recent.clear()
+            if dt_ns <= 0:
+                return out
+        self.prev = (stamp_ns, x, y, speed)
+        # Acceleration against the newest sample at least `baseline` older (rate-robust).
+        recent = self.recent
+        recent.append((stamp_ns, speed))
+        bound = stamp_ns - self.baseline
+        while len(recent) > 1 and recent[1][0] <= bound:
+            recent.popleft()
+        t0, v0 = recent[0]
+        if t0 <= bound:
+            accel = abs(speed - v0) / ((stamp_ns - t0) / NS)
+            if math.isfinite(accel) and accel > s["peak_accel"]:
+                s["peak_accel"] = accel
         return out
 
     def flush(self) -> list:
