@@ -112,21 +112,20 @@ def run_demo(cfg: DemoConfig) -> DemoResult:
 
     step("smart logging the bag into a store, and (for comparison) keeping everything in another")
     with open_source(res.paths["bag"]) as source:
-        all_messages = [(m.topic, m.stamp_ns, m.text) for m in source]
-    json_all = "\n".join(text for _, _, text in all_messages).encode()
+        all_messages = list(source)
+    json_all = "\n".join(m.text for m in all_messages).encode()
     res.json_bytes = len(json_all)
     lzma_size: list[int] = []
     lzma_thread = threading.Thread(target=lambda: lzma_size.append(len(lzma.compress(json_all, preset=6))))
     lzma_thread.start()  # the paper's best compressor, on the other core (lzma releases the GIL)
-    msgs = [_Msg(*m) for m in all_messages]
     with open_store(res.paths["store"], create=True) as store:
-        record(msgs, store, smart_policy(model, topics=TOPICS, before=cfg.before, after=cfg.after),
+        record(all_messages, store, smart_policy(model, topics=TOPICS, before=cfg.before, after=cfg.after),
                trusted_json=True)  # fmt: skip
     with open_store(res.paths["store_all"], create=True) as store:
-        record(msgs, store, KeepAll(chunk=200), trusted_json=True)
+        record(all_messages, store, KeepAll(chunk=200), trusted_json=True)
 
     step("scoring: the paper's Table 1 and per-event figures, from what the store holds")
-    odom_texts = [text for topic, _, text in all_messages if topic == "/odom"]
+    odom_texts = [m.text for m in all_messages if m.topic == "/odom"]
     from .classifier import parse_odometry
 
     odom = parse_odometry(odom_texts)
@@ -157,13 +156,6 @@ def run_demo(cfg: DemoConfig) -> DemoResult:
     step.done()
     _report(cfg, res, run, len(all_messages))
     return res
-
-
-class _Msg:
-    __slots__ = ("topic", "stamp_ns", "text")
-
-    def __init__(self, topic: str, stamp_ns: int, text: str):
-        self.topic, self.stamp_ns, self.text = topic, stamp_ns, text
 
 
 def _disk(path: Path) -> int:

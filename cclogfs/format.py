@@ -18,6 +18,9 @@ import xxhash
 
 FORMAT_VERSION = 1
 
+# Times are signed 64-bit nanoseconds (FORMAT.md).
+MIN_NS, MAX_NS = -(1 << 63), (1 << 63) - 1
+
 # -- checksums -----------------------------------------------------------------------------
 
 _crc32c_fn = crcmod.predefined.mkPredefinedCrcFun("crc-32c")

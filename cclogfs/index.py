@@ -26,7 +26,6 @@ from .format import (
 )
 
 ENTRY = np.dtype(INDEX_ENTRY_FIELDS)
-I64_MIN, I64_MAX = -(1 << 63), (1 << 63) - 1
 
 
 def overlap_slice(starts: np.ndarray, run_max_end: np.ndarray, t0: int, t1: int) -> slice:

@@ -99,6 +99,12 @@ class RecordStats:
     topics_kept: dict[str, int] = field(default_factory=dict)
     interrupted: bool = False
 
+    def saw(self, topic: str, text: str) -> None:
+        """Count one message that came in."""
+        self.messages_in += 1
+        self.json_bytes_in += len(text)
+        self.topics_in[topic] = self.topics_in.get(topic, 0) + 1
+
 
 def check_message(topic: str, stamp_ns: Any, text: Any) -> None:
     """InvalidInputError for a message the store would refuse, before any policy holds it
@@ -109,12 +115,13 @@ def check_message(topic: str, stamp_ns: Any, text: Any) -> None:
         raise InvalidInputError(f"message on {topic!r} at {stamp_ns} is not well-formed JSON: {why}")
 
 
-def store_window(store: Store, window: Any, stats: RecordStats, *, check_json: bool = True) -> None:
-    """Put one window (several records when its stamps go backwards)."""
+def store_window(store: Store, window: Any, stats: RecordStats) -> None:
+    """Put one window (several records when its stamps go backwards). Its messages were
+    checked when they came in (`check_message`), so the store does not parse them again."""
     runs = list(monotonic_runs(window.messages))
     for k, part in enumerate(runs):
         meta = window.meta if len(runs) == 1 else {**window.meta, "split": [k, len(runs)]}
-        store.put_window(window.topic, part, meta, check_json=check_json)
+        store.put_window(window.topic, part, meta, check_json=False)
         stats.records += 1
     stats.windows += 1
     n = len(window.messages)
@@ -139,15 +146,13 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
         for m in messages:
             if check:
                 check_message(m.topic, m.stamp_ns, m.text)
-            stats.messages_in += 1
-            stats.json_bytes_in += len(m.text)
-            stats.topics_in[m.topic] = stats.topics_in.get(m.topic, 0) + 1
+            stats.saw(m.topic, m.text)
             # A window taken from the policy must reach the store: with interrupt_handler
             # installed, Ctrl-C waits for the end of this section.
             INTERRUPTS.critical = True
             try:
                 for window in policy.push(m.topic, m.stamp_ns, m.text):
-                    store_window(store, window, stats, check_json=False)  # checked at the door
+                    store_window(store, window, stats)
             finally:
                 INTERRUPTS.critical = False
             if INTERRUPTS.pending:
@@ -160,7 +165,7 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
     finally:
         with _signals_deferred():  # a second Ctrl-C must not cut the flush short
             for window in policy.flush():
-                store_window(store, window, stats, check_json=False)
+                store_window(store, window, stats)
         stats.seconds = time.perf_counter() - started
     return stats
 
@@ -219,10 +224,9 @@ class Logger:
         with self._lock:
             if self.store is None:
                 raise StoreError("this Logger is closed")
-            self.stats.messages_in += 1
-            self.stats.json_bytes_in += len(text)
+            self.stats.saw(topic, text)
             for window in self.policy.push(topic, stamp_ns, text):
-                store_window(self.store, window, self.stats, check_json=False)
+                store_window(self.store, window, self.stats)
 
     def close(self) -> None:
         with self._lock:

@@ -34,6 +34,8 @@ from .format import (
     MANIFEST,
     MAX_CONFIG,
     MAX_META,
+    MAX_NS,
+    MIN_NS,
     MAX_RAW,
     SEGMENT_HEADER_SIZE,
     TMP_SUFFIX,
@@ -47,7 +49,7 @@ from .format import (
     unpack_manifest,
 )
 from .fs import FileSystem
-from .index import I64_MAX, I64_MIN, SegmentIndex, overlap_slice
+from .index import SegmentIndex, overlap_slice
 from .segment import Problem, Segment, intact_after, open_segment, scan
 from .validate import check_stream_name, encode_messages
 
@@ -550,9 +552,6 @@ class Store:
         starts, run_max, segs = found
         return segs[overlap_slice(starts, run_max, t0, t1)]
 
-    def stream_names(self) -> list[str]:
-        return sorted(self.streams())
-
     def streams(self) -> dict[str, dict[str, int]]:
         """Per stream: windows, messages, start_ns, end_ns, raw_bytes, stored_bytes, json_bytes."""
         with self._lock:
@@ -577,8 +576,8 @@ class Store:
               end_ns: int | None = None) -> Iterator[Window]:  # fmt: skip
         """Windows of stream `name` (all streams when None) overlapping [start_ns, end_ns],
         in (start_ns, seq) order. Includes this writer's puts not yet synced."""
-        t0 = I64_MIN if start_ns is None else int(start_ns)
-        t1 = I64_MAX if end_ns is None else int(end_ns)
+        t0 = MIN_NS if start_ns is None else int(start_ns)
+        t1 = MAX_NS if end_ns is None else int(end_ns)
         with self._lock:
             if self._closed:
                 raise StoreError(f"{self.path}: the store is closed")

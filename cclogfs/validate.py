@@ -7,10 +7,9 @@ import unicodedata
 from collections.abc import Sequence
 
 from .errors import InvalidInputError
-from .format import MAX_COUNT, MAX_NAME
+from .format import MAX_COUNT, MAX_NAME, MAX_NS, MIN_NS
 from .jsoncheck import json_error
 
-I64_MIN, I64_MAX = -(1 << 63), (1 << 63) - 1
 
 
 def check_stream_name(name: object) -> bytes:
@@ -43,7 +42,7 @@ def encode_messages(messages: Sequence[tuple[int, str]], *, check_json: bool = T
         raise InvalidInputError(f"a window holds at most {MAX_COUNT} messages, got {count}")
     stamps: list[int] = []
     texts: list[bytes] = []
-    prev = I64_MIN
+    prev = MIN_NS
     for i, item in enumerate(messages):
         try:
             stamp, text = item
@@ -55,7 +54,7 @@ def encode_messages(messages: Sequence[tuple[int, str]], *, check_json: bool = T
             stamp = operator.index(stamp)
         except TypeError as err:
             raise InvalidInputError(f"message {i}: stamp_ns must be an integer, got {type(stamp).__name__}") from err
-        if not I64_MIN <= stamp <= I64_MAX:
+        if not MIN_NS <= stamp <= MAX_NS:
             raise InvalidInputError(f"message {i}: stamp_ns {stamp} does not fit in 64 bits")
         if stamp < prev:
             raise InvalidInputError(f"message {i}: stamp_ns {stamp} is before the previous message's {prev}; "

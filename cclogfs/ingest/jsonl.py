@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import BinaryIO, Literal
 
 from ..errors import InvalidInputError, SourceError
+from ..format import MAX_NS, MIN_NS
 from ..jsoncheck import json_error
 from .base import SourceMessage, topic_filter
 
@@ -37,7 +38,7 @@ _WS = re.compile(r"[ \t\n\r]*")
 _DECODER = json.JSONDecoder()
 _REQUIRED = ("topic", "stamp_ns", "msg")
 _OPTIONAL = ("msgtype",)
-_MIN_STAMP, _MAX_STAMP = -(1 << 63), (1 << 63) - 1  # the store's int64 nanoseconds
+_MIN_STAMP, _MAX_STAMP = MIN_NS, MAX_NS  # the store's int64 nanoseconds
 
 
 # A log has few topics; json.dumps of the name was a tenth of the time to write a line.
