@@ -1,0 +1,243 @@
+"""Lower fidelity for old data: float values rounded within stated error bounds.
+
+A `Policy` says, per field, how far a value may move (an absolute bound), and optionally
+how many messages per second of each window to keep. `Policy.age(messages)` gives the new
+texts. Only number tokens with a fraction or exponent change, and only inside the JSON
+text: keys, strings, integers (stamps, counters), whitespace and every other byte stay as
+they were, so a message still parses to the same structure with the same types.
+
+A value is rounded to a grid step q from the 1-2-5 series with q <= 2 * bound, and written
+as a fixed-point decimal (`0.125`, `-3.500`, zero always as `0.000`). Exact decimal
+arithmetic keeps |new - old| <= q / 2 <= bound for the decimal values; read back as
+float64 the two can differ by one more rounding (a relative 1.1e-16). Fixed-point tokens
+are what the columnar codec stores as integers, which is where the space goes.
+
+Field paths are the object keys from the message root joined by dots; array levels do not
+add a part (every element of `pose.covariance` has the path `pose.covariance`). In a
+pattern `*` matches one part and `**` any number of parts (also none). When several rules
+match, the last one wins, so a general bound comes first and exceptions after it; a bound
+of 0 keeps the field exact.
+
+This module knows nothing of storage or of the classifier: `cclogfs.compact` wires it to
+the store.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from dataclasses import dataclass, field
+from decimal import ROUND_HALF_EVEN, Decimal, InvalidOperation, localcontext
+from fnmatch import fnmatchcase
+from typing import Any, Sequence
+
+from .errors import InvalidInputError
+
+__all__ = ["Policy", "Rule", "grid_step", "parse_rule"]
+
+NS = 1_000_000_000
+# Values this large are left alone: their fixed-point form would not fit the columnar
+# codec's 64-bit integers, and no robot field needs them rounded.
+MAX_ROUNDED = 1e15
+# Tokens: a JSON string (kept as is: it may hold digits) or a JSON number.
+_TOKEN = re.compile(r'("(?:[^"\\]|\\.)*"|-?(?:0|[1-9][0-9]*)(?:\.[0-9]+)?(?:[eE][-+]?[0-9]+)?)')
+# Whole structure: strings, numbers, punctuation, literals, with whitespace between.
+_LEX = re.compile(
+    r'\s*(?:("(?:[^"\\]|\\.)*")|(-?(?:0|[1-9][0-9]*)(?:\.[0-9]+)?(?:[eE][-+]?[0-9]+)?)'
+    r"|([{}\[\]:,])|(true|false|null|NaN|-?Infinity))"
+)
+_SHAPE_CACHE_MAX = 256
+# The finest grid: 18 decimals, the most a 64-bit fixed-point integer can carry.
+MIN_STEP = Decimal("1e-18")
+
+
+@dataclass(frozen=True)
+class Rule:
+    """Values whose path matches `pattern` may move by at most `bound` (0 keeps them)."""
+
+    pattern: str
+    bound: float
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.bound, (int, float)) and math.isfinite(self.bound) and self.bound >= 0):
+            raise InvalidInputError(f"Error bound for {self.pattern!r} must be a finite number >= 0, got {self.bound!r}.")
+        if not self.pattern or any(not p for p in self.pattern.split(".")):
+            raise InvalidInputError(f"Field pattern {self.pattern!r} has an empty part.")
+
+    def matches(self, path: tuple[str, ...]) -> bool:
+        return _match(tuple(self.pattern.split(".")), path)
+
+
+def _match(pattern: tuple[str, ...], path: tuple[str, ...]) -> bool:
+    if not pattern:
+        return not path
+    head, rest = pattern[0], pattern[1:]
+    if head == "**":
+        return any(_match(rest, path[i:]) for i in range(len(path) + 1))
+    return bool(path) and fnmatchcase(path[0], head) and _match(rest, path[1:])
+
+
+def parse_rule(text: str) -> Rule:
+    """`BOUND` (every field) or `PATTERN=BOUND`, e.g. `1e-3` or `pose.covariance=0.01`."""
+    pattern, sep, bound = text.rpartition("=")
+    if not sep:
+        pattern = "**"
+    try:
+        value = float(bound)
+    except ValueError:
+        raise InvalidInputError(
+            f"Error rule {text!r}: expected BOUND or PATTERN=BOUND with a number, e.g. "
+            "'1e-3' or 'pose.covariance=0.01'."
+        ) from None
+    return Rule(pattern.strip(), value)
+
+
+def grid_step(bound: float) -> Decimal | None:
+    """The largest step of the 1-2-5 series (1, 2, 5 x 10^k) not above 2 * bound; None
+    (keep the value exact) for 0 and for bounds finer than 1e-18 allows."""
+    if bound <= 0:
+        return None
+    target = Decimal(repr(2 * bound))
+    exp = target.adjusted()
+    step = next(Decimal(m).scaleb(exp) for m in (5, 2, 1) if Decimal(m).scaleb(exp) <= target)
+    return step if step >= MIN_STEP else None
+
+
+def _round_token(token: str, step: Decimal, places: Decimal) -> str:
+    """The fixed-point token nearest to `token` on the grid of `step`."""
+    try:
+        value = Decimal(token)
+    except InvalidOperation:  # pragma: no cover - the lexer only passes JSON numbers
+        return token
+    if not abs(value) < MAX_ROUNDED:
+        return token
+    rounded = ((value / step).to_integral_value(rounding=ROUND_HALF_EVEN) * step).quantize(places)
+    if rounded.is_zero():
+        rounded = abs(rounded)  # never "-0.000"
+    return format(rounded, "f")
+
+
+@dataclass
+class Policy:
+    """How old windows lose fidelity: rounding rules, and at most `max_rate_hz` messages
+    per second of each window (None keeps them all)."""
+
+    rules: Sequence[Rule] = ()
+    max_rate_hz: float | None = None
+    _shapes: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        self.rules = tuple(self.rules)
+        if self.max_rate_hz is not None and not (math.isfinite(self.max_rate_hz) and self.max_rate_hz > 0):
+            raise InvalidInputError(f"max rate must be a number > 0 (Hz), got {self.max_rate_hz!r}.")
+        if not self.rules and self.max_rate_hz is None:
+            raise InvalidInputError("An aging policy needs an error bound or a max rate.")
+
+    def describe(self) -> dict[str, Any]:
+        """The policy as JSON-able data, as stored in an aged window's metadata."""
+        return {"rules": [[r.pattern, r.bound] for r in self.rules], "max_rate_hz": self.max_rate_hz}
+
+    def bound_for(self, path: Sequence[str]) -> float:
+        """The bound that applies to a field path (0 when no rule matches)."""
+        bound = 0.0
+        for rule in self.rules:
+            if rule.matches(tuple(path)):
+                bound = rule.bound
+        return bound
+
+    # -- texts ---------------------------------------------------------------------------
+
+    def age(self, messages: Sequence[tuple[int, str]]) -> list[tuple[int, str]]:
+        """The window's messages at this policy's fidelity: thinned to the max rate (the
+        first and last message always stay, so the window keeps its time span), then
+        rounded."""
+        kept = self.thin(messages)
+        if not self.rules:
+            return list(kept)
+        return [(stamp, self.round_text(text)) for stamp, text in kept]
+
+    def thin(self, messages: Sequence[tuple[int, str]]) -> list[tuple[int, str]]:
+        if self.max_rate_hz is None or len(messages) <= 2:
+            return list(messages)
+        gap = NS / self.max_rate_hz
+        out = [messages[0]]
+        for item in messages[1:-1]:
+            if item[0] - out[-1][0] >= gap:
+                out.append(item)
+        out.append(messages[-1])
+        return out
+
+    def round_text(self, text: str) -> str:
+        """`text` with every number token that a rule covers rounded to its grid."""
+        parts = _TOKEN.split(text)  # odd items are tokens: strings and numbers
+        numbers = [i for i in range(1, len(parts), 2) if parts[i][0] != '"']
+        if not numbers:
+            return text
+        # Messages of one topic share their shape: the text with its numbers blanked out
+        # is the key to the per-number decisions, so each shape is parsed only once.
+        blank = parts.copy()
+        for i in numbers:
+            blank[i] = "#"
+        shape = "".join(blank)
+        slots = self._shapes.get(shape)
+        if slots is None:
+            slots = self._slots(text)
+            if len(self._shapes) >= _SHAPE_CACHE_MAX:
+                self._shapes.clear()
+            self._shapes[shape] = slots
+        if len(slots) != len(numbers):  # pragma: no cover - both scans share one grammar
+            raise InvalidInputError("Cannot age a message whose numbers do not match its shape.")
+        changed = False
+        with localcontext() as ctx:
+            ctx.prec = 60  # |value| < 1e15 over a step >= 1e-18 needs 33 digits
+            for i, grid in zip(numbers, slots):
+                token = parts[i]
+                if grid is not None and ("." in token or "e" in token or "E" in token):
+                    parts[i] = _round_token(token, *grid)
+                    changed = True
+        return "".join(parts) if changed else text
+
+    def _slots(self, text: str) -> list[tuple[Decimal, Decimal] | None]:
+        """Per number token in order: (step, places) of its grid, or None to keep it."""
+        out: list[tuple[Decimal, Decimal] | None] = []
+        # Stack of containers: for an object, the key being read; for an array, None.
+        stack: list[list] = []
+        path: list[str] = []
+        pos, n = 0, len(text)
+        expect_key = False
+        while pos < n:
+            m = _LEX.match(text, pos)
+            if m is None:
+                if text[pos:].strip() == "":
+                    break
+                raise InvalidInputError(f"Cannot age a message that is not JSON (character {pos}).")
+            pos = m.end()
+            string, number, punct, literal = m.groups()
+            if punct == "{":
+                stack.append(["obj", None])
+                expect_key = True
+            elif punct == "[":
+                stack.append(["arr", None])
+            elif punct in ("}", "]"):
+                kind, key = stack.pop()
+                if stack and stack[-1][0] == "obj":
+                    path.pop()
+            elif punct == ":":
+                expect_key = False
+            elif punct == ",":
+                expect_key = bool(stack) and stack[-1][0] == "obj"
+            elif string is not None:
+                if expect_key:
+                    path.append(json.loads(string))
+                    continue
+                if stack and stack[-1][0] == "obj":
+                    path.pop()
+            else:
+                if number is not None:
+                    bound = self.bound_for(path)
+                    step = grid_step(bound)
+                    out.append(None if step is None else (step, Decimal(1).scaleb(min(step.as_tuple().exponent, -1))))
+                if stack and stack[-1][0] == "obj":
+                    path.pop()
+        return out
