@@ -28,7 +28,7 @@ import json
 import math
 import re
 from dataclasses import dataclass, field
-from decimal import ROUND_HALF_EVEN, Decimal, InvalidOperation, localcontext
+from decimal import ROUND_HALF_EVEN, Decimal, localcontext
 from fnmatch import fnmatchcase
 from typing import Any, Sequence
 
@@ -104,18 +104,47 @@ def grid_step(bound: float) -> Decimal | None:
     return step if step >= MIN_STEP else None
 
 
-def _round_token(token: str, step: Decimal, places: Decimal) -> str:
-    """The fixed-point token nearest to `token` on the grid of `step`."""
-    try:
-        value = Decimal(token)
-    except InvalidOperation:  # pragma: no cover - the lexer only passes JSON numbers
-        return token
-    if not abs(value) < MAX_ROUNDED:
-        return token
-    rounded = ((value / step).to_integral_value(rounding=ROUND_HALF_EVEN) * step).quantize(places)
-    if rounded.is_zero():
-        rounded = abs(rounded)  # never "-0.000"
-    return format(rounded, "f")
+class Grid:
+    """Rounding to multiples of one step, written with a fixed number of decimals."""
+
+    def __init__(self, step: Decimal):
+        self.step = step
+        exp = step.as_tuple().exponent
+        mantissa = int(step.scaleb(-exp))  # 1, 2 or 5
+        self.places = max(1, -exp)
+        # value = m * step = (m * unit) / 10^places, with unit an integer
+        self.unit = mantissa * 10 ** (exp + self.places)
+        self.step_f = float(step)
+        self._cache: dict[str, str] = {}
+
+    def round(self, token: str) -> str:
+        """The fixed-point token nearest to `token` on this grid (`token` if too large)."""
+        out = self._cache.get(token)
+        if out is None:
+            out = self._round(token)
+            if len(self._cache) >= 4096:
+                self._cache.clear()
+            self._cache[token] = out
+        return out
+
+    def _round(self, token: str) -> str:
+        value = float(token)
+        if not abs(value) < MAX_ROUNDED:
+            return token
+        x = value / self.step_f
+        # float arithmetic picks the nearest grid point unless x is within float error
+        # (a few ulps of x, with a wide margin) of a tie; those, and values too large
+        # for it, go through exact decimal arithmetic.
+        if abs(x) < 2**52 and abs(x - math.floor(x) - 0.5) > 1e-9 + abs(x) * 1e-14:
+            m = round(x)
+        else:
+            with localcontext() as ctx:
+                ctx.prec = 60  # |value| < 1e15 over a step >= 1e-18 needs 33 digits
+                m = int((Decimal(token) / self.step).to_integral_value(rounding=ROUND_HALF_EVEN))
+        n = m * self.unit
+        digits = str(abs(n)).rjust(self.places + 1, "0")
+        sign = "-" if n < 0 else ""  # zero is never written "-0.000"
+        return f"{sign}{digits[: -self.places]}.{digits[-self.places :]}"
 
 
 @dataclass
@@ -126,6 +155,7 @@ class Policy:
     rules: Sequence[Rule] = ()
     max_rate_hz: float | None = None
     _shapes: dict = field(default_factory=dict, repr=False, compare=False)
+    _grids: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.rules = tuple(self.rules)
@@ -137,6 +167,13 @@ class Policy:
     def describe(self) -> dict[str, Any]:
         """The policy as JSON-able data, as stored in an aged window's metadata."""
         return {"rules": [[r.pattern, r.bound] for r in self.rules], "max_rate_hz": self.max_rate_hz}
+
+    def _grid(self, bound: float) -> Grid | None:
+        """One Grid per bound, so their token caches are shared across shapes."""
+        if bound not in self._grids:
+            step = grid_step(bound)
+            self._grids[bound] = None if step is None else Grid(step)
+        return self._grids[bound]
 
     def bound_for(self, path: Sequence[str]) -> float:
         """The bound that applies to a field path (0 when no rule matches)."""
@@ -189,17 +226,15 @@ class Policy:
         if len(slots) != len(numbers):  # pragma: no cover - both scans share one grammar
             raise InvalidInputError("Cannot age a message whose numbers do not match its shape.")
         changed = False
-        with localcontext() as ctx:
-            ctx.prec = 60  # |value| < 1e15 over a step >= 1e-18 needs 33 digits
-            for i, grid in zip(numbers, slots):
-                token = parts[i]
-                if grid is not None and ("." in token or "e" in token or "E" in token):
-                    parts[i] = _round_token(token, *grid)
-                    changed = True
+        for i, grid in zip(numbers, slots):
+            token = parts[i]
+            if grid is not None and ("." in token or "e" in token or "E" in token):
+                parts[i] = grid.round(token)
+                changed = True
         return "".join(parts) if changed else text
 
     def _slots(self, text: str) -> list[tuple[Decimal, Decimal] | None]:
-        """Per number token in order: (step, places) of its grid, or None to keep it."""
+        """Per number token in order: the Grid its rule gives, or None to keep it."""
         out: list[tuple[Decimal, Decimal] | None] = []
         # Stack of containers: for an object, the key being read; for an array, None.
         stack: list[list] = []
@@ -235,9 +270,7 @@ class Policy:
                     path.pop()
             else:
                 if number is not None:
-                    bound = self.bound_for(path)
-                    step = grid_step(bound)
-                    out.append(None if step is None else (step, Decimal(1).scaleb(min(step.as_tuple().exponent, -1))))
+                    out.append(self._grid(self.bound_for(path)))
                 if stack and stack[-1][0] == "obj":
                     path.pop()
         return out

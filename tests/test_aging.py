@@ -5,13 +5,14 @@ from __future__ import annotations
 import json
 import math
 import re
+from decimal import ROUND_HALF_EVEN, Decimal
 from fnmatch import fnmatchcase
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cclogfs.aging import Policy, Rule, grid_step, parse_rule
+from cclogfs.aging import Grid, Policy, Rule, grid_step, parse_rule
 from cclogfs.errors import InvalidInputError
 
 TOKEN = re.compile(r'"(?:[^"\\]|\\.)*"|-?[0-9][-+.eE0-9]*')
@@ -113,6 +114,19 @@ def test_grid_steps_follow_the_1_2_5_series():
         "0.002", "0.001", "0.02", "0.5", "2", "0.0001",
     ]  # fmt: skip
     assert grid_step(0.0) is None and grid_step(1e-20) is None
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(-(10**14), 10**14), st.sampled_from([1e-3, 0.05, 0.3, 7.0, 1e-9]), st.integers(-3, 3))
+def test_ties_and_near_ties_round_half_even_exactly(k, bound, nudge):
+    """Tokens on and next to a midpoint between grid points agree with exact decimals."""
+    step = grid_step(bound)
+    tie = (Decimal(k) + Decimal("0.5")) * step + Decimal(nudge).scaleb(-20)
+    token = format(tie, "f")
+    if not abs(float(token)) < 1e15:
+        return
+    exact = (Decimal(token) / step).to_integral_value(rounding=ROUND_HALF_EVEN) * step
+    assert Decimal(Grid(step).round(token)) == exact
 
 
 def test_thinning_keeps_first_and_last_and_the_rate():
