@@ -42,3 +42,21 @@ def parse_time(text: str) -> int:
         f"Time {text!r} is not understood; give nanoseconds (1432235695834049087), seconds "
         "(1432235695.83 or 12s) or ISO-8601 (2015-05-21T19:14:55.83Z)."
     )
+
+
+_DURATION = re.compile(r"(\d+(?:\.\d*)?|\.\d+)\s*(ns|us|ms|s|min|h|d|w)?")
+_UNIT_NS = {"ns": 1, "us": 1_000, "ms": 1_000_000, "s": 1_000_000_000, None: 1_000_000_000,
+            "min": 60_000_000_000, "h": 3_600_000_000_000,
+            "d": 86_400_000_000_000, "w": 604_800_000_000_000}  # fmt: skip
+
+
+def parse_duration(text: str) -> int:
+    """Nanoseconds for a duration such as "90s", "15min", "12h", "30d", "2w" (no unit:
+    seconds)."""
+    m = _DURATION.fullmatch(text.strip())
+    if m is None:
+        raise InvalidInputError(
+            f"Duration {text!r} is not understood; give a number with a unit: ns, us, ms, s, "
+            "min, h, d or w (e.g. 30d)."
+        )
+    return int(Decimal(m.group(1)) * _UNIT_NS[m.group(2)])

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from cclogfs.errors import InvalidInputError
-from cclogfs.times import parse_time
+from cclogfs.times import parse_duration, parse_time
 
 T = 1432235695834049087
 
@@ -36,3 +36,18 @@ def test_forms(text, ns):
 def test_rejected_with_explanation(text):
     with pytest.raises(InvalidInputError, match=r"Time .* (not understood|not a valid ISO-8601)"):
         parse_time(text)
+
+
+@pytest.mark.parametrize(
+    "text, ns",
+    [("90s", 90 * 10**9), ("90", 90 * 10**9), ("1.5h", 5400 * 10**9), ("15min", 900 * 10**9),
+     ("30d", 30 * 86400 * 10**9), ("2w", 14 * 86400 * 10**9), ("250ms", 250 * 10**6), ("7ns", 7)],
+)  # fmt: skip
+def test_durations(text, ns):
+    assert parse_duration(text) == ns
+
+
+@pytest.mark.parametrize("text", ["", "abc", "-5s", "5m", "5 years", "1e3s"])
+def test_bad_durations_are_refused(text):
+    with pytest.raises(InvalidInputError, match=r"Duration .* not understood"):
+        parse_duration(text)
