@@ -7,7 +7,7 @@ from enum import IntEnum
 
 # Payload versions this code decodes; the encoder writes the one its config names.
 FORMAT_VERSIONS = (1, 2, 3, 4)
-LATEST_VERSION = 3
+LATEST_VERSION = 4
 
 HEADER = struct.Struct("<BII")  # format version, body length (before zstd), xxh32 of the frame
 GROUP_HEADER = struct.Struct("<II")  # messages in the group, value slots per message
