@@ -18,7 +18,7 @@ PACKED_HEADER = struct.Struct("<qQB")
 OFFSET_HEADER = struct.Struct("<qQqB")
 # Delta orders a FLOAT_DELTA column may name (version 3).
 FLOAT_ORDERS = (1, 2, 3)
-# Digits after the point a DECIMAL column may name (version 4): 10^18 still fits in an i64.
+# Digits after the point a DECIMAL column may name (version 4): with 19, no i64 reaches 1.
 DECIMAL_DIGITS = range(1, 19)
 # Delta orders a DECIMAL column may name (version 4): offset(n) itself takes the first.
 DECIMAL_ORDERS = (1, 2, 3)

@@ -40,8 +40,10 @@ __all__ = [
     "float_deltas",
     "quaternion_prediction",
     "read_column",
+    "read_decimal",
     "slot_floats",
     "write_column",
+    "write_decimal",
 ]
 
 _I64_MIN, _I64_MAX = -(1 << 63), (1 << 63) - 1
