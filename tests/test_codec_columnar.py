@@ -269,7 +269,7 @@ def test_empty_window():
 def test_config_round_trips_through_registry():
     codec = codec_from_config({"id": "columnar", "version": 1, "level": 9})
     assert codec.get_config() == {"id": "columnar", "version": 1, "level": 9}
-    assert codec_from_config("columnar").get_config()["version"] == LATEST_VERSION == 3
+    assert codec_from_config("columnar").get_config()["version"] == LATEST_VERSION == 4
     with pytest.raises(CodecError, match="version 99 is unknown"):
         codec_from_config({"id": "columnar", "version": 99})
 

@@ -111,7 +111,7 @@ def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]], versio
     kinds, values = [], []
     floats: list[np.ndarray | str | None] = []  # what slot_floats takes, per slot
     for tokens in zip(*rows):
-        kind, vals = classify(tokens)
+        kind, vals = classify(tokens, decimal=version >= 4)
         fl = vals if kind in (ColumnKind.FLOAT, ColumnKind.CONST) else None
         if kind is ColumnKind.FLOAT and len(floats) >= 3 and _maybe_unit(floats[-3:], vals):
             xyz = [slot_floats(f, n) for f in floats[-3:]]

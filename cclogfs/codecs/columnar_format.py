@@ -6,8 +6,8 @@ import struct
 from enum import IntEnum
 
 # Payload versions this code decodes; the encoder writes the one its config names.
-FORMAT_VERSIONS = (1, 2, 3)
-LATEST_VERSION = 3
+FORMAT_VERSIONS = (1, 2, 3, 4)
+LATEST_VERSION = 4
 
 HEADER = struct.Struct("<BII")  # format version, body length (before zstd), xxh32 of the frame
 GROUP_HEADER = struct.Struct("<II")  # messages in the group, value slots per message
@@ -18,6 +18,10 @@ PACKED_HEADER = struct.Struct("<qQB")
 OFFSET_HEADER = struct.Struct("<qQqB")
 # Delta orders a FLOAT_DELTA column may name (version 3).
 FLOAT_ORDERS = (1, 2, 3)
+# Digits after the point a DECIMAL column may name (version 4): with 19, no i64 reaches 1.
+DECIMAL_DIGITS = range(1, 19)
+# Delta orders a DECIMAL column may name (version 4): offset(n) itself takes the first.
+DECIMAL_ORDERS = (1, 2, 3)
 
 # Group id of messages stored as plain text (no shape, or the shape did not reproduce them).
 RAW_GROUP = 0xFFFF
@@ -45,6 +49,7 @@ class ColumnKind(IntEnum):
     INT_PACKED = 8  # version 2: i64 as packed integers (first, step, narrow zigzag deltas)
     FLOAT_DELTA = 9  # version 3: u8 delta order, then f64 bits as in FLOAT with that order
     INT_OFFSET = 10  # version 3: i64 as offset-packed integers (first, step, base, narrow deltas)
+    DECIMAL = 11  # version 4: u8 digits, u8 delta order, offset-packed i64 (token without its point)
 
 
 # The kinds each format version may hold; the decoder refuses any other.
@@ -52,4 +57,5 @@ VERSION_KINDS = {
     1: frozenset(range(1, 8)),
     2: frozenset(range(1, 9)),
     3: frozenset(range(1, 11)) - {ColumnKind.INT_PACKED, ColumnKind.FLOAT},
+    4: frozenset(range(1, 12)) - {ColumnKind.INT_PACKED, ColumnKind.FLOAT},
 }

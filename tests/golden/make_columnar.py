@@ -6,6 +6,9 @@ Each case folder holds inputs.jsonl (stamp_ns, base64 text) and config.json. Onl
 without an encoded.bin are written: a payload, once committed, pins its format version.
 To add a version, copy the input folders to v<N>-<name> with "version": N in config.json
 and run this once. Never re-run it with --overwrite to make a failing golden test pass.
+Inputs of v4-aged-odom are those of v3-odom with every float rounded to 3 places
+(bench/codec_columnar.py's age_text); v4-decimal-kinds was written by hand to hold
+DECIMAL columns of several digit counts beside columns that must fall back.
 """
 
 import argparse
