@@ -87,13 +87,14 @@ class _Plan:
     info: dict[str, Any]
 
 
-def _records(store: Store, seg: Segment, info: dict[str, Any]) -> Iterator[tuple[int, RecordHeader, bytes, str | None]]:
+def _records(seg: Segment, end_seq: int) -> Iterator[tuple[int, RecordHeader, bytes, str | None]]:
     """(offset, header, record bytes, skip reason) of every record of a sealed segment, in
     log order, each fully checked: compaction never copies damage into a new generation."""
     if seg.size != seg.sealed_size:
-        raise CorruptionError(f"{seg.path} is {seg.size} bytes but the manifest says it was sealed at "
-                              f"{seg.sealed_size}; it cannot be rewritten (run `cclog fsck`)",
-                              path=seg.path, offset=min(seg.size, seg.sealed_size), reason=Reason.BAD_LENGTH)  # fmt: skip
+        raise CorruptionError(f"{seg.path} is {seg.size} bytes but the manifest says it was sealed "
+                              f"at {seg.sealed_size}; it cannot be rewritten (run `cclog fsck`)",
+                              path=seg.path, offset=min(seg.size, seg.sealed_size),
+                              reason=Reason.BAD_LENGTH)  # fmt: skip
     pos, seq = SEGMENT_HEADER_SIZE, seg.first_seq
     while pos < seg.size:
         try:
@@ -111,8 +112,8 @@ def _records(store: Store, seg: Segment, info: dict[str, Any]) -> Iterator[tuple
         yield pos, header, data, skip
         pos += header.record_len
         seq += 1
-    if seq != info["end_seq"]:
-        raise CorruptionError(f"{seg.path} ends at seq {seq}, the manifest says {info['end_seq']}",
+    if seq != end_seq:
+        raise CorruptionError(f"{seg.path} ends at seq {seq}, the manifest says {end_seq}",
                               path=seg.path, offset=pos, reason=Reason.SEQ_GAP)  # fmt: skip
 
 
@@ -125,30 +126,33 @@ def _replacement_record(store: Store, seg: Segment, header: RecordHeader, rep: o
     if not isinstance(rep.flags, int) or rep.flags & ~KNOWN_FLAGS:
         raise InvalidInputError(f"{where}: flags {rep.flags!r} hold bits this format does not define")
     if rep.flags & RecordFlag.AGED and not (isinstance(rep.meta, Mapping) and AGED_META_KEY in rep.meta):
-        raise InvalidInputError(f"{where}: the AGED flag needs meta[{AGED_META_KEY!r}] saying how the texts "
-                                "differ from what was put")  # fmt: skip
+        raise InvalidInputError(f"{where}: the AGED flag needs meta[{AGED_META_KEY!r}] saying how "
+                                "the texts differ from what was put")  # fmt: skip
     try:
         enc = store._encode_window(header.name, rep.messages, rep.meta, rep.codec, True)
     except InvalidInputError as err:
         raise InvalidInputError(f"{where}: {err}") from err
     first, last = enc.stamps[0], enc.stamps[-1]
     if first < header.start_ns or last > header.end_ns:
-        raise InvalidInputError(f"{where}: its messages span {first}..{last} ns, outside the record's "
-                                f"{header.start_ns}..{header.end_ns}; a rewrite may not move a window in time")  # fmt: skip
+        raise InvalidInputError(f"{where}: its messages span {first}..{last} ns, outside the "
+                                f"record's {header.start_ns}..{header.end_ns}; a rewrite may not "
+                                "move a window in time")  # fmt: skip
     return enc.pack(header.seq, rep.flags)
 
 
-def _plan(store: Store, position: int, seg: Segment, info: dict[str, Any], fn: Callable, report: RewriteReport) -> _Plan | None:
-    """Call `fn` on every record and write the new generation if anything changed."""
-    from .store import Window
+def _plan(store: Store, position: int, fn: Callable, report: RewriteReport) -> _Plan | None:
+    """Call `fn` on every record of a sealed segment; when it replaced any, write the new
+    generation (segment, then index, each durable) and say what the manifest must name."""
+    from .store import Window  # here: store imports this module
 
+    seg, info = store.sealed[position], store.manifest["segments"][position]
     buf = bytearray(pack_segment_header(seg.first_seq, seg.created_ns))
     rows, aged, replaced, kept = [], {}, 0, 0
-    for offset, header, data, skip in _records(store, seg, info):
+    for offset, header, data, skip in _records(seg, info["end_seq"]):
         rep = None
         if skip is None:
-            window = Window(header.name, header.seq, header.start_ns, header.end_ns, header.count, seg,
-                            offset, header.record_len)  # fmt: skip
+            window = Window(header.name, header.seq, header.start_ns, header.end_ns,
+                            header.count, seg, offset, header.record_len)  # fmt: skip
             window._record = (header, data[header.header_len :])  # already read and checked
             rep = fn(window)
         if rep is None:
@@ -156,7 +160,8 @@ def _plan(store: Store, position: int, seg: Segment, info: dict[str, Any], fn: C
             new_header = header
         else:
             record, replaced = _replacement_record(store, seg, header, rep), replaced + 1
-            new_header = parse_header(record[: check_fixed(record[:RECORD_FIXED_SIZE], len(record))])
+            header_len = check_fixed(record[:RECORD_FIXED_SIZE], len(record))
+            new_header = parse_header(record[:header_len])
         if skip is None:
             rows.append((new_header.name, new_header.count, new_header.seq, new_header.start_ns,
                          new_header.end_ns, len(buf), len(record), new_header.raw_len))  # fmt: skip
@@ -184,7 +189,8 @@ def _plan(store: Store, position: int, seg: Segment, info: dict[str, Any], fn: C
     finally:
         fs.close(fd)
     fs.fsync_dir(store.path)
-    fs.write_file_atomic(store._file(index_name(seg.first_seq, gen)), index.encode(seg.first_seq, len(buf)))
+    index_path = store._file(index_name(seg.first_seq, gen))
+    fs.write_file_atomic(index_path, index.encode(seg.first_seq, len(buf)))
     report.replaced += replaced
     report.kept += kept
     return _Plan(position, seg, gen, len(buf), index, new_info)
@@ -213,7 +219,17 @@ def _commit_manifest(store: Store, manifest: dict[str, Any]) -> None:
     store._sealed_by_stream = None
 
 
-def rewrite(store: Store, fn: Callable[[Window], Replacement | None], segments: Iterable[int] | None) -> RewriteReport:
+def _generation_files(plans: list[_Plan], old: bool) -> list[str]:
+    """Segment and index file names of the plans' old (or new) generations."""
+    names = []
+    for p in plans:
+        gen = p.old.gen if old else p.gen
+        names += [segment_name(p.old.first_seq, gen), index_name(p.old.first_seq, gen)]
+    return names
+
+
+def rewrite(store: Store, fn: Callable[[Window], Replacement | None],
+            segments: Iterable[int] | None) -> RewriteReport:  # fmt: skip
     """See `Store.rewrite`."""
     with store._lock:
         store._check_writable()
@@ -224,14 +240,15 @@ def rewrite(store: Store, fn: Callable[[Window], Replacement | None], segments: 
             wanted = sorted(set(segments))
             unknown = [s for s in wanted if s not in by_first]
             if unknown:
-                raise InvalidInputError(f"{store.path}: no sealed segment starts at seq {unknown[0]} "
-                                        f"(sealed segments start at {sorted(by_first)[:10]}...)")  # fmt: skip
+                raise InvalidInputError(f"{store.path}: no sealed segment starts at seq "
+                                        f"{unknown[0]}; sealed segments start at "
+                                        f"{sorted(by_first)[:10]}")  # fmt: skip
             chosen = [by_first[s] for s in wanted]
         report = RewriteReport()
         plans: list[_Plan] = []
         try:
             for i in chosen:
-                plan = _plan(store, i, store.sealed[i], infos[i], fn, report)
+                plan = _plan(store, i, fn, report)
                 if plan is not None:
                     plans.append(plan)
             if not plans:
@@ -239,15 +256,16 @@ def rewrite(store: Store, fn: Callable[[Window], Replacement | None], segments: 
             segs = list(infos)
             for plan in plans:
                 segs[plan.position] = plan.info
-            _commit_manifest(store, dict(store.manifest, format_version=COMPACTED_FORMAT_VERSION, segments=segs))
+            manifest = dict(store.manifest, format_version=COMPACTED_FORMAT_VERSION, segments=segs)
+            _commit_manifest(store, manifest)
         except OSError as err:
             store._failed = err
-            raise StoreFailedError(f"{store.path}: rewriting failed: {err}; the store refuses further writes "
-                                   "(reopen it: the manifest names either the old or the new segments)") from err  # fmt: skip
+            raise StoreFailedError(f"{store.path}: rewriting failed: {err}; the store refuses further "
+                                   "writes (reopen it: the manifest names either the old or the new "
+                                   "segments)") from err  # fmt: skip
         except BaseException:
             # Refused (or interrupted) before the commit: remove the unnamed new generations.
-            _remove(store, [n for p in plans for n in (segment_name(p.old.first_seq, p.gen),
-                                                          index_name(p.old.first_seq, p.gen))])  # fmt: skip
+            _remove(store, _generation_files(plans, old=False))
             raise
         try:
             for plan in plans:
@@ -257,20 +275,20 @@ def rewrite(store: Store, fn: Callable[[Window], Replacement | None], segments: 
                 report.bytes_after += _file_bytes(store, old, plan.gen)
                 merge_stream_stats(report.before, infos[plan.position]["streams"])
                 merge_stream_stats(report.after, plan.info["streams"])
-                new, _ok = open_segment(store.fs, store._file(segment_name(old.first_seq, plan.gen)), write=False,
-                                        lock=store._lock)  # fmt: skip
-                new.first_seq, new.next_seq, new.sealed_size, new.gen = old.first_seq, old.next_seq, plan.size, plan.gen
-                new._index = plan.index
+                path = store._file(segment_name(old.first_seq, plan.gen))
+                new, _ok = open_segment(store.fs, path, write=False, lock=store._lock)
+                new.first_seq, new.next_seq, new.gen = old.first_seq, old.next_seq, plan.gen
+                new.sealed_size, new._index = plan.size, plan.index
                 store.sealed[plan.position] = new
                 store.fs.close(old.fd)
                 old.fd = -1
             # Past the commit point: a crash now leaves only leftovers, removed on open.
-            _remove(store, [n for p in plans for n in (segment_name(p.old.first_seq, p.old.gen),
-                                                          index_name(p.old.first_seq, p.old.gen))])  # fmt: skip
+            _remove(store, _generation_files(plans, old=True))
         except OSError as err:
             store._failed = err
-            raise StoreFailedError(f"{store.path}: cleaning up after a rewrite failed: {err}; the rewrite is "
-                                   "committed, reopen the store to finish") from err  # fmt: skip
+            raise StoreFailedError(f"{store.path}: cleaning up after a rewrite failed: {err}; the "
+                                   "rewrite is committed, reopen the store to finish"
+                                   ) from err  # fmt: skip
         return report
 
 
@@ -285,8 +303,9 @@ def drop_oldest(store: Store) -> Dropped | None:
         streams = {k: dict(v) for k, v in before["streams"].items()}
         merge_stream_stats(streams, info["streams"])
         dropped = {"segments": before["segments"] + 1, "streams": streams}
-        manifest = dict(store.manifest, format_version=COMPACTED_FORMAT_VERSION, first_seq=info["end_seq"],
-                        segments=store.manifest["segments"][1:], dropped=dropped)  # fmt: skip
+        manifest = dict(store.manifest, format_version=COMPACTED_FORMAT_VERSION,
+                        first_seq=info["end_seq"], segments=store.manifest["segments"][1:],
+                        dropped=dropped)  # fmt: skip
         freed = _file_bytes(store, seg, seg.gen)
         try:
             _commit_manifest(store, manifest)
@@ -297,6 +316,7 @@ def drop_oldest(store: Store) -> Dropped | None:
             _remove(store, [segment_name(seg.first_seq, seg.gen), index_name(seg.first_seq, seg.gen)])
         except OSError as err:
             store._failed = err
-            raise StoreFailedError(f"{store.path}: dropping segment {os.path.basename(seg.path)} failed: {err}; "
-                                   "the store refuses further writes (reopen it)") from err  # fmt: skip
+            raise StoreFailedError(f"{store.path}: dropping segment {os.path.basename(seg.path)} "
+                                   f"failed: {err}; the store refuses further writes (reopen "
+                                   "it)") from err  # fmt: skip
         return Dropped(info["first_seq"], info["end_seq"], info["streams"], freed)

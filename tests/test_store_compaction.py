@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 
 import cclogfs
-from cclogfs.errors import CorruptionError, InvalidInputError, StoreError
+from cclogfs.errors import CorruptionError, InvalidInputError, StoreError, StoreFailedError
 from cclogfs.format import MANIFEST, RecordFlag, pack_manifest, unpack_manifest
-from cclogfs.fs import FileSystem
+from cclogfs.fs import FileSystem, RecordingFileSystem
 from cclogfs.fsck import check_store
 from cclogfs.store import Replacement
 from _rewrite import leftovers, state
@@ -147,9 +147,8 @@ def test_drop_oldest_moves_the_start_of_the_log(tmp_path):
         while store.drop_oldest():
             pass
         assert store.first_seq == 10 and state(store) == [] and store.streams() == {}
-        assert store.dropped()["streams"]["/odom"] == {"windows": 5, "messages": 25, "start_ns": 100, "end_ns": 904,
-                                                       "raw_bytes": store.dropped()["streams"]["/odom"]["raw_bytes"],
-                                                       "stored_bytes": store.dropped()["streams"]["/odom"]["stored_bytes"]}  # fmt: skip
+        odom = store.dropped()["streams"]["/odom"]
+        assert (odom["windows"], odom["messages"], odom["start_ns"], odom["end_ns"]) == (5, 25, 100, 904)
         assert store.put_window("/a", [(5, "1")]).seq == 10  # sequence numbers are never reused
         store.seal()
         assert store.drop_oldest().first_seq == 10
@@ -205,6 +204,21 @@ def test_leftovers_are_warnings_for_fsck_and_removed_by_the_writer(tmp_path):
         assert sorted(store.recovery.removed_files) == sorted(reader.recovery.leftovers)
         assert leftovers(s, store.manifest) == []
     assert not check_store(str(s)).findings
+
+
+def test_a_failed_fsync_while_rewriting_fails_the_store_and_reopening_finds_the_old_state(tmp_path):
+    fs = RecordingFileSystem()
+    with make(tmp_path / "s", fs=fs) as store:
+        old = state(store)
+        fs.fail_fsync = True
+        with pytest.raises(StoreFailedError, match="rewriting failed"):
+            store.rewrite(aged)
+        with pytest.raises(StoreFailedError):
+            store.drop_oldest()
+        fs.fail_fsync = False
+    with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
+        assert state(store) == old and store.recovery.leftovers == ["00000000000000000000-1.seg"]
+        assert store.manifest["format_version"] == 1
 
 
 def test_compaction_needs_the_writer(tmp_path):
