@@ -527,10 +527,11 @@ class Store:
         them; False when it is empty. Same ordering as automatic sealing (FORMAT.md)."""
         with self._lock:
             self._check_writable()
-            self._commit()
+            sealed = len(self.sealed)
+            self._commit()  # which seals by itself when a limit is reached
             seg = self.active
             if seg.next_seq == seg.first_seq:
-                return False
+                return len(self.sealed) > sealed
             try:
                 self._seal(seg)
                 self.active = self._new_segment(seg.next_seq)

@@ -320,3 +320,21 @@ def test_a_record_of_unknown_flags_is_copied_by_a_rewrite(tmp_path):
     report = check_store(str(tmp_path / "s"))
     assert not report.errors and report.records == 2
     assert [f.what for f in report.findings] == ["unknown record flags, skipped"]
+
+
+@pytest.mark.parametrize("damage", ["flip", "grow"])
+def test_a_damaged_segment_is_refused_not_copied(tmp_path, damage):
+    make(tmp_path / "s").close()
+    seg = tmp_path / "s" / "00000000000000000003.seg"
+    data = bytearray(seg.read_bytes())
+    if damage == "flip":
+        data[-5] ^= 0x40  # in the last record's payload
+    else:
+        data += b"\0" * 10
+    seg.write_bytes(bytes(data))
+    with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
+        before = files(tmp_path / "s")
+        with pytest.raises(CorruptionError, match="00000000000000000003.seg.*cannot be rewritten"):
+            store.rewrite(aged)
+        assert files(tmp_path / "s") == before
+        store.rewrite(aged, segments=[0, 6])  # the intact segments still can be
