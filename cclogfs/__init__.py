@@ -21,7 +21,7 @@ __version__ = "0.1.0"
 
 # The store is imported on first use, so `import cclogfs.classifier` does not load the
 # storage engine (the classifier must stay independent of it, and tests check that).
-_STORE_NAMES = ("Receipt", "Recovery", "Store", "Window", "open_store")
+_STORE_NAMES = ("Dropped", "Receipt", "Recovery", "Replacement", "RewriteReport", "Store", "Window", "open_store")
 
 
 def __getattr__(name: str):
@@ -36,10 +36,13 @@ __all__ = [
     "CclogError",
     "CodecError",
     "CorruptionError",
+    "Dropped",
     "InvalidInputError",
     "ModelError",
     "Receipt",
     "Recovery",
+    "Replacement",
+    "RewriteReport",
     "SourceError",
     "Store",
     "StoreError",

@@ -11,12 +11,19 @@ import json
 import re
 import struct
 from dataclasses import dataclass
-from enum import IntEnum
+from enum import IntEnum, IntFlag
 
 import crcmod.predefined
 import xxhash
 
+# The manifest's `format_version`: 1 for a store never compacted (byte for byte what version 1
+# wrote), 2 once records were rewritten or segments dropped. Readers accept both.
 FORMAT_VERSION = 1
+COMPACTED_FORMAT_VERSION = 2
+FORMAT_VERSIONS = (1, 2)
+# The `version` field of the segment, index and manifest file headers: their layouts did not
+# change in format version 2.
+FILE_VERSION = 1
 
 # Times are signed 64-bit nanoseconds (FORMAT.md).
 MIN_NS, MAX_NS = -(1 << 63), (1 << 63) - 1
@@ -41,6 +48,16 @@ class RecordKind(IntEnum):
     """Record kinds. 0 is invalid; values never change."""
 
     WINDOW = 1
+
+
+class RecordFlag(IntFlag):
+    """Record flag bits. Values never change; a bit not listed here is skipped and reported."""
+
+    AGED = 1  # the texts are not byte-exact what was put; meta key "aged" says how they differ
+
+
+KNOWN_FLAGS = int(RecordFlag.AGED)
+AGED_META_KEY = "aged"
 
 
 class CodecId(IntEnum):
@@ -87,21 +104,26 @@ LOCK = "LOCK"
 TMP_SUFFIX = ".tmp"
 SEGMENT_SUFFIX = ".seg"
 INDEX_SUFFIX = ".idx"
-_SEQ_NAME = re.compile(r"^(\d{20})\.(seg|idx)$")
+_SEQ_NAME = re.compile(r"^(\d{20})(?:-([1-9]\d{0,9}))?\.(seg|idx)$")
 
 
-def segment_name(first_seq: int) -> str:
-    return f"{first_seq:020d}{SEGMENT_SUFFIX}"
+def _gen_part(gen: int) -> str:
+    # Generation 0 keeps the version 1 names, so a store never rewritten is unchanged.
+    return f"-{gen}" if gen else ""
 
 
-def index_name(first_seq: int) -> str:
-    return f"{first_seq:020d}{INDEX_SUFFIX}"
+def segment_name(first_seq: int, gen: int = 0) -> str:
+    return f"{first_seq:020d}{_gen_part(gen)}{SEGMENT_SUFFIX}"
 
 
-def parse_seq_name(name: str) -> tuple[int, str] | None:
-    """(first_seq, "seg" | "idx") for a segment or index file name, else None."""
+def index_name(first_seq: int, gen: int = 0) -> str:
+    return f"{first_seq:020d}{_gen_part(gen)}{INDEX_SUFFIX}"
+
+
+def parse_seq_name(name: str) -> tuple[int, str, int] | None:
+    """(first_seq, "seg" | "idx", generation) for a segment or index file name, else None."""
     m = _SEQ_NAME.match(name)
-    return (int(m.group(1)), m.group(2)) if m else None
+    return (int(m.group(1)), m.group(3), int(m.group(2) or 0)) if m else None
 
 
 # -- segment header ------------------------------------------------------------------------
@@ -112,7 +134,7 @@ SEGMENT_HEADER_SIZE = SEGMENT_HEADER.size + 4  # + crc
 
 
 def pack_segment_header(first_seq: int, created_ns: int) -> bytes:
-    body = SEGMENT_HEADER.pack(SEGMENT_MAGIC, FORMAT_VERSION, 0, first_seq, created_ns, 0)
+    body = SEGMENT_HEADER.pack(SEGMENT_MAGIC, FILE_VERSION, 0, first_seq, created_ns, 0)
     return body + struct.pack("<I", crc32c(body))
 
 
@@ -123,7 +145,7 @@ def unpack_segment_header(data: bytes) -> tuple[int, int] | None:
     body = data[: SEGMENT_HEADER.size]
     (crc,) = struct.unpack_from("<I", data, SEGMENT_HEADER.size)
     magic, version, _flags, first_seq, created_ns, _ = SEGMENT_HEADER.unpack(body)
-    if magic != SEGMENT_MAGIC or version != FORMAT_VERSION or crc != crc32c(body):
+    if magic != SEGMENT_MAGIC or version != FILE_VERSION or crc != crc32c(body):
         return None
     return first_seq, created_ns
 
@@ -177,11 +199,12 @@ def pack_record(
     raw_len: int,
     payload: bytes,
     kind: int = RecordKind.WINDOW,
+    flags: int = 0,
 ) -> bytes:
     """The bytes of one record. Callers have validated every field against the limits."""
     header_len = RECORD_FIXED_SIZE + len(name) + len(config) + len(meta) + 4
     fixed = RECORD_FIXED.pack(
-        RECORD_MAGIC, kind, RECORD_VERSION, 0, header_len, seq, start_ns, end_ns, count,
+        RECORD_MAGIC, kind, RECORD_VERSION, flags, header_len, seq, start_ns, end_ns, count,
         codec, len(name), len(config), len(meta), raw_len, len(payload), xxh3(payload),
     )  # fmt: skip
     head = b"".join((fixed, name, config, meta))
@@ -264,7 +287,7 @@ def check_fields(header: RecordHeader) -> str | None:
         return Reason.UNKNOWN_KIND
     if header.version != RECORD_VERSION:
         return Reason.UNSUPPORTED_VERSION
-    if header.flags:
+    if header.flags & ~KNOWN_FLAGS:
         return Reason.UNKNOWN_FLAGS
     if header.count < 1 or header.end_ns < header.start_ns:
         raise RecordError(Reason.BAD_FIELD, f"count {header.count}, {header.start_ns}..{header.end_ns}")
@@ -304,7 +327,7 @@ MANIFEST_HEADER = struct.Struct("<4sHHI")  # magic version flags body_len
 
 def pack_manifest(body: dict) -> bytes:
     text = json.dumps(body, separators=(",", ":"), sort_keys=True).encode()
-    head = MANIFEST_HEADER.pack(MANIFEST_MAGIC, FORMAT_VERSION, 0, len(text)) + text
+    head = MANIFEST_HEADER.pack(MANIFEST_MAGIC, FILE_VERSION, 0, len(text)) + text
     return head + struct.pack("<I", crc32c(head))
 
 
@@ -315,7 +338,7 @@ def unpack_manifest(data: bytes) -> dict:
     magic, version, _flags, body_len = MANIFEST_HEADER.unpack_from(data)
     if magic != MANIFEST_MAGIC:
         raise RecordError(Reason.BAD_MAGIC, repr(magic))
-    if version != FORMAT_VERSION:
+    if version != FILE_VERSION:
         raise RecordError(Reason.UNSUPPORTED_VERSION, f"version {version}")
     if body_len > MAX_MANIFEST or len(data) != MANIFEST_HEADER.size + body_len + 4:
         raise RecordError(Reason.BAD_LENGTH, f"body_len={body_len}, file is {len(data)} bytes")

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .format import (
-    FORMAT_VERSION,
+    FILE_VERSION,
     INDEX_ENTRY_FIELDS,
     INDEX_HEADER,
     INDEX_MAGIC,
@@ -74,7 +74,7 @@ class SegmentIndex:
     def encode(self, first_seq: int, segment_size: int) -> bytes:
         names = json.dumps(self.names).encode()
         head = INDEX_HEADER.pack(
-            INDEX_MAGIC, FORMAT_VERSION, 0, first_seq, segment_size, len(self.entries), len(names)
+            INDEX_MAGIC, FILE_VERSION, 0, first_seq, segment_size, len(self.entries), len(names)
         )
         body = head + names + self.entries.astype(ENTRY).tobytes()
         return body + struct.pack("<Q", xxh3(body))
@@ -85,7 +85,7 @@ class SegmentIndex:
         if len(data) < INDEX_HEADER.size + 8:
             raise RecordError(Reason.TORN, f"index of {len(data)} bytes")
         magic, version, _flags, seq, size, count, names_len = INDEX_HEADER.unpack_from(data)
-        if magic != INDEX_MAGIC or version != FORMAT_VERSION:
+        if magic != INDEX_MAGIC or version != FILE_VERSION:
             raise RecordError(Reason.BAD_MAGIC, "not a version 1 index")
         expect = INDEX_HEADER.size + names_len + count * ENTRY.itemsize + 8
         if len(data) != expect or names_len > count * (MAX_NAME * 6 + 4) + 2:
@@ -116,3 +116,16 @@ class SegmentIndex:
                 "stored_bytes": int(e["length"].sum()),
             }
         return out
+
+
+def merge_stream_stats(total: dict[str, dict[str, int]], stats: dict[str, dict[str, int]]) -> None:
+    """Add one segment's `stream_stats()` (or a sum of them) into `total`, in place."""
+    for name, st in stats.items():
+        t = total.get(name)
+        if t is None:
+            total[name] = dict(st)
+            continue
+        for key in ("windows", "messages", "raw_bytes", "stored_bytes"):
+            t[key] += st[key]
+        t["start_ns"] = min(t["start_ns"], st["start_ns"])
+        t["end_ns"] = max(t["end_ns"], st["end_ns"])

@@ -13,6 +13,7 @@ from .format import (
     SEGMENT_HEADER_SIZE,
     Reason,
     RecordError,
+    RecordFlag,
     RecordHeader,
     check_fields,
     check_fixed,
@@ -57,6 +58,7 @@ class ScanResult:
     next_seq: int = 0
     problem: Problem | None = None
     skipped: list[Problem] = field(default_factory=list)
+    aged: dict[str, int] = field(default_factory=dict)  # per stream: records flagged AGED
 
 
 class Segment:
@@ -73,6 +75,7 @@ class Segment:
         self.rows: list[tuple] = []  # index rows of the records in this segment
         self.next_seq = first_seq
         self.sealed_size = -1  # for a sealed segment: its size in the manifest
+        self.gen = 0  # for a sealed segment: how often compaction rewrote it (names its files)
         self._index: SegmentIndex | None = None
 
     @property
@@ -177,6 +180,8 @@ def scan(segment: Segment) -> ScanResult:
             result.skipped.append(Problem(path, pos, skip, f"kind {header.kind} version {header.version} "
                                                             f"flags {header.flags}"))  # fmt: skip
         else:
+            if header.flags & RecordFlag.AGED:
+                result.aged[header.name] = result.aged.get(header.name, 0) + 1
             result.rows.append(
                 (header.name, header.count, header.seq, header.start_ns, header.end_ns, pos,
                  header.record_len, header.raw_len)

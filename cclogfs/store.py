@@ -13,13 +13,15 @@ import socket
 import threading
 import time
 import uuid
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from . import compaction
 from ._signals import signals_deferred as _signals_deferred
+from .compaction import Dropped, Replacement, RewriteReport
 from .codecs import Codec, codec_from_config, codec_numeric_id, raw_size
 from .errors import (
     CorruptionError,
@@ -29,7 +31,9 @@ from .errors import (
     StoreLockedError,
 )
 from .format import (
+    AGED_META_KEY,
     FORMAT_VERSION,
+    FORMAT_VERSIONS,
     LOCK,
     MANIFEST,
     MAX_CONFIG,
@@ -41,19 +45,21 @@ from .format import (
     TMP_SUFFIX,
     Reason,
     RecordError,
+    RecordFlag,
     index_name,
     pack_manifest,
     pack_record,
     pack_segment_header,
     parse_seq_name,
+    segment_name,
     unpack_manifest,
 )
 from .fs import FileSystem
-from .index import SegmentIndex, overlap_slice
+from .index import SegmentIndex, merge_stream_stats, overlap_slice
 from .segment import Problem, Segment, intact_after, open_segment, scan
 from .validate import check_stream_name, encode_messages
 
-__all__ = ["Receipt", "Recovery", "Store", "Window", "open_store"]
+__all__ = ["Dropped", "Receipt", "Recovery", "Replacement", "RewriteReport", "Store", "Window", "open_store"]
 
 
 @dataclass(frozen=True)
@@ -77,6 +83,9 @@ class Recovery:
     skipped: list[Problem] = field(default_factory=list)  # intact records of unknown kind
     sealed_on_open: list[str] = field(default_factory=list)
     removed_files: list[str] = field(default_factory=list)
+    # Files of an interrupted compaction or retention step (a generation the manifest does
+    # not name, a dropped segment): never data, removed by the writer on open.
+    leftovers: list[str] = field(default_factory=list)
 
     @property
     def clean(self) -> bool:
@@ -99,7 +108,8 @@ class Window:
         if self._record is None:
             with self._segment.lock:  # the group-commit thread may be flushing this segment
                 if self._segment.fd < 0:
-                    raise StoreError(f"{self._segment.path}: the store is closed")
+                    raise StoreError(f"{self._segment.path} is closed: the store was closed, or compaction "
+                                     "replaced or dropped this segment; query again")  # fmt: skip
                 self._record = self._segment.read_record(self._offset, self._length)
         return self._record
 
@@ -114,6 +124,17 @@ class Window:
     @property
     def stored_bytes(self) -> int:
         return self._length
+
+    @property
+    def flags(self) -> int:
+        """The record's flag bits (`cclogfs.format.RecordFlag`)."""
+        return self._read()[0].flags
+
+    @property
+    def aged(self) -> Any:
+        """How the texts differ from what was put (meta key "aged"), or None when byte-exact."""
+        header = self._read()[0]
+        return json.loads(header.meta).get(AGED_META_KEY) if header.flags & RecordFlag.AGED else None
 
     def messages(self) -> Iterator[tuple[int, str]]:
         """(stamp_ns, JSON text) of each message, exactly as put."""
@@ -197,9 +218,20 @@ class Store:
         except RecordError as err:
             raise CorruptionError(f"{path} is damaged: {err}", path=path, offset=0,
                                   reason=err.reason) from err  # fmt: skip
-        if self.manifest.get("format_version") != FORMAT_VERSION:
-            raise StoreError(f"{path}: format version {self.manifest.get('format_version')} "
-                             f"is not supported (this cclogfs reads version {FORMAT_VERSION})")  # fmt: skip
+        version = self.manifest.get("format_version")
+        if version not in FORMAT_VERSIONS:
+            raise StoreError(f"{path}: field format_version is {version!r}, which this cclogfs cannot read "
+                             f"(it reads versions {', '.join(map(str, FORMAT_VERSIONS))}); use a newer cclogfs")  # fmt: skip
+
+    @property
+    def first_seq(self) -> int:
+        """Sequence number of the store's first record (> 0 once retention dropped segments)."""
+        return self.manifest.get("first_seq", 0)
+
+    def dropped(self) -> dict[str, Any]:
+        """What retention dropped so far: {"segments": n, "streams": {name: stats}} (stats as
+        in `streams()`, their time range is what was dropped)."""
+        return self.manifest.get("dropped", {"segments": 0, "streams": {}})
 
     def _open(self, create: bool) -> None:
         manifest_path = self._file(MANIFEST)
@@ -224,7 +256,7 @@ class Store:
                 if name.endswith(TMP_SUFFIX):  # a crash while replacing a file
                     self.fs.unlink(self._file(name))
                     self.recovery.removed_files.append(name)
-        self._open_segments()
+        self._open_segments_retrying()
         if not self.readonly:
             self._start_flusher()
 
@@ -243,26 +275,72 @@ class Store:
         self.fs.truncate(fd, 0)
         self.fs.pwrite(fd, info, 0)
 
+    def _open_segments_retrying(self) -> None:
+        """Load the manifest and open its segments. A reader retries when a listed segment
+        is missing: a writer compacted between its reading the manifest and the files."""
+        for attempt in range(3):
+            self._load_manifest()
+            try:
+                self._open_segments()
+                return
+            except CorruptionError as err:
+                if not (self.readonly and err.reason == "missing segment" and attempt < 2):
+                    raise
+                self._close_segments()
+                self.sealed, self.unsealed, self.recovery = [], [], Recovery()
+
+    def _close_segments(self) -> None:
+        for seg in self._segments():
+            if seg.fd >= 0:
+                self.fs.close(seg.fd)
+            seg.fd = -1
+
+    def _is_leftover(self, first_seq: int, gen: int, sealed_firsts: set[int]) -> bool:
+        """A segment or index file that only an interrupted compaction or retention step
+        leaves behind: a generation > 0 the manifest does not name, an older generation of
+        a listed segment, or a segment before the store's first (dropped)."""
+        return gen > 0 or first_seq in sealed_firsts or first_seq < self.first_seq
+
     def _open_segments(self) -> None:
-        files = {}
+        named = {(info["first_seq"], info.get("gen", 0)) for info in self.manifest["segments"]}
+        sealed_firsts = {info["first_seq"] for info in self.manifest["segments"]}
+        files, tail, leftovers = {}, {}, []
         for name in self.fs.listdir(self.path):
             parsed = parse_seq_name(name)
-            if parsed and parsed[1] == "seg":
-                files[parsed[0]] = name
-        next_seq = 0
+            if parsed is None:
+                continue
+            first_seq, kind, gen = parsed
+            if (first_seq, gen) in named:
+                if kind == "seg":
+                    files[first_seq, gen] = name
+            elif self._is_leftover(first_seq, gen, sealed_firsts):
+                leftovers.append(name)
+            elif kind == "seg":
+                tail[first_seq] = name
+        self.recovery.leftovers = leftovers
+        if leftovers and not self.readonly:
+            for name in leftovers:
+                self.fs.unlink(self._file(name))
+                self.recovery.removed_files.append(name)
+            self.fs.fsync_dir(self.path)
+        next_seq = self.first_seq
         for info in self.manifest["segments"]:
-            name = files.pop(info["first_seq"], None)
+            gen = info.get("gen", 0)
+            name = files.get((info["first_seq"], gen))
             if name is None:
                 raise CorruptionError(
-                    f"{self.path}: {MANIFEST} lists segment {info['first_seq']:020d}.seg, "
+                    f"{self.path}: {MANIFEST} lists segment {segment_name(info['first_seq'], gen)}, "
                     "which is missing", path=self._file(MANIFEST), reason="missing segment",
                 )  # fmt: skip
             seg, _ok = open_segment(self.fs, self._file(name), write=False, lock=self._lock)
             seg.first_seq, seg.next_seq = info["first_seq"], info["end_seq"]
-            seg.sealed_size = info["size"]
+            seg.sealed_size, seg.gen = info["size"], gen
             self.sealed.append(seg)
             next_seq = info["end_seq"]
-        self._recover_tail(next_seq, [files[s] for s in sorted(files)])
+        self._recover_tail(next_seq, [tail[s] for s in sorted(tail)])
+
+    def _index_path(self, seg: Segment) -> str:
+        return self._file(index_name(seg.first_seq, seg.gen))
 
     def _recover_tail(self, next_seq: int, names: list[str]) -> None:
         """Scan the unsealed segments; keep exactly their valid prefix (see FORMAT.md)."""
@@ -329,7 +407,7 @@ class Store:
             self.recovery.removed_files.append(os.path.basename(seg.path))
 
     def _new_segment(self, first_seq: int) -> Segment:
-        path = self._file(f"{first_seq:020d}.seg")
+        path = self._file(segment_name(first_seq))
         created = time.time_ns()
         fd = self.fs.open(path, write=True, create=True)
         self.fs.pwrite(fd, pack_segment_header(first_seq, created), 0)
@@ -360,25 +438,13 @@ class Store:
         for texts a parser has just checked (a JSONL or bag source); the text is still
         stored and returned byte for byte.
         """
-        name_bytes = check_stream_name(name)
-        stamps, texts = encode_messages(messages, check_json=check_json)
-        meta_bytes = b"{}" if meta is None else _encode_meta(meta)
-        chosen = codec_from_config(codec) if codec is not None else self.stream_codecs.get(name, self.codec)
-        config, codec_number = self._codec_header(chosen)
-        raw_len = raw_size(stamps, texts)
-        if raw_len > MAX_RAW:
-            raise InvalidInputError(f"window for {name!r} is {raw_len} bytes, over the {MAX_RAW}-byte "
-                                    "record limit; split it into several windows")  # fmt: skip
-        payload = chosen.encode(stamps, texts)
+        enc = self._encode_window(name, messages, meta, codec, check_json)
+        stamps, raw_len = enc.stamps, enc.raw_len
         with self._lock:
             self._check_writable()
             seg = self.active
             seq = seg.next_seq
-            record = pack_record(
-                seq=seq, start_ns=stamps[0], end_ns=stamps[-1], count=len(stamps),
-                codec=codec_number, name=name_bytes, config=config, meta=meta_bytes,
-                raw_len=raw_len, payload=payload,
-            )  # fmt: skip
+            record = enc.pack(seq)
             row = (name, len(stamps), seq, stamps[0], stamps[-1], seg.end, len(record), raw_len)
             if self._unsynced_since is None:  # before the append: a commit must never skip its fsync
                 self._unsynced_since = time.monotonic()
@@ -393,6 +459,20 @@ class Store:
             if self._commit_due() or seg.end >= self.segment_bytes or len(seg.rows) >= self.segment_records:
                 self._commit()
             return Receipt(seq, name, stamps[0], stamps[-1], len(stamps), raw_len, len(record))
+
+    def _encode_window(self, name: str, messages: Sequence[tuple[int, str]], meta: Mapping[str, Any] | None,
+                       codec: Any, check_json: bool) -> _Encoded:  # fmt: skip
+        """Check and encode a window (everything but its seq and flags); raises InvalidInputError."""
+        name_bytes = check_stream_name(name)
+        stamps, texts = encode_messages(messages, check_json=check_json)
+        meta_bytes = b"{}" if meta is None else _encode_meta(meta)
+        chosen = codec_from_config(codec) if codec is not None else self.stream_codecs.get(name, self.codec)
+        config, codec_number = self._codec_header(chosen)
+        raw_len = raw_size(stamps, texts)
+        if raw_len > MAX_RAW:
+            raise InvalidInputError(f"window for {name!r} is {raw_len} bytes, over the {MAX_RAW}-byte "
+                                    "record limit; split it into several windows")  # fmt: skip
+        return _Encoded(name_bytes, stamps, meta_bytes, config, codec_number, raw_len, chosen.encode(stamps, texts))
 
     def _codec_header(self, codec: Codec) -> tuple[bytes, int]:
         """The config bytes and number that go in each record, cached per codec object."""
@@ -442,15 +522,50 @@ class Store:
                 self._failed = err
                 raise StoreFailedError(f"{seg.path}: sealing failed: {err}") from err
 
+    def seal(self) -> bool:
+        """Seal the active segment now, if it holds records, so that compaction can rewrite
+        them; False when it is empty. Same ordering as automatic sealing (FORMAT.md)."""
+        with self._lock:
+            self._check_writable()
+            sealed = len(self.sealed)
+            self._commit()  # which seals by itself when a limit is reached
+            seg = self.active
+            if seg.next_seq == seg.first_seq:
+                return len(self.sealed) > sealed
+            try:
+                self._seal(seg)
+                self.active = self._new_segment(seg.next_seq)
+            except OSError as err:
+                self._failed = err
+                raise StoreFailedError(f"{seg.path}: sealing failed: {err}") from err
+            return True
+
+    def rewrite(self, fn: Callable[[Window], Replacement | None], *,
+                segments: Iterable[int] | None = None) -> RewriteReport:  # fmt: skip
+        """Rewrite the records of sealed segments (`segments`: their first_seq; default all).
+
+        `fn(window)` returns None to keep a record byte for byte, or a `Replacement` (same
+        stream and seq, times within the old [start_ns, end_ns], at least one message). Every
+        rewritten segment becomes a new generation file, all committed by one manifest
+        replace: after a crash the store holds either the old or the new records.
+        """
+        return compaction.rewrite(self, fn, segments)
+
+    def drop_oldest(self) -> Dropped | None:
+        """Retention: remove the oldest sealed segment (never the active one); None when
+        there is no sealed segment. The log then starts at the next segment's first seq."""
+        return compaction.drop_oldest(self)
+
     def _seal(self, seg: Segment) -> None:
         """Write the segment's index, then name it in the manifest (it is already synced)."""
         index = seg.index()
-        self.fs.write_file_atomic(self._file(index_name(seg.first_seq)), index.encode(seg.first_seq, seg.size))
+        self.fs.write_file_atomic(self._index_path(seg), index.encode(seg.first_seq, seg.size))
         info = {"first_seq": seg.first_seq, "end_seq": seg.next_seq, "size": seg.size,
                 "streams": index.stream_stats()}  # fmt: skip
         manifest = dict(self.manifest, segments=[*self.manifest["segments"], info])
         self.fs.write_file_atomic(self._file(MANIFEST), pack_manifest(manifest))
         self.manifest = manifest
+        seg.sealed_size = seg.size
         self.sealed.append(seg)
         self._sealed_by_stream = None
 
@@ -491,9 +606,7 @@ class Store:
             finally:
                 self._closed = True
                 self._wake.notify_all()
-                for seg in self._segments():
-                    self.fs.close(seg.fd)
-                    seg.fd = -1
+                self._close_segments()
                 if self._lock_fd is not None:
                     self.fs.unlock(self._lock_fd)
                     self._lock_fd = None
@@ -516,7 +629,7 @@ class Store:
                                       f"at {seg.sealed_size}; its records cannot be trusted (run `cclog fsck`)",
                                       path=seg.path, offset=min(seg.size, seg.sealed_size),
                                       reason=Reason.BAD_LENGTH)  # fmt: skip
-            path = self._file(index_name(seg.first_seq))
+            path = self._index_path(seg)
             try:
                 seg._index = SegmentIndex.decode(self.fs.read_file(path), seg.first_seq, seg.size)
             except (OSError, RecordError, ValueError, TypeError):
@@ -553,23 +666,18 @@ class Store:
         return segs[overlap_slice(starts, run_max, t0, t1)]
 
     def streams(self) -> dict[str, dict[str, int]]:
-        """Per stream: windows, messages, start_ns, end_ns, raw_bytes, stored_bytes, json_bytes."""
+        """Per stream: windows, messages, start_ns, end_ns, raw_bytes, stored_bytes, json_bytes,
+        aged (windows flagged AGED)."""
         with self._lock:
-            per_segment = [info["streams"] for info in self.manifest["segments"]]
+            infos = list(self.manifest["segments"])
+            per_segment = [info["streams"] for info in infos]
             per_segment += [seg.index().stream_stats() for seg in self._segments()[len(self.sealed):]]
         total: dict[str, dict[str, int]] = {}
         for stats in per_segment:
-            for name, st in stats.items():
-                if name not in total:
-                    total[name] = dict(st)
-                    continue
-                t = total[name]
-                for key in ("windows", "messages", "raw_bytes", "stored_bytes"):
-                    t[key] += st[key]
-                t["start_ns"] = min(t["start_ns"], st["start_ns"])
-                t["end_ns"] = max(t["end_ns"], st["end_ns"])
-        for t in total.values():  # the messages' own JSON, without the framing's lengths and stamps
+            merge_stream_stats(total, stats)
+        for name, t in total.items():  # the messages' own JSON, without the framing's lengths and stamps
             t["json_bytes"] = t["raw_bytes"] - 4 * t["windows"] - 12 * t["messages"]
+            t["aged"] = sum(info.get("aged", {}).get(name, 0) for info in infos)
         return dict(sorted(total.items()))
 
     def query(self, name: str | None = None, start_ns: int | None = None,
@@ -604,17 +712,42 @@ class Store:
         with self._lock:
             if self._closed:
                 raise StoreError(f"{self.path}: the store is closed")
-            for seg in self._segments():
-                self.fs.close(seg.fd)
-                seg.fd = -1
+            # Windows already handed out keep their segment objects; once closed here they
+            # say so rather than read a generation compaction may have deleted.
+            self._close_segments()
             self.sealed, self.unsealed, self._sealed_by_stream = [], [], None
             self.recovery = Recovery()
-            self._load_manifest()
-            self._open_segments()
+            self._open_segments_retrying()
 
     def disk_bytes(self) -> int:
         """Bytes of every file in the store directory."""
-        return sum(os.path.getsize(self._file(n)) for n in self.fs.listdir(self.path))
+        total = 0
+        for name in self.fs.listdir(self.path):
+            try:
+                total += os.path.getsize(self._file(name))
+            except FileNotFoundError:  # removed meanwhile (a writer compacting while we read)
+                pass
+        return total
+
+
+@dataclass(frozen=True, slots=True)
+class _Encoded:
+    """A checked, encoded window waiting for its seq and flags."""
+
+    name: bytes
+    stamps: list[int]
+    meta: bytes
+    config: bytes
+    codec: int
+    raw_len: int
+    payload: bytes
+
+    def pack(self, seq: int, flags: int = 0) -> bytes:
+        return pack_record(
+            seq=seq, start_ns=self.stamps[0], end_ns=self.stamps[-1], count=len(self.stamps),
+            codec=self.codec, name=self.name, config=self.config, meta=self.meta,
+            raw_len=self.raw_len, payload=self.payload, flags=flags,
+        )  # fmt: skip
 
 
 def _encode_meta(meta: Mapping[str, Any]) -> bytes:
@@ -656,8 +789,7 @@ def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: 
         store._open(create)
     except BaseException:
         store._closed = True
-        for seg in store._segments():
-            store.fs.close(seg.fd)
+        store._close_segments()
         if store._lock_fd is not None:
             store.fs.unlock(store._lock_fd)
         raise

@@ -111,6 +111,6 @@ def test_collect_dataset(halves, tmp_path):
 def test_classifier_imports_no_storage():
     code = ("import sys, cclogfs.classifier as c, cclogfs.classifier.testing;"
             "bad = [m for m in sys.modules if m.startswith('cclogfs.') and m.split('.')[1] in "
-            "('store', 'segment', 'format', 'codecs', 'pipeline', 'manifest')]; print(bad)")
+            "('store', 'segment', 'format', 'codecs', 'pipeline', 'manifest', 'compaction')]; print(bad)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"

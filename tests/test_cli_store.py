@@ -1,6 +1,8 @@
 """`cclog info` and `cclog fsck` through the CLI entry point."""
 
 import json
+import shutil
+from pathlib import Path
 
 import cclogfs
 from cclogfs.cli import main
@@ -64,3 +66,18 @@ def test_info_totals_the_summary_stream(tmp_path, capsys):
                       "peak_speed": 1.1, "peak_accel": 1.5}  # fmt: skip
     assert main(["info", str(tmp_path / "s")]) == 0
     assert "0.020 km driven" in capsys.readouterr().out
+
+
+def test_info_and_fsck_on_a_compacted_store(tmp_path, capsys):
+    # The golden v2 store: the log starts at seq 2, one segment dropped, one AGED window.
+    shutil.copytree(Path(__file__).parent / "golden" / "store_v2", tmp_path / "s")
+    assert main(["info", str(tmp_path / "s"), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert (info["format_version"], info["first_seq"], info["dropped"]["segments"]) == (2, 2, 1)
+    assert info["dropped"]["streams"]["/odom"]["windows"] == 2 and info["streams"]["/tf"]["aged"] == 1
+    assert main(["info", str(tmp_path / "s")]) == 0
+    out = capsys.readouterr().out
+    assert "aged: 1 of 3 windows of /tf" in out
+    assert "retention dropped 2 windows (12 messages) of /odom from 1970-01-01T00:00:00.000Z" in out
+    assert main(["fsck", "--deep", str(tmp_path / "s")]) == 0
+    assert "clean" in (out := capsys.readouterr().out) and "1 aged windows" in out

@@ -32,13 +32,14 @@ def run(args: argparse.Namespace) -> int:
     report = check_store(args.store, deep=args.deep)
     if args.json:
         print(json.dumps({"path": report.path, "segments": report.segments, "records": report.records,
-                          "messages": report.messages, "decoded": report.decoded,
+                          "messages": report.messages, "decoded": report.decoded, "aged": report.aged,
                           "findings": [vars(f) for f in report.findings]}, indent=2))  # fmt: skip
     else:
         for finding in report.findings:
             print(finding)
         state = "DAMAGED" if report.errors else "clean"
         deep = f", {report.decoded} windows decoded" if args.deep else ""
+        deep += f", {report.aged} aged windows" if report.aged else ""
         print(f"{report.path}: {state}: {report.segments} segments, {report.records} records, "
               f"{report.messages} messages{deep}, {len(report.errors)} errors, "
               f"{len(report.findings) - len(report.errors)} warnings")

@@ -42,6 +42,9 @@ def store_info(path: str) -> dict:
             "path": path,
             "store_id": store.manifest["store_id"],
             "segments": len(store.sealed) + len(store.unsealed),
+            "format_version": store.manifest["format_version"],
+            "first_seq": store.first_seq,
+            "dropped": store.dropped(),
             "disk_bytes": store.disk_bytes(),
             "json_bytes": sum(s["json_bytes"] for s in streams.values()),
             "streams": streams,
@@ -83,6 +86,13 @@ def run(args: argparse.Namespace) -> int:
         print(f"summary ({SUMMARY_TOPIC}, {t['minutes']} periods): {t['distance_m'] / 1000:.3f} km driven, "
               f"{t['moving_s'] / 60:.1f} min moving, peak speed {t['peak_speed']:.2f} m/s, peak acceleration "
               f"{t['peak_accel']:.2f} m/s^2, {t['anomalies']:,} anomalous of {t['messages']:,} odometry messages")
+    for name, st in info["streams"].items():
+        if st["aged"]:
+            print(f"aged: {st['aged']} of {st['windows']} windows of {name} hold texts within stated error "
+                  "bounds, not byte-exact (their meta key \"aged\" says how)")
+    for name, st in info["dropped"]["streams"].items():
+        print(f"retention dropped {st['windows']} windows ({st['messages']} messages) of {name} from "
+              f"{iso_ns(st['start_ns'])} to {iso_ns(st['end_ns'])}")
     for line in info["recovery"]:
         print(f"note: a reader would drop a torn tail: {line}")
     return 0

@@ -1,0 +1,322 @@
+"""Compaction and retention: rewrite sealed segments as a new generation, drop the oldest.
+
+Storage only: what a replacement window holds is the caller's business (cclogfs/aging.py
+decides that); this module checks that a replacement keeps the record's place in the log
+and commits it crash-safely, as docs/FORMAT.md ("Compaction and retention") specifies.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from .errors import CorruptionError, InvalidInputError, StoreFailedError
+from .format import (
+    AGED_META_KEY,
+    COMPACTED_FORMAT_VERSION,
+    KNOWN_FLAGS,
+    MANIFEST,
+    RECORD_FIXED_SIZE,
+    SEGMENT_HEADER_SIZE,
+    Reason,
+    RecordError,
+    RecordFlag,
+    RecordHeader,
+    check_fields,
+    check_fixed,
+    check_payload,
+    index_name,
+    pack_manifest,
+    pack_segment_header,
+    parse_header,
+    segment_name,
+)
+from .index import SegmentIndex, merge_stream_stats
+from .segment import Segment, open_segment
+
+if TYPE_CHECKING:
+    from .store import Store, Window
+
+__all__ = ["Dropped", "Replacement", "RewriteReport", "drop_oldest", "rewrite"]
+
+
+@dataclass(frozen=True)
+class Replacement:
+    """What a rewrite callback returns to replace one record (same stream, same seq)."""
+
+    messages: Sequence[tuple[int, str]]  # (stamp_ns, JSON text), within the old record's times
+    meta: Mapping[str, Any]
+    codec: Any = None  # codec id or config; None: the store's codec for the stream
+    flags: int = 0  # RecordFlag bits; AGED needs meta["aged"] saying how the texts differ
+
+
+@dataclass
+class RewriteReport:
+    """What `Store.rewrite` did. Per stream sums cover the rewritten segments only."""
+
+    segments: list[int] = field(default_factory=list)  # first_seq of each rewritten segment
+    replaced: int = 0  # records replaced
+    kept: int = 0  # records copied verbatim into a rewritten segment
+    before: dict[str, dict[str, int]] = field(default_factory=dict)  # stream_stats() sums
+    after: dict[str, dict[str, int]] = field(default_factory=dict)
+    bytes_before: int = 0  # segment and index file bytes of the rewritten segments
+    bytes_after: int = 0
+
+
+@dataclass(frozen=True)
+class Dropped:
+    """One segment that retention removed."""
+
+    first_seq: int
+    end_seq: int
+    streams: dict[str, dict[str, int]]  # its stream_stats(): windows, messages, times, bytes
+    bytes: int  # segment and index file bytes freed
+
+
+@dataclass
+class _Plan:
+    """A rewritten segment, written and synced but not yet named by the manifest."""
+
+    position: int  # in store.sealed
+    old: Segment
+    gen: int
+    size: int
+    index: SegmentIndex
+    info: dict[str, Any]
+
+
+def _records(seg: Segment, end_seq: int) -> Iterator[tuple[int, RecordHeader, bytes, str | None]]:
+    """(offset, header, record bytes, skip reason) of every record of a sealed segment, in
+    log order, each fully checked: compaction never copies damage into a new generation."""
+    if seg.size != seg.sealed_size:
+        raise CorruptionError(f"{seg.path} is {seg.size} bytes but the manifest says it was sealed "
+                              f"at {seg.sealed_size}; it cannot be rewritten (run `cclog fsck`)",
+                              path=seg.path, offset=min(seg.size, seg.sealed_size),
+                              reason=Reason.BAD_LENGTH)  # fmt: skip
+    pos, seq = SEGMENT_HEADER_SIZE, seg.first_seq
+    while pos < seg.size:
+        try:
+            header_len = check_fixed(seg.read(pos, RECORD_FIXED_SIZE), seg.size - pos)
+            header = parse_header(seg.read(pos, header_len))
+            data = seg.read(pos, header.record_len)
+            check_payload(header, memoryview(data)[header_len:])
+            if header.seq != seq:
+                raise RecordError(Reason.SEQ_GAP, f"seq {header.seq}, expected {seq}")
+            skip = check_fields(header)
+        except RecordError as err:
+            raise CorruptionError(f"{seg.path}: record at offset {pos} is damaged: {err}; the segment "
+                                  "cannot be rewritten (run `cclog fsck`)",
+                                  path=seg.path, offset=pos, reason=err.reason) from err  # fmt: skip
+        yield pos, header, data, skip
+        pos += header.record_len
+        seq += 1
+    if seq != end_seq:
+        raise CorruptionError(f"{seg.path} ends at seq {seq}, the manifest says {end_seq}",
+                              path=seg.path, offset=pos, reason=Reason.SEQ_GAP)  # fmt: skip
+
+
+def _replacement_record(store: Store, seg: Segment, header: RecordHeader, rep: object) -> bytes:
+    """The new record's bytes, every rule checked (raises InvalidInputError)."""
+    where = f"{os.path.basename(seg.path)}: replacement for seq {header.seq} of {header.name!r}"
+    if not isinstance(rep, Replacement):
+        raise InvalidInputError(f"{where}: the rewrite callback returned a {type(rep).__name__}; "
+                                "it must return None (keep the record) or a Replacement")  # fmt: skip
+    if not isinstance(rep.flags, int) or rep.flags & ~KNOWN_FLAGS:
+        raise InvalidInputError(f"{where}: flags {rep.flags!r} hold bits this format does not define")
+    if rep.flags & RecordFlag.AGED and not (isinstance(rep.meta, Mapping) and AGED_META_KEY in rep.meta):
+        raise InvalidInputError(f"{where}: the AGED flag needs meta[{AGED_META_KEY!r}] saying how "
+                                "the texts differ from what was put")  # fmt: skip
+    try:
+        enc = store._encode_window(header.name, rep.messages, rep.meta, rep.codec, True)
+    except InvalidInputError as err:
+        raise InvalidInputError(f"{where}: {err}") from err
+    first, last = enc.stamps[0], enc.stamps[-1]
+    if first < header.start_ns or last > header.end_ns:
+        raise InvalidInputError(f"{where}: its messages span {first}..{last} ns, outside the "
+                                f"record's {header.start_ns}..{header.end_ns}; a rewrite may not "
+                                "move a window in time")  # fmt: skip
+    return enc.pack(header.seq, rep.flags)
+
+
+def _plan(store: Store, position: int, fn: Callable, report: RewriteReport) -> _Plan | None:
+    """Call `fn` on every record of a sealed segment; when it replaced any, write the new
+    generation (segment, then index, each durable) and say what the manifest must name."""
+    from .store import Window  # here: store imports this module
+
+    seg, info = store.sealed[position], store.manifest["segments"][position]
+    buf = bytearray(pack_segment_header(seg.first_seq, seg.created_ns))
+    rows, aged, replaced, kept = [], {}, 0, 0
+    for offset, header, data, skip in _records(seg, info["end_seq"]):
+        rep = None
+        if skip is None:
+            window = Window(header.name, header.seq, header.start_ns, header.end_ns,
+                            header.count, seg, offset, header.record_len)  # fmt: skip
+            window._record = (header, data[header.header_len :])  # already read and checked
+            rep = fn(window)
+        if rep is None:
+            record, kept = data, kept + 1
+            new_header = header
+        else:
+            record, replaced = _replacement_record(store, seg, header, rep), replaced + 1
+            header_len = check_fixed(record[:RECORD_FIXED_SIZE], len(record))
+            new_header = parse_header(record[:header_len])
+        if skip is None:
+            rows.append((new_header.name, new_header.count, new_header.seq, new_header.start_ns,
+                         new_header.end_ns, len(buf), len(record), new_header.raw_len))  # fmt: skip
+            if new_header.flags & RecordFlag.AGED:
+                aged[new_header.name] = aged.get(new_header.name, 0) + 1
+        buf += record
+    if not replaced:
+        return None
+    gen = seg.gen + 1
+    index = SegmentIndex.build(rows)
+    new_info = {"first_seq": seg.first_seq, "end_seq": info["end_seq"], "size": len(buf),
+                "streams": index.stream_stats(), "gen": gen}  # fmt: skip
+    if aged:
+        new_info["aged"] = aged
+    fs = store.fs
+    path = store._file(segment_name(seg.first_seq, gen))
+    if fs.exists(path):  # left by an earlier rewrite of this session that failed
+        fs.unlink(path)
+    # The new generation is complete and durable (data, index, directory entries) before the
+    # manifest names it: the manifest rename is the one commit point.
+    fd = fs.open(path, write=True, create=True)
+    try:
+        fs.pwrite(fd, bytes(buf), 0)
+        fs.fsync(fd)
+    finally:
+        fs.close(fd)
+    fs.fsync_dir(store.path)
+    index_path = store._file(index_name(seg.first_seq, gen))
+    fs.write_file_atomic(index_path, index.encode(seg.first_seq, len(buf)))
+    report.replaced += replaced
+    report.kept += kept
+    return _Plan(position, seg, gen, len(buf), index, new_info)
+
+
+def _file_bytes(store: Store, seg: Segment, gen: int) -> int:
+    total = 0
+    for name in (segment_name(seg.first_seq, gen), index_name(seg.first_seq, gen)):
+        try:
+            total += os.path.getsize(store._file(name))
+        except FileNotFoundError:
+            pass
+    return total
+
+
+def _remove(store: Store, names: Iterable[str]) -> None:
+    for name in names:
+        if store.fs.exists(store._file(name)):
+            store.fs.unlink(store._file(name))
+    store.fs.fsync_dir(store.path)
+
+
+def _commit_manifest(store: Store, manifest: dict[str, Any]) -> None:
+    store.fs.write_file_atomic(store._file(MANIFEST), pack_manifest(manifest))
+    store.manifest = manifest
+    store._sealed_by_stream = None
+
+
+def _generation_files(plans: list[_Plan], old: bool) -> list[str]:
+    """Segment and index file names of the plans' old (or new) generations."""
+    names = []
+    for p in plans:
+        gen = p.old.gen if old else p.gen
+        names += [segment_name(p.old.first_seq, gen), index_name(p.old.first_seq, gen)]
+    return names
+
+
+def rewrite(store: Store, fn: Callable[[Window], Replacement | None],
+            segments: Iterable[int] | None) -> RewriteReport:  # fmt: skip
+    """See `Store.rewrite`."""
+    with store._lock:
+        store._check_writable()
+        infos = store.manifest["segments"]
+        chosen = range(len(store.sealed))
+        if segments is not None:
+            by_first = {info["first_seq"]: i for i, info in enumerate(infos)}
+            wanted = sorted(set(segments))
+            unknown = [s for s in wanted if s not in by_first]
+            if unknown:
+                raise InvalidInputError(f"{store.path}: no sealed segment starts at seq "
+                                        f"{unknown[0]}; sealed segments start at "
+                                        f"{sorted(by_first)[:10]}")  # fmt: skip
+            chosen = [by_first[s] for s in wanted]
+        report = RewriteReport()
+        plans: list[_Plan] = []
+        try:
+            for i in chosen:
+                plan = _plan(store, i, fn, report)
+                if plan is not None:
+                    plans.append(plan)
+            if not plans:
+                return report
+            segs = list(infos)
+            for plan in plans:
+                segs[plan.position] = plan.info
+            manifest = dict(store.manifest, format_version=COMPACTED_FORMAT_VERSION, segments=segs)
+            _commit_manifest(store, manifest)
+        except OSError as err:
+            store._failed = err
+            raise StoreFailedError(f"{store.path}: rewriting failed: {err}; the store refuses further "
+                                   "writes (reopen it: the manifest names either the old or the new "
+                                   "segments)") from err  # fmt: skip
+        except BaseException:
+            # Refused (or interrupted) before the commit: remove the unnamed new generations.
+            _remove(store, _generation_files(plans, old=False))
+            raise
+        try:
+            for plan in plans:
+                old = plan.old
+                report.segments.append(old.first_seq)
+                report.bytes_before += _file_bytes(store, old, old.gen)
+                report.bytes_after += _file_bytes(store, old, plan.gen)
+                merge_stream_stats(report.before, infos[plan.position]["streams"])
+                merge_stream_stats(report.after, plan.info["streams"])
+                path = store._file(segment_name(old.first_seq, plan.gen))
+                new, _ok = open_segment(store.fs, path, write=False, lock=store._lock)
+                new.first_seq, new.next_seq, new.gen = old.first_seq, old.next_seq, plan.gen
+                new.sealed_size, new._index = plan.size, plan.index
+                store.sealed[plan.position] = new
+                store.fs.close(old.fd)
+                old.fd = -1
+            # Past the commit point: a crash now leaves only leftovers, removed on open.
+            _remove(store, _generation_files(plans, old=True))
+        except OSError as err:
+            store._failed = err
+            raise StoreFailedError(f"{store.path}: cleaning up after a rewrite failed: {err}; the "
+                                   "rewrite is committed, reopen the store to finish"
+                                   ) from err  # fmt: skip
+        return report
+
+
+def drop_oldest(store: Store) -> Dropped | None:
+    """See `Store.drop_oldest`."""
+    with store._lock:
+        store._check_writable()
+        if not store.sealed:
+            return None
+        seg, info = store.sealed[0], store.manifest["segments"][0]
+        before = store.dropped()
+        streams = {k: dict(v) for k, v in before["streams"].items()}
+        merge_stream_stats(streams, info["streams"])
+        dropped = {"segments": before["segments"] + 1, "streams": streams}
+        manifest = dict(store.manifest, format_version=COMPACTED_FORMAT_VERSION,
+                        first_seq=info["end_seq"], segments=store.manifest["segments"][1:],
+                        dropped=dropped)  # fmt: skip
+        freed = _file_bytes(store, seg, seg.gen)
+        try:
+            _commit_manifest(store, manifest)
+            store.sealed.pop(0)
+            store.fs.close(seg.fd)
+            seg.fd = -1
+            # Past the commit point: a crash now leaves only leftovers, removed on open.
+            _remove(store, [segment_name(seg.first_seq, seg.gen), index_name(seg.first_seq, seg.gen)])
+        except OSError as err:
+            store._failed = err
+            raise StoreFailedError(f"{store.path}: dropping segment {os.path.basename(seg.path)} "
+                                   f"failed: {err}; the store refuses further writes (reopen "
+                                   "it)") from err  # fmt: skip
+        return Dropped(info["first_seq"], info["end_seq"], info["streams"], freed)

@@ -1,0 +1,340 @@
+"""Compaction and retention in the store: seal(), rewrite(), drop_oldest(), format v2."""
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+import cclogfs
+from cclogfs.errors import CorruptionError, InvalidInputError, StoreError, StoreFailedError
+from cclogfs.format import MANIFEST, RecordFlag, pack_manifest, unpack_manifest
+from cclogfs.fs import FileSystem, RecordingFileSystem
+from cclogfs.fsck import check_store
+from cclogfs.store import Replacement
+from _rewrite import leftovers, state
+
+OPTS = dict(sync_every_ms=None, segment_records=3)
+GOLDEN = Path(__file__).parent / "golden"
+
+
+def make(path, n=10, **opts):
+    """A store of n windows (5 messages each, /odom and /tf alternating), every one sealed."""
+    store = cclogfs.open_store(path, create=True, **(OPTS | opts))
+    for i in range(n):
+        store.put_window(("/tf", "/odom")[i % 2], [(i * 100 + k, json.dumps({"i": i, "x": k * 0.25})) for k in range(5)],
+                         meta={"i": i})  # fmt: skip
+    store.seal()
+    return store
+
+
+def files(path):
+    return {p.name: p.read_bytes() for p in sorted(Path(path).iterdir())}
+
+
+def aged(window):
+    msgs = list(window.messages())[::2]
+    return Replacement([(t, '{"r":1}') for t, _ in msgs], dict(window.meta, aged={"abs": 0.5}), flags=RecordFlag.AGED)
+
+
+def test_seal_on_demand(tmp_path):
+    with cclogfs.open_store(tmp_path / "s", create=True, **OPTS) as store:
+        assert store.seal() is False  # nothing to seal
+        store.put_window("/a", [(1, "1")])
+        assert store.seal() is True
+        assert [s.first_seq for s in store.sealed] == [0] and store.active.first_seq == 1
+        assert store.manifest["format_version"] == 1  # sealing is not compaction
+    with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
+        assert store.recovery.clean and [w.seq for w in store.query()] == [0]
+
+
+def test_rewrite_replaces_downsamples_and_keeps(tmp_path):
+    with make(tmp_path / "s") as store:
+        old = state(store)
+        report = store.rewrite(lambda w: aged(w) if w.name == "/odom" else None)
+        assert report.segments == [0, 3, 6, 9] and (report.replaced, report.kept) == (5, 5)
+        assert report.before["/odom"]["messages"] == 25 and report.after["/odom"]["messages"] == 15
+        assert report.before["/tf"] == report.after["/tf"]
+        new = state(store)
+        assert store.manifest["format_version"] == 2
+        assert [s.get("gen") for s in store.manifest["segments"]] == [1, 1, 1, 1]
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        assert state(store) == new
+        for before, after in zip(old, new):
+            if before[1] == "/tf":
+                assert after == before
+            else:
+                seq, name, start, end, meta, flags, messages = after
+                assert (seq, name, start, end) == before[:4] and flags == RecordFlag.AGED
+                assert meta == dict(before[4], aged={"abs": 0.5})
+                assert [t for t, _ in messages] == [t for t, _ in before[6]][::2]
+        assert {w.seq: w.aged for w in store.query("/odom")} == {s: {"abs": 0.5} for s in (1, 3, 5, 7, 9)}
+        assert [w.aged for w in store.query("/tf")] == [None] * 5
+        assert store.streams()["/odom"]["aged"] == 5 and store.streams()["/tf"]["aged"] == 0
+    assert sorted(files(tmp_path / "s")) == ["00000000000000000000-1.idx", "00000000000000000000-1.seg",
+                                             "00000000000000000003-1.idx", "00000000000000000003-1.seg",
+                                             "00000000000000000006-1.idx", "00000000000000000006-1.seg",
+                                             "00000000000000000009-1.idx", "00000000000000000009-1.seg",
+                                             "00000000000000000010.seg", "LOCK", MANIFEST]  # fmt: skip
+
+
+def test_a_segment_whose_records_are_all_kept_is_not_rewritten(tmp_path):
+    with make(tmp_path / "s") as store:
+        before = files(tmp_path / "s")
+        report = store.rewrite(lambda w: None)
+        assert report.segments == [] and files(tmp_path / "s") == before
+        store.rewrite(lambda w: aged(w) if w.seq == 4 else None)
+        assert [s.get("gen", 0) for s in store.manifest["segments"]] == [0, 1, 0, 0]
+        store.rewrite(lambda w: aged(w) if w.seq == 4 else None, segments=[3])  # again: generation 2
+        assert [s.get("gen", 0) for s in store.manifest["segments"]] == [0, 2, 0, 0]
+        assert (tmp_path / "s" / "00000000000000000003-2.seg").exists()
+        assert not (tmp_path / "s" / "00000000000000000003-1.seg").exists()
+        with pytest.raises(InvalidInputError, match="no sealed segment starts at seq 4"):
+            store.rewrite(lambda w: None, segments=[4])
+
+
+BAD = {
+    "starts before the record": lambda w: Replacement([(w.start_ns - 1, "1")], {}),
+    "ends after the record": lambda w: Replacement([(w.end_ns + 1, "1")], {}),
+    "no message": lambda w: Replacement([], {}),
+    "not JSON": lambda w: Replacement([(w.start_ns, "{")], {}),
+    "times decrease": lambda w: Replacement([(w.end_ns, "1"), (w.start_ns, "1")], {}),
+    "a renamed stream (a tuple)": lambda w: ("/other", list(w.messages()), w.meta),
+    "AGED without meta aged": lambda w: Replacement(list(w.messages()), {}, flags=RecordFlag.AGED),
+    "an unknown flag": lambda w: Replacement(list(w.messages()), {}, flags=4),
+    "meta not a dict": lambda w: Replacement(list(w.messages()), [1]),
+    "unknown codec": lambda w: Replacement(list(w.messages()), {}, codec="nope"),
+}
+
+
+@pytest.mark.parametrize("why", sorted(BAD))
+def test_a_bad_replacement_is_refused_and_changes_nothing(tmp_path, why):
+    bad = BAD[why]
+    with make(tmp_path / "s") as store:
+        before, old = files(tmp_path / "s"), state(store)
+        # Segments 0 and 3 are replaced fine (their new generations are written) before
+        # the bad replacement of seq 7: nothing may survive of them.
+        with pytest.raises(cclogfs.errors.CclogError) as err:
+            store.rewrite(lambda w: bad(w) if w.seq == 7 else aged(w))
+        assert "seq 7" in str(err.value) or why == "unknown codec"
+        assert files(tmp_path / "s") == before and state(store) == old
+        store.put_window("/a", [(10**6, "1")])  # the store still takes writes
+    with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
+        assert store.recovery.clean and state(store)[:-1] == old
+
+
+def test_an_error_in_the_callback_changes_nothing(tmp_path):
+    def boom(w):
+        if w.seq == 5:
+            raise RuntimeError("callback failed")
+        return aged(w)
+
+    with make(tmp_path / "s") as store:
+        before = files(tmp_path / "s")
+        with pytest.raises(RuntimeError):
+            store.rewrite(boom)
+        assert files(tmp_path / "s") == before
+
+
+def test_drop_oldest_moves_the_start_of_the_log(tmp_path):
+    with make(tmp_path / "s") as store:
+        old = state(store)
+        d = store.drop_oldest()
+        assert (d.first_seq, d.end_seq) == (0, 3) and d.streams["/tf"]["windows"] == 2 and d.bytes > 0
+        assert store.first_seq == 3 and [w[0] for w in state(store)] == list(range(3, 10))
+        assert state(store) == old[3:]
+        assert store.dropped() == {"segments": 1, "streams": d.streams}
+        while store.drop_oldest():
+            pass
+        assert store.first_seq == 10 and state(store) == [] and store.streams() == {}
+        odom = store.dropped()["streams"]["/odom"]
+        assert (odom["windows"], odom["messages"], odom["start_ns"], odom["end_ns"]) == (5, 25, 100, 904)
+        assert store.put_window("/a", [(5, "1")]).seq == 10  # sequence numbers are never reused
+        store.seal()
+        assert store.drop_oldest().first_seq == 10
+        assert store.drop_oldest() is None  # the active segment is never dropped
+        assert store.put_window("/a", [(6, "2")]).seq == 11
+    with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
+        assert store.recovery.clean and [w.seq for w in store.query()] == [11]
+        assert store.first_seq == 11 and store.dropped()["segments"] == 5
+    assert sorted(files(tmp_path / "s")) == ["00000000000000000011.seg", "LOCK", MANIFEST]
+    report = check_store(str(tmp_path / "s"))
+    assert not report.findings and report.records == 1
+
+
+def test_fsck_is_clean_after_rewrite_and_drop_and_deep_reads_aged_records(tmp_path):
+    with make(tmp_path / "s") as store:
+        store.rewrite(lambda w: aged(w) if w.seq % 3 else None)
+        store.drop_oldest()
+        store.put_window("/a", [(10**6, "1")])
+    report = check_store(str(tmp_path / "s"), deep=True)
+    assert not report.findings, [str(f) for f in report.findings]
+    assert (report.records, report.decoded, report.aged) == (8, 8, 4)  # seqs 4 5 7 8
+
+
+def test_fsck_says_when_the_manifest_miscounts_aged_windows(tmp_path):
+    with make(tmp_path / "s") as store:
+        store.rewrite(lambda w: aged(w) if w.seq == 1 else None)
+    path = tmp_path / "s" / MANIFEST
+    body = unpack_manifest(path.read_bytes())
+    del body["segments"][0]["aged"]
+    path.write_bytes(pack_manifest(body))
+    (finding,) = check_store(str(tmp_path / "s")).errors
+    assert "aged windows" in finding.what
+
+
+def test_leftovers_are_warnings_for_fsck_and_removed_by_the_writer(tmp_path):
+    with make(tmp_path / "s") as store:
+        store.rewrite(lambda w: aged(w) if w.seq == 4 else None)
+        store.drop_oldest()
+    s = tmp_path / "s"
+    # What interrupted steps leave: an unnamed new generation, the old generation, a dropped segment.
+    shutil.copy(s / "00000000000000000003-1.seg", s / "00000000000000000003-2.seg")
+    shutil.copy(s / "00000000000000000003-1.idx", s / "00000000000000000003.idx")
+    shutil.copy(s / "00000000000000000006.seg", s / "00000000000000000000.seg")
+    with cclogfs.open_store(s, readonly=True) as reader:
+        expected = state(reader)
+        assert sorted(reader.recovery.leftovers) == ["00000000000000000000.seg", "00000000000000000003-2.seg",
+                                                     "00000000000000000003.idx"]  # fmt: skip
+    report = check_store(str(s))
+    assert not report.errors and len(report.findings) == 3
+    assert all("interrupted compaction" in f.what for f in report.findings)
+    with cclogfs.open_store(s, **OPTS) as store:
+        assert store.recovery.clean and state(store) == expected
+        assert sorted(store.recovery.removed_files) == sorted(reader.recovery.leftovers)
+        assert leftovers(s, store.manifest) == []
+    assert not check_store(str(s)).findings
+
+
+def test_a_failed_fsync_while_rewriting_fails_the_store_and_reopening_finds_the_old_state(tmp_path):
+    fs = RecordingFileSystem()
+    with make(tmp_path / "s", fs=fs) as store:
+        old = state(store)
+        fs.fail_fsync = True
+        with pytest.raises(StoreFailedError, match="rewriting failed"):
+            store.rewrite(aged)
+        with pytest.raises(StoreFailedError):
+            store.drop_oldest()
+        fs.fail_fsync = False
+    with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
+        assert state(store) == old and store.recovery.leftovers == ["00000000000000000000-1.seg"]
+        assert store.manifest["format_version"] == 1
+
+
+def test_compaction_needs_the_writer(tmp_path):
+    make(tmp_path / "s").close()
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as reader:
+        for call in (reader.seal, reader.drop_oldest, lambda: reader.rewrite(lambda w: None)):
+            with pytest.raises(StoreError, match="read-only"):
+                call()
+
+
+def test_a_reader_keeps_its_generation_until_refresh(tmp_path):
+    with make(tmp_path / "s") as store:
+        reader = cclogfs.open_store(tmp_path / "s", readonly=True)
+        early = next(reader.query())  # handed out before the rewrite, not yet read
+        old = state(store)
+        store.rewrite(lambda w: aged(w))
+        store.drop_oldest()
+        new = state(store)
+        # The old generation's files are deleted but still open: the reader's snapshot holds,
+        # its indexes rebuilt from the open segments.
+        assert state(reader) == old
+        assert list(early.messages()) == old[0][6]
+        reader.refresh()
+        assert state(reader) == new and reader.first_seq == 3
+        reader.close()
+
+
+class RaceFileSystem(FileSystem):
+    """A reader's file system that lets a writer compact right after each manifest read."""
+
+    def __init__(self, after_manifest):
+        self.after_manifest = after_manifest
+
+    def read_file(self, path):
+        data = super().read_file(path)
+        if path.endswith(MANIFEST) and self.after_manifest:
+            self.after_manifest.pop(0)()
+        return data
+
+
+def test_a_reader_racing_a_compaction_rereads_the_manifest(tmp_path):
+    with make(tmp_path / "s") as store:
+        steps = [lambda: store.rewrite(lambda w: aged(w) if w.seq == 1 else None)]
+        with cclogfs.open_store(tmp_path / "s", readonly=True, fs=RaceFileSystem(steps)) as reader:
+            assert state(reader) == state(store)
+            steps += [lambda: store.rewrite(lambda w: aged(w) if w.seq == 2 else None), store.drop_oldest]
+            reader.refresh()
+            assert state(reader) == state(store)
+            assert not steps  # every compaction ran between a manifest read and the files' opening
+
+
+def test_a_never_compacted_store_stays_version_1_byte_for_byte(tmp_path):
+    shutil.copytree(GOLDEN / "store_v1", tmp_path / "s")
+    before = files(tmp_path / "s")
+    with cclogfs.open_store(tmp_path / "s", sync_every_ms=None, segment_age_s=1e12):
+        pass  # (its active segment is older than the default age limit: it would be sealed)
+    after = files(tmp_path / "s")
+    del after["LOCK"]
+    assert after == before
+    with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
+        store.put_window("/a", [(1, "1")])
+        store.seal()
+        assert unpack_manifest((tmp_path / "s" / MANIFEST).read_bytes())["format_version"] == 1
+        store.rewrite(lambda w: None)  # nothing replaced: still version 1
+        assert unpack_manifest((tmp_path / "s" / MANIFEST).read_bytes())["format_version"] == 1
+
+
+def test_an_unknown_format_version_is_refused_naming_file_and_field(tmp_path):
+    make(tmp_path / "s").close()
+    path = tmp_path / "s" / MANIFEST
+    path.write_bytes(pack_manifest(unpack_manifest(path.read_bytes()) | {"format_version": 3}))
+    for opts in ({"readonly": True}, {}):
+        with pytest.raises(StoreError, match=r"MANIFEST: field format_version is 3"):
+            cclogfs.open_store(tmp_path / "s", **opts)
+
+
+def test_a_missing_generation_is_corruption(tmp_path):
+    with make(tmp_path / "s") as store:
+        store.rewrite(lambda w: aged(w) if w.seq == 1 else None)
+    (tmp_path / "s" / "00000000000000000000-1.seg").unlink()
+    with pytest.raises(CorruptionError, match="00000000000000000000-1.seg, which is missing"):
+        cclogfs.open_store(tmp_path / "s", readonly=True)
+
+
+def test_a_record_of_unknown_flags_is_copied_by_a_rewrite(tmp_path):
+    from test_store_corruption import patch_header
+
+    opts = OPTS | {"segment_records": 100}
+    with cclogfs.open_store(tmp_path / "s", create=True, **opts) as store:
+        for i in range(3):
+            store.put_window("/a", [(i, "1"), (i, "2")])
+        offsets = {w.seq: w._offset for w in store.query()}
+    patch_header(tmp_path / "s" / "00000000000000000000.seg", offsets[1], flags=4)  # a newer writer's flag
+    with cclogfs.open_store(tmp_path / "s", **opts) as store:
+        assert [w.seq for w in store.query()] == [0, 2] and store.recovery.skipped
+        store.seal()
+        store.rewrite(lambda w: Replacement([(w.start_ns, "3")], {}))
+        assert [list(w.messages()) for w in store.query()] == [[(0, "3")], [(2, "3")]]
+    report = check_store(str(tmp_path / "s"))
+    assert not report.errors and report.records == 2
+    assert [f.what for f in report.findings] == ["unknown record flags, skipped"]
+
+
+@pytest.mark.parametrize("damage", ["flip", "grow"])
+def test_a_damaged_segment_is_refused_not_copied(tmp_path, damage):
+    make(tmp_path / "s").close()
+    seg = tmp_path / "s" / "00000000000000000003.seg"
+    data = bytearray(seg.read_bytes())
+    if damage == "flip":
+        data[-5] ^= 0x40  # in the last record's payload
+    else:
+        data += b"\0" * 10
+    seg.write_bytes(bytes(data))
+    with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
+        before = files(tmp_path / "s")
+        with pytest.raises(CorruptionError, match="00000000000000000003.seg.*cannot be rewritten"):
+            store.rewrite(aged)
+        assert files(tmp_path / "s") == before
+        store.rewrite(aged, segments=[0, 6])  # the intact segments still can be
