@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import math
 import re
-from decimal import ROUND_HALF_EVEN, Decimal
+from decimal import ROUND_HALF_EVEN, Decimal, localcontext
 from fnmatch import fnmatchcase
 
 import pytest
@@ -125,7 +125,9 @@ def test_ties_and_near_ties_round_half_even_exactly(k, bound, nudge):
     token = format(tie, "f")
     if not abs(float(token)) < 1e15:
         return
-    exact = (Decimal(token) / step).to_integral_value(rounding=ROUND_HALF_EVEN) * step
+    with localcontext() as ctx:
+        ctx.prec = 60  # the default 28 digits would round the quotient itself
+        exact = (Decimal(token) / step).to_integral_value(rounding=ROUND_HALF_EVEN) * step
     assert Decimal(Grid(step).round(token)) == exact
 
 
