@@ -1,0 +1,116 @@
+"""`cclog compact STORE`: age old windows to lower fidelity, drop the oldest to fit a budget."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+
+from ..aging import Policy, parse_rule
+from ..compact import DEFAULT_EXCLUDE, compact
+from ..errors import InvalidInputError
+from ..store import open_store
+from ..times import parse_duration, parse_time
+from ._fmt import human_bytes, iso_ns, table
+
+EXAMPLES = """examples:
+  cclog compact robot.store --older-than 30d --error 1e-3
+      windows that ended over 30 days before the newest window of their stream: every
+      float within 0.001
+  cclog compact robot.store --older-than 7d --error 1e-3 --error 'pose.covariance=0.01' \\
+      --error 'header.**=0' --max-rate 5 --stream /odom --stream /tf
+      per-field bounds (the last matching rule wins; 0 keeps a field exact), and at most
+      5 messages per second of each window
+  cclog compact robot.store --budget 20GiB
+      drop the oldest segments until the store fits in 20 GiB
+exit status: 0 done, 1 error (nothing half-done: every step is crash-safe),
+             3 done but the store is still over its budget.
+
+Field patterns are the JSON keys joined by dots (array levels add no part): `*` matches
+one key, `**` any number. Ages count back from the newest window of each stream, in the
+stream's own stamps (streams may use different clocks). The summary stream (/cclog/summary) stays exact unless
+--stream names it.
+"""
+
+HELP = "age old windows to lower fidelity and fit a storage budget"
+DESCRIPTION = (
+    "Rewrite old windows with every float rounded within stated error bounds (and "
+    "optionally fewer messages per second), then drop the oldest segments while the store "
+    "is over its budget. Each aged window records how it was aged in its metadata."
+)
+
+_SIZE = re.compile(r"(\d+(?:\.\d*)?)\s*(B|KB|MB|GB|TB|KiB|MiB|GiB|TiB)?", re.IGNORECASE)
+_SIZE_UNIT = {"b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12,
+              "kib": 2**10, "mib": 2**20, "gib": 2**30, "tib": 2**40}  # fmt: skip
+
+
+def parse_size(text: str) -> int:
+    """Bytes for "500MB", "20GiB", "1048576" (no unit: bytes)."""
+    m = _SIZE.fullmatch(text.strip())
+    if m is None:
+        raise InvalidInputError(f"Size {text!r} is not understood; give e.g. 500MB, 20GiB or a byte count.")
+    return int(float(m.group(1)) * _SIZE_UNIT[(m.group(2) or "b").lower()])
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("store", help="store directory (opened as its writer: stop the recorder first)")
+    when = p.add_mutually_exclusive_group()
+    when.add_argument("--older-than", metavar="DURATION",
+                      help="age windows that ended this long before their stream's newest (e.g. 30d, 12h)")
+    when.add_argument("--before", metavar="TIME", help="age windows that ended before this time")
+    p.add_argument("--error", action="append", default=[], metavar="[PATTERN=]BOUND",
+                   help="absolute error bound for float fields (repeatable; last match wins)")
+    p.add_argument("--max-rate", type=float, metavar="HZ", help="keep at most HZ messages per second of each aged window")
+    p.add_argument("--stream", action="append", default=[], metavar="PATTERN",
+                   help=f"streams to age (glob, repeatable; default: all but {', '.join(DEFAULT_EXCLUDE)})")
+    p.add_argument("--budget", metavar="SIZE", help="drop the oldest segments while the store is larger (e.g. 20GiB)")
+    p.add_argument("--json", action="store_true", help="print the report as JSON")
+
+
+def run(args: argparse.Namespace) -> int:
+    rules = [parse_rule(r) for r in args.error]
+    policy = Policy(rules, args.max_rate) if rules or args.max_rate is not None else None
+    budget = parse_size(args.budget) if args.budget else None
+    if policy is None and (args.older_than or args.before):
+        raise InvalidInputError("--older-than/--before say which windows to age; give --error or --max-rate too.")
+    if policy is None and budget is None:
+        raise InvalidInputError("Nothing to do: give --error and/or --max-rate to age windows, or --budget.")
+    before_ns = parse_time(args.before) if args.before else None
+    older_than_ns = parse_duration(args.older_than) if args.older_than else None
+    with open_store(args.store) as store:
+        report = compact(store, policy=policy, before_ns=before_ns, older_than_ns=older_than_ns,
+                         streams=args.stream or None, budget=budget)  # fmt: skip
+    if args.json:
+        print(json.dumps(report.to_dict(), indent=2))
+    else:
+        print(format_report(report, policy, args))
+    return 3 if report.over_budget else 0
+
+
+def format_report(report, policy: Policy | None, args: argparse.Namespace) -> str:
+    lines = []
+    if policy is not None:
+        if args.before:
+            cutoff = f"windows ending before {args.before}"
+        elif args.older_than:
+            cutoff = f"windows ending over {args.older_than} before their stream's newest"
+        else:
+            cutoff = "all windows"
+        rules = ", ".join(f"{p} <= {b:g}" for p, b in policy.describe()["rules"]) or "none"
+        rate = f", at most {policy.max_rate_hz:g} msg/s" if policy.max_rate_hz else ""
+        lines.append(f"aging {cutoff}: error bounds {rules}{rate}")
+        rows = [[name, str(a["windows"]), f"{a['messages_before']} -> {a['messages_after']}",
+                 f"{human_bytes(a['bytes_before'])} -> {human_bytes(a['bytes_after'])}",
+                 f"{a['bytes_after'] / a['bytes_before']:.2f}x" if a["bytes_before"] else "-"]
+                for name, a in sorted(report.aged.items())]  # fmt: skip
+        lines.append(table(rows, ["stream", "windows aged", "messages", "stored (rewritten segments)", "ratio"]) if rows
+                     else "nothing to age (no window old enough, or already aged this way)")  # fmt: skip
+    for name, d in sorted(report.dropped.items()):
+        lines.append(f"dropped {d['windows']} windows of {name} ({d['messages']} messages, "
+                     f"{human_bytes(d['stored_bytes'])}) from {iso_ns(d['start_ns'])} to {iso_ns(d['end_ns'])}")  # fmt: skip
+    size = f"store: {human_bytes(report.disk_before)} -> {human_bytes(report.disk_after)}"
+    if report.budget is not None:
+        size += f" (budget {human_bytes(report.budget)}: " + ("NOT met: the active segment cannot be dropped)"
+                                                             if report.over_budget else "met)")  # fmt: skip
+    lines.append(size)
+    return "\n".join(lines)

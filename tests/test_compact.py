@@ -1,0 +1,160 @@
+"""Compaction and aging end to end: `cclogfs.compact` and `cclog compact`."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+import cclogfs
+from cclogfs.aging import Policy, parse_rule
+from cclogfs.cli import main
+from cclogfs.compact import compact
+from cclogfs.fsck import check_store
+
+NS = 1_000_000_000
+
+
+def odom(i: int) -> str:
+    t = i * 0.1
+    return json.dumps({"header": {"stamp": {"sec": i // 10, "nanosec": i % 10 * 100_000_000}, "frame_id": "odom"},
+                       "pose": {"x": math.sin(t) * 3.123456789, "y": t * 0.7071067811865476, "n": i},
+                       "twist": {"v": 0.25 + 0.01 * math.cos(t), "w": -0.0}})  # fmt: skip
+
+
+def build(path, windows=12, per=50, **kw):
+    """`windows` windows of /odom at 10 Hz (one per 5 s), one summary message each."""
+    with cclogfs.open_store(path, create=True, **kw) as store:
+        for w in range(windows):
+            store.put_window("/odom", [(i * NS // 10, odom(i)) for i in range(w * per, (w + 1) * per)])
+            store.put_window("/cclog/summary", [(w * 5 * NS, json.dumps({"distance_m": 1.23456789}))])
+
+
+def floats(value):
+    if isinstance(value, float):
+        yield value
+    elif isinstance(value, dict):
+        for v in value.values():
+            yield from floats(v)
+    elif isinstance(value, list):
+        for v in value:
+            yield from floats(v)
+
+
+def test_old_windows_age_within_bounds_and_new_ones_stay_exact(tmp_path):
+    build(tmp_path / "s")  # never sealed: compaction must seal to reach old windows
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as s:
+        before = {w.seq: list(w.messages()) for w in s.query("/odom")}
+    with cclogfs.open_store(tmp_path / "s") as store:
+        report = compact(store, policy=Policy([parse_rule("1e-3"), parse_rule("header.**=0")]),
+                         older_than_ns=30 * NS)  # fmt: skip
+    cutoff = 599 * NS // 10 - 30 * NS  # the newest /odom message is at 59.9 s
+    assert report.aged["/odom"]["windows"] == 5  # windows 0-4 end before it, at 4.9 ... 24.9 s
+    assert "/cclog/summary" not in report.aged  # excluded by default
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as s:
+        for w in s.query("/odom"):
+            msgs = list(w.messages())
+            if w.end_ns < cutoff:
+                assert w.flags & 1 and w.aged[-1]["rules"] == [["**", 0.001], ["header.**", 0.0]]
+                assert w.aged[-1]["messages_before"] == 50
+                for (s0, t0), (s1, t1) in zip(before[w.seq], msgs, strict=True):
+                    assert s0 == s1
+                    a, b = json.loads(t0), json.loads(t1)
+                    assert a["header"] == b["header"] and a["pose"]["n"] == b["pose"]["n"]
+                    for u, v in zip(floats(a), floats(b), strict=True):
+                        assert abs(u - v) <= 1e-3 * (1 + 1e-12)
+            else:
+                assert w.aged is None and msgs == before[w.seq]
+        for w in s.query("/cclog/summary"):
+            assert w.aged is None
+    assert not check_store(str(tmp_path / "s"), deep=True).errors
+
+
+def test_same_policy_twice_rewrites_nothing_and_a_new_one_adds_a_pass(tmp_path):
+    build(tmp_path / "s", segment_records=4)
+    policy = Policy([parse_rule("1e-3")])
+    with cclogfs.open_store(tmp_path / "s") as store:
+        first = compact(store, policy=policy)
+        size = store.disk_bytes()
+        again = compact(store, policy=policy)
+        assert again.aged == {} and store.disk_bytes() == size
+        thinner = compact(store, policy=Policy([parse_rule("1e-2")], max_rate_hz=2))
+    assert first.aged["/odom"]["windows"] == 12
+    assert thinner.aged["/odom"]["messages_after"] < thinner.aged["/odom"]["messages_before"]
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as s:
+        w = next(iter(s.query("/odom")))
+        assert [p["rules"] for p in w.aged] == [[["**", 0.001]], [["**", 0.01]]]
+        assert len(list(w.messages())) == 11  # 2 Hz over 4.9 s, first and last kept
+        assert (w.start_ns, w.end_ns) == (0, 49 * NS // 10)
+
+
+def test_budget_drops_oldest_segments_and_says_when_it_cannot(tmp_path):
+    build(tmp_path / "s", segment_records=4)
+    with cclogfs.open_store(tmp_path / "s") as store:
+        total = store.disk_bytes()
+        report = compact(store, budget=total // 2)
+        assert store.disk_bytes() <= total // 2 and not report.over_budget
+        assert report.segments_dropped >= 1
+        first_left = min(w.start_ns for w in store.query("/odom"))
+        assert first_left > 0 and report.dropped["/odom"]["start_ns"] == 0
+        impossible = compact(store, budget=1)
+        assert impossible.over_budget
+        assert store.dropped()["segments"] == report.segments_dropped + impossible.segments_dropped
+
+
+def test_cli_ages_reports_and_exits_by_outcome(tmp_path, capsys):
+    build(tmp_path / "s", segment_records=4)
+    path = str(tmp_path / "s")
+    assert main(["compact", path, "--older-than", "30s", "--error", "1e-3", "--stream", "/odom"]) == 0
+    out = capsys.readouterr().out
+    assert "windows ending over 30s before their stream's newest" in out and "/odom" in out
+    assert main(["compact", path, "--older-than", "30s", "--error", "1e-3", "--stream", "/odom"]) == 0
+    assert "nothing to age" in capsys.readouterr().out
+    assert main(["compact", path, "--budget", "1B", "--json"]) == 3
+    assert json.loads(capsys.readouterr().out)["over_budget"] is True
+    assert main(["info", path]) == 0
+    assert "retention dropped" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "args, match",
+    [([], "Nothing to do"), (["--error", "x=y"], "PATTERN=BOUND"), (["--budget", "lots"], "Size 'lots'"),
+     (["--older-than", "3 months", "--error", "1e-3"], "Duration"),
+     (["--older-than", "3d"], "give --error or --max-rate")],
+)  # fmt: skip
+def test_cli_refuses_bad_arguments_and_leaves_the_store_alone(tmp_path, capsys, args, match):
+    build(tmp_path / "s", windows=3)
+    files = {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir()}
+    assert main(["compact", str(tmp_path / "s"), *args]) == 1
+    assert match in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir()} == files
+
+
+def test_real_log_ages_within_bound_and_shrinks(tmp_path, shared_data):
+    from rosbags.highlevel import AnyReader
+
+    from cclogfs.rosjson import MessageConverter, message_stamp_ns
+
+    to_json = MessageConverter().to_json
+    with AnyReader([shared_data("nav2_turtlebot.mcap")]) as reader, \
+            cclogfs.open_store(tmp_path / "s", create=True) as store:  # fmt: skip
+        per_topic: dict[str, list] = {}
+        for con, logtime, raw in reader.messages():
+            msg = reader.deserialize(raw, con.msgtype)
+            per_topic.setdefault(con.topic, []).append((message_stamp_ns(msg) or logtime, to_json(msg)))
+        for topic, msgs in per_topic.items():
+            for i in range(0, len(msgs), 200):
+                store.put_window(topic, msgs[i : i + 200])
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as s:
+        exact = {w.seq: list(w.messages()) for w in s.query()}
+    with cclogfs.open_store(tmp_path / "s") as store:
+        size = store.disk_bytes()
+        compact(store, policy=Policy([parse_rule("1e-3")]))
+        assert store.disk_bytes() < 0.7 * size
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as s:
+        for w in s.query():
+            for (_, t0), (_, t1) in zip(exact[w.seq], w.messages(), strict=True):
+                for u, v in zip(floats(json.loads(t0)), floats(json.loads(t1)), strict=True):
+                    assert abs(u - v) <= 1e-3 * (1 + 1e-12)
+    assert not check_store(str(tmp_path / "s"), deep=True).errors
