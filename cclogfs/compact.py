@@ -25,7 +25,7 @@ from .format import RecordFlag
 from .index import merge_stream_stats
 from .store import Store, Window
 
-__all__ = ["DEFAULT_EXCLUDE", "CompactReport", "compact"]
+__all__ = ["DEFAULT_EXCLUDE", "CompactReport", "Upkeep", "compact"]
 
 # The smart-logging summary answers "how far did the robot drive this year"; it is tiny,
 # so it stays exact unless a stream pattern names it.
@@ -70,17 +70,21 @@ def compact(
     older_than_ns: int | None = None,
     streams: Sequence[str] | None = None,
     budget: int | None = None,
+    segments: Sequence[int] | None = None,
+    seal: bool = True,
 ) -> CompactReport:
     """Age windows with `policy`, then drop the oldest sealed segments while the store holds
     more than `budget` bytes.
 
     Which windows age: those ending before `before_ns`, or ending more than `older_than_ns`
     before the newest window of their own stream (streams may run on different clocks: sim
-    time, log time), or all of them when neither is given.
+    time, log time), or all of them when neither is given; only in the sealed segments
+    starting at `segments` (first seqs; default all). With `seal`, the segment being
+    written is sealed first when it holds windows to age (a recorder passes False).
     """
     report = CompactReport(disk_before=store.disk_bytes(), budget=budget)
     if policy is not None:
-        _age(store, policy, _cutoffs(store, before_ns, older_than_ns), streams, report)
+        _age(store, policy, _cutoffs(store, before_ns, older_than_ns), streams, report, segments, seal)
     if budget is not None:
         while store.disk_bytes() > budget:
             gone = store.drop_oldest()
@@ -105,7 +109,8 @@ def _cutoffs(store: Store, before_ns: int | None, older_than_ns: int | None) -> 
     return out
 
 
-def _age(store: Store, policy: Policy, cutoff: dict[str, int] | None, streams, report: CompactReport) -> None:
+def _age(store: Store, policy: Policy, cutoff: dict[str, int] | None, streams, report: CompactReport,
+         segments: Sequence[int] | None, seal: bool) -> None:  # fmt: skip
     desc = policy.describe()
     counts: dict[str, list[int]] = {}
 
@@ -133,11 +138,58 @@ def _age(store: Store, policy: Policy, cutoff: dict[str, int] | None, streams, r
 
     # Windows in the active segment can be rewritten only once it is sealed.
     active = store.active
-    if active is not None and any(w.seq >= active.first_seq and due(w) for w in store.query()):
+    if seal and active is not None and any(w.seq >= active.first_seq and due(w) for w in store.query()):
         store.seal()
-    done = store.rewrite(rewrite)
+        if segments is not None:
+            segments = [*segments, active.first_seq]
+    done = store.rewrite(rewrite, segments=segments)
     for name, (windows, before, after) in counts.items():
         report.aged[name] = {
             "windows": windows, "messages_before": before, "messages_after": after,
             "bytes_before": done.before[name]["stored_bytes"], "bytes_after": done.after[name]["stored_bytes"],
         }  # fmt: skip
+
+
+class Upkeep:
+    """Compaction run by the recorder itself, which holds the store's only writer lock.
+
+    `after_put(store)` is cheap until a segment is sealed (at most 64 MiB, 16,384 windows
+    or an hour by default); then old windows are aged and, over the budget, the oldest
+    segments dropped. So the store can exceed its budget by up to one segment. Segments
+    whose every window was old enough when they were aged are not visited again.
+    """
+
+    def __init__(self, *, policy: Policy | None = None, older_than_ns: int | None = None,
+                 streams: Sequence[str] | None = None, budget: int | None = None):  # fmt: skip
+        self.policy, self.older_than_ns, self.streams, self.budget = policy, older_than_ns, streams, budget
+        self.sealed_upto = -1  # end seq of the newest sealed segment at the last run
+        self.done: set[int] = set()  # first seqs of segments with nothing left to age
+        self.runs = 0
+        self.last: CompactReport | None = None
+        self.aged_windows = 0
+        self.dropped_segments = 0
+
+    @property
+    def over_budget(self) -> bool:
+        return self.last is not None and self.last.over_budget
+
+    def after_put(self, store: Store) -> CompactReport | None:
+        # A new sealed segment moves this (the count may not change: drops remove others).
+        upto = store.sealed[-1].next_seq if store.sealed else -1
+        if upto == self.sealed_upto:
+            return None
+        todo = [seg.first_seq for seg in store.sealed if seg.first_seq not in self.done]
+        report = compact(store, policy=self.policy, older_than_ns=self.older_than_ns, streams=self.streams,
+                         budget=self.budget, segments=todo, seal=False)  # fmt: skip
+        if self.policy is not None:
+            cutoff = _cutoffs(store, None, self.older_than_ns)
+            for seg, info in zip(store.sealed, store.manifest["segments"]):
+                if cutoff is None or all(st["end_ns"] < cutoff.get(name, st["end_ns"] + 1)
+                                         for name, st in info["streams"].items()):  # fmt: skip
+                    self.done.add(seg.first_seq)
+        self.sealed_upto = store.sealed[-1].next_seq if store.sealed else -1
+        self.runs += 1
+        self.last = report
+        self.aged_windows += sum(a["windows"] for a in report.aged.values())
+        self.dropped_segments += report.segments_dropped
+        return report

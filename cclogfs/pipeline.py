@@ -18,6 +18,7 @@ from typing import Any, NamedTuple, Protocol
 from ._signals import signals_deferred as _signals_deferred
 from .errors import InvalidInputError, StoreError
 from .jsoncheck import json_error
+from .compact import Upkeep
 from .store import Store, open_store
 
 # Default logging-window extents, in seconds so they mean the same at any odometry rate.
@@ -132,12 +133,13 @@ def store_window(store: Store, window: Any, stats: RecordStats) -> None:
 
 def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
            trusted_json: bool = False, progress: Callable[[RecordStats], None] | None = None,
-           stats: RecordStats | None = None) -> RecordStats:  # fmt: skip
+           stats: RecordStats | None = None, upkeep: Upkeep | None = None) -> RecordStats:  # fmt: skip
     """Feed messages (objects with .topic, .stamp_ns, .text) through `policy` into `store`.
 
     On any exit, Ctrl-C included, the policy's open windows are flushed into the store, so
     nothing already seen is lost; the caller closes (and so syncs) the store.
     `trusted_json`: the source already parsed every text (JSONL, bags), skip the re-check.
+    `upkeep`: ages and drops old data each time a segment is sealed (`compact.Upkeep`).
     """
     stats = stats or RecordStats()
     started = time.perf_counter()
@@ -153,6 +155,8 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
             try:
                 for window in policy.push(m.topic, m.stamp_ns, m.text):
                     store_window(store, window, stats)
+                    if upkeep is not None:
+                        upkeep.after_put(store)
             finally:
                 INTERRUPTS.critical = False
             if INTERRUPTS.pending:
@@ -200,17 +204,19 @@ class Logger:
     Without `model` every message is kept (in windows of `chunk`); with it, only logging
     windows around anomalies. Thread-safe: executor callbacks may call it concurrently.
     Puts become durable by the store's group commit (`sync_every_ms`); `close()` flushes
-    the open windows and syncs.
+    the open windows and syncs. With `upkeep` (`compact.Upkeep`), old data is aged and the
+    oldest dropped to a budget each time a segment is sealed.
     """
 
     def __init__(self, store_path: str, *, model: Any = None, topics: Iterable[str] | None = None,
                  before: str = WINDOW_BEFORE, after: str = WINDOW_AFTER, chunk: int = 200, codec: Any = "columnar",
-                 sync_every_ms: float | None = 200) -> None:  # fmt: skip
+                 sync_every_ms: float | None = 200, upkeep: Upkeep | None = None) -> None:  # fmt: skip
         self.topics = None if topics is None else frozenset(topics)
         self.policy = (smart_policy(model, topics=topics, before=before, after=after)
                        if model is not None else KeepAll(chunk=chunk))  # fmt: skip
         self.store: Store | None = open_store(store_path, create=True, codec=codec, sync_every_ms=sync_every_ms)
         self.stats = RecordStats()
+        self.upkeep = upkeep
         self._lock = threading.Lock()
 
     def __call__(self, topic_or_message: Any, stamp_ns: int | None = None, text: str | None = None) -> None:
@@ -227,6 +233,8 @@ class Logger:
             self.stats.saw(topic, text)
             for window in self.policy.push(topic, stamp_ns, text):
                 store_window(self.store, window, self.stats)
+                if self.upkeep is not None:
+                    self.upkeep.after_put(self.store)
 
     def close(self) -> None:
         with self._lock:

@@ -158,3 +158,44 @@ def test_real_log_ages_within_bound_and_shrinks(tmp_path, shared_data):
                 for u, v in zip(floats(json.loads(t0)), floats(json.loads(t1)), strict=True):
                     assert abs(u - v) <= 1e-3 * (1 + 1e-12)
     assert not check_store(str(tmp_path / "s"), deep=True).errors
+
+
+def jsonl(path, n, hz=20):
+    with open(path, "w") as f:
+        for i in range(n):
+            f.write(json.dumps({"topic": "/odom", "stamp_ns": i * NS // hz, "msg": json.loads(odom(i))}) + "\n")
+
+
+def test_recorder_ages_and_keeps_to_its_budget_as_it_goes(tmp_path, capsys):
+    jsonl(tmp_path / "run.jsonl", 40_000)  # 2000 s at 20 Hz, about 7 MiB of JSON
+    store = str(tmp_path / "s")
+    assert main(["record", str(tmp_path / "run.jsonl"), "--store", store, "--budget", "256KiB",
+                 "--age-older-than", "600s", "--age-error", "1e-3", "--chunk", "100"]) == 0  # fmt: skip
+    err = capsys.readouterr().err
+    assert "windows aged" in err and "budget 256.0 KiB met" in err, err
+    with cclogfs.open_store(store, readonly=True) as s:
+        assert s.disk_bytes() <= 256 << 10
+        assert s.dropped()["segments"] >= 1
+        windows = list(s.query("/odom"))
+        newest = max(w.end_ns for w in windows)
+        # Every window in a sealed segment that ended over 600 s before the newest is aged;
+        # the newest stay exact.
+        sealed_end = s.manifest["segments"][-1]["end_seq"]
+        for w in windows:
+            if w.seq < sealed_end and w.end_ns < newest - 600 * NS - 200 * NS:
+                assert w.aged is not None, w.seq
+            if w.end_ns > newest - 600 * NS:
+                assert w.aged is None and list(w.messages())[0][1] == odom(w.start_ns * 20 // NS)
+    assert not check_store(store, deep=True).errors
+
+
+@pytest.mark.parametrize(
+    "args, match",
+    [(["--age-older-than", "7d"], "give --age-error or --age-max-rate"),
+     (["--age-error", "1e-3"], "needs --age-older-than"), (["--budget", "big"], "Size 'big'")],
+)  # fmt: skip
+def test_recorder_refuses_incomplete_upkeep_flags(tmp_path, capsys, args, match):
+    jsonl(tmp_path / "run.jsonl", 10)
+    assert main(["record", str(tmp_path / "run.jsonl"), "--store", str(tmp_path / "s"), *args]) == 1
+    assert match in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()
