@@ -59,6 +59,15 @@ def written_kinds(data: bytes, count: int) -> tuple[list[int], int]:
     return kinds, reader.pos
 
 
+def first_group_rows(data: bytes, count: int) -> int:
+    reader = columns.Reader(body_of(data))
+    reader.u32("groups")
+    reader.array("<u2", count, "ids")
+    columns.read_packed(reader, count, "stamps", offset=True)
+    rows, _ = GROUP_HEADER.unpack(reader.take(GROUP_HEADER.size, "group header"))
+    return rows
+
+
 def window(columns_of_tokens: list[list[str]]) -> list[bytes]:
     """One JSON text per row, key c<j> holding token j of that row verbatim."""
     rows = zip(*columns_of_tokens)
@@ -156,8 +165,14 @@ def test_fixed_point_windows_round_trip_exactly(cols):
     texts = window(cols)
     for version in FORMAT_VERSIONS:
         round_trip(texts, ColumnarCodec(version=version))
-    kinds, _ = written_kinds(V4.encode(list(range(len(texts))), texts), len(texts))
-    if all(len(set(column)) > 1 for column in cols):  # else a column may be a literal
+    # A fresh codec: a shared one may reuse the last window's shape (its bytes may depend on
+    # the window before, see shapes.ShapeMatcher), which folds other values into literals.
+    data = ColumnarCodec(version=4).encode(list(range(len(texts))), texts)
+    kinds, _ = written_kinds(data, len(texts))
+    # The shape is found from probes: a value the probes saw constant goes into the
+    # literals and the texts where it differs into another group. Kinds are compared only
+    # when one group holds the whole window.
+    if all(len(set(column)) > 1 for column in cols) and first_group_rows(data, len(texts)) == len(texts):  # else a column may be a literal
         assert len(kinds) == len(cols)
         for column, kind in zip(cols, kinds):
             assert (kind == ColumnKind.DECIMAL) == expect_decimal(column), column
