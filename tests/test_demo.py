@@ -42,6 +42,11 @@ def test_demo_figures_match_the_store(tmp_path, capsys):
         assert abs(res.events["kept_fraction"] - kept / len(stamps)) < 1e-9
         assert sizes["cclogfs, smart logging"] == sum(
             p.stat().st_size for p in res.paths["store"].iterdir() if p.name != "LOCK")
+    aged = sizes["cclogfs, smart logging, aged to 1e-3 (cclog compact)"]
+    assert aged == sum(p.stat().st_size for p in res.paths["store_aged"].iterdir() if p.name != "LOCK")
+    assert aged < sizes["cclogfs, smart logging"]
+    with cclogfs.open_store(res.paths["store_aged"], readonly=True) as store:
+        assert all(w.aged is not None for w in store.query("/odom"))
     assert res.paths["trajectory"].stat().st_size > 10_000 and res.paths["scores"].stat().st_size > 10_000
 
     # A second run over the same directory works, and the store passes fsck.
