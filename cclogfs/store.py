@@ -515,12 +515,16 @@ class Store:
         age_s = (time.time_ns() - seg.created_ns) / 1e9
         if (seg.size >= self.segment_bytes or len(seg.rows) >= self.segment_records
                 or (seg.rows and age_s >= self.segment_age_s)):  # fmt: skip
-            try:
-                self._seal(seg)
-                self.active = self._new_segment(seg.next_seq)
-            except OSError as err:
-                self._failed = err
-                raise StoreFailedError(f"{seg.path}: sealing failed: {err}") from err
+            self._roll(seg)
+
+    def _roll(self, seg: Segment) -> None:
+        """Seal the active segment and start the next one."""
+        try:
+            self._seal(seg)
+            self.active = self._new_segment(seg.next_seq)
+        except OSError as err:
+            self._failed = err
+            raise StoreFailedError(f"{seg.path}: sealing failed: {err}") from err
 
     def seal(self) -> bool:
         """Seal the active segment now, if it holds records, so that compaction can rewrite
@@ -532,12 +536,7 @@ class Store:
             seg = self.active
             if seg.next_seq == seg.first_seq:
                 return len(self.sealed) > sealed
-            try:
-                self._seal(seg)
-                self.active = self._new_segment(seg.next_seq)
-            except OSError as err:
-                self._failed = err
-                raise StoreFailedError(f"{seg.path}: sealing failed: {err}") from err
+            self._roll(seg)
             return True
 
     def rewrite(self, fn: Callable[[Window], Replacement | None], *,
