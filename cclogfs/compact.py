@@ -5,9 +5,10 @@ This module wires `aging` (what happens to a window's JSON) to the store (how re
 rewritten and segments dropped, crash-safely; see docs/FORMAT.md). Order of work:
 
 1. Windows of the chosen streams that end before the cutoff are aged with the policy,
-   unless their last aging pass used the same policy (so a nightly run is idempotent).
-   Each aged window's metadata gains a pass in `meta["aged"]`: the rules, the max rate,
-   and the message count before. Errors add up over passes.
+   unless one of their passes already used it (so a nightly run is idempotent, and
+   policies that take turns settle) or it changes nothing. Each aged window's metadata
+   gains a pass in `meta["aged"]`: the rules, the max rate, and the message count
+   before. Errors add up over passes.
 2. While the store is over its budget, the oldest sealed segment is dropped (retention).
    The active segment is never dropped; if the budget cannot be met without it, the
    report says so.
@@ -83,10 +84,14 @@ def compact(
     written is sealed first when it holds windows to age (a recorder passes False).
     """
     report = CompactReport(disk_before=store.disk_bytes(), budget=budget)
+    # The segment being written is never dropped, not even once sealed here for aging.
+    keep_from = store.active.first_seq if store.active is not None else None
     if policy is not None:
         _age(store, policy, _cutoffs(store, before_ns, older_than_ns), streams, report, segments, seal)
     if budget is not None:
         while store.disk_bytes() > budget:
+            if keep_from is not None and store.sealed and store.sealed[0].first_seq >= keep_from:
+                break
             gone = store.drop_oldest()
             if gone is None:
                 break
@@ -94,6 +99,16 @@ def compact(
             merge_stream_stats(report.dropped, gone.streams)
     report.disk_after = store.disk_bytes()
     return report
+
+
+def passes_of(window: Window) -> list:
+    """The aging passes a window went through, oldest first ([] for a byte-exact window).
+    Each is a dict as `compact` writes them; another writer's statement is kept as one
+    opaque pass."""
+    aged = window.aged  # only set with the AGED record flag
+    if aged is None:
+        return []
+    return list(aged) if isinstance(aged, list) else [aged]
 
 
 def _cutoffs(store: Store, before_ns: int | None, older_than_ns: int | None) -> dict[str, int] | None:
@@ -119,17 +134,19 @@ def _age(store: Store, policy: Policy, cutoff: dict[str, int] | None, streams, r
             return False
         if cutoff is not None and window.end_ns >= cutoff.get(window.name, window.end_ns):
             return False
-        passes = window.meta.get("aged") or []
-        # Already aged this way: a nightly run with the same policy rewrites nothing.
-        return not (passes and {k: passes[-1].get(k) for k in desc} == desc)
+        # Already aged by this policy (in any pass: policies that take turns settle after
+        # one pass each): a nightly run rewrites nothing.
+        return not any(isinstance(p, dict) and {k: p.get(k) for k in desc} == desc for p in passes_of(window))
 
     def rewrite(window: Window) -> Replacement | None:
         if not due(window):
             return None
         messages = list(window.messages())
         aged = policy.age(messages)
+        if aged == messages:
+            return None  # nothing moved: no new pass to record
         meta = dict(window.meta)
-        meta["aged"] = list(meta.get("aged") or []) + [{**desc, "messages_before": len(messages)}]
+        meta["aged"] = passes_of(window) + [{**desc, "messages_before": len(messages)}]
         c = counts.setdefault(window.name, [0, 0, 0])
         c[0] += 1
         c[1] += len(messages)

@@ -12,6 +12,7 @@ from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from ._signals import signals_deferred
 from .errors import CorruptionError, InvalidInputError, StoreFailedError
 from .format import (
     AGED_META_KEY,
@@ -257,16 +258,37 @@ def rewrite(store: Store, fn: Callable[[Window], Replacement | None],
             for plan in plans:
                 segs[plan.position] = plan.info
             manifest = dict(store.manifest, format_version=COMPACTED_FORMAT_VERSION, segments=segs)
-            _commit_manifest(store, manifest)
         except OSError as err:
             store._failed = err
             raise StoreFailedError(f"{store.path}: rewriting failed: {err}; the store refuses further "
-                                   "writes (reopen it: the manifest names either the old or the new "
-                                   "segments)") from err  # fmt: skip
+                                   "writes (reopen it: the manifest names the old segments)") from err  # fmt: skip
         except BaseException:
             # Refused (or interrupted) before the commit: remove the unnamed new generations.
             _remove(store, _generation_files(plans, old=False))
             raise
+        # From the commit on nothing may be undone: once the rename happened, the manifest on
+        # disk names the new files, so an interrupt must not reach the cleanup above.
+        with signals_deferred():
+            _commit(store, manifest, "rewriting")
+            _finish_rewrite(store, plans, infos, report)
+        return report
+
+
+def _commit(store: Store, manifest: dict[str, Any], what: str) -> None:
+    """The commit point of a rewrite or drop; any failure leaves the store failed (whether
+    the rename happened is unknown, so neither generation may be removed)."""
+    try:
+        _commit_manifest(store, manifest)
+    except BaseException as err:
+        store._failed = err
+        raise StoreFailedError(f"{store.path}: {what} failed at its commit: {err}; the store refuses "
+                               "further writes (reopen it: the manifest names either the old or the "
+                               "new segments, and both are kept)") from err  # fmt: skip
+
+
+def _finish_rewrite(store: Store, plans: list[_Plan], infos: list[dict[str, Any]], report: RewriteReport) -> None:
+    """After the commit: swap the new generations in, delete the old ones."""
+    with store._lock:
         try:
             for plan in plans:
                 old = plan.old
@@ -289,7 +311,6 @@ def rewrite(store: Store, fn: Callable[[Window], Replacement | None],
             raise StoreFailedError(f"{store.path}: cleaning up after a rewrite failed: {err}; the "
                                    "rewrite is committed, reopen the store to finish"
                                    ) from err  # fmt: skip
-        return report
 
 
 def drop_oldest(store: Store) -> Dropped | None:
@@ -307,8 +328,16 @@ def drop_oldest(store: Store) -> Dropped | None:
                         first_seq=info["end_seq"], segments=store.manifest["segments"][1:],
                         dropped=dropped)  # fmt: skip
         freed = _file_bytes(store, seg, seg.gen)
+        with signals_deferred():  # the commit and its aftermath run to the end
+            _commit(store, manifest, f"dropping segment {os.path.basename(seg.path)}")
+            _finish_drop(store, seg)
+        return Dropped(info["first_seq"], info["end_seq"], info["streams"], freed)
+
+
+def _finish_drop(store: Store, seg: Segment) -> None:
+    """After the commit: forget the dropped segment and delete its files."""
+    with store._lock:
         try:
-            _commit_manifest(store, manifest)
             store.sealed.pop(0)
             store.fs.close(seg.fd)
             seg.fd = -1
@@ -316,7 +345,6 @@ def drop_oldest(store: Store) -> Dropped | None:
             _remove(store, [segment_name(seg.first_seq, seg.gen), index_name(seg.first_seq, seg.gen)])
         except OSError as err:
             store._failed = err
-            raise StoreFailedError(f"{store.path}: dropping segment {os.path.basename(seg.path)} "
-                                   f"failed: {err}; the store refuses further writes (reopen "
-                                   "it)") from err  # fmt: skip
-        return Dropped(info["first_seq"], info["end_seq"], info["streams"], freed)
+            raise StoreFailedError(f"{store.path}: cleaning up after dropping segment "
+                                   f"{os.path.basename(seg.path)} failed: {err}; the drop is "
+                                   "committed, reopen the store to finish") from err  # fmt: skip

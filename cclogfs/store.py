@@ -211,10 +211,12 @@ class Store:
         }
         self.fs.write_file_atomic(self._file(MANIFEST), pack_manifest(self.manifest))
 
-    def _load_manifest(self) -> None:
+    def _load_manifest(self) -> bytes:
+        """Read and check the manifest; returns its bytes."""
         path = self._file(MANIFEST)
+        raw = self.fs.read_file(path)
         try:
-            self.manifest = unpack_manifest(self.fs.read_file(path))
+            self.manifest = unpack_manifest(raw)
         except RecordError as err:
             raise CorruptionError(f"{path} is damaged: {err}", path=path, offset=0,
                                   reason=err.reason) from err  # fmt: skip
@@ -222,6 +224,7 @@ class Store:
         if version not in FORMAT_VERSIONS:
             raise StoreError(f"{path}: field format_version is {version!r}, which this cclogfs cannot read "
                              f"(it reads versions {', '.join(map(str, FORMAT_VERSIONS))}); use a newer cclogfs")  # fmt: skip
+        return raw
 
     @property
     def first_seq(self) -> int:
@@ -278,16 +281,23 @@ class Store:
     def _open_segments_retrying(self) -> None:
         """Load the manifest and open its segments. A reader retries when a listed segment
         is missing: a writer compacted between its reading the manifest and the files."""
-        for attempt in range(3):
-            self._load_manifest()
+        for attempt in range(5):
+            raw = self._load_manifest()
             try:
                 self._open_segments()
-                return
-            except CorruptionError as err:
-                if not (self.readonly and err.reason == "missing segment" and attempt < 2):
+                # A reader must see files and manifest of one moment: if the manifest
+                # changed meanwhile, a segment may have been sealed and rewritten under it.
+                if not self.readonly or self.fs.read_file(self._file(MANIFEST)) == raw:
+                    return
+            except (CorruptionError, FileNotFoundError) as err:
+                retry = isinstance(err, FileNotFoundError) or err.reason == "missing segment"
+                if not (self.readonly and retry and attempt < 4):
                     raise
-                self._close_segments()
-                self.sealed, self.unsealed, self.recovery = [], [], Recovery()
+            if attempt == 4:
+                raise StoreError(f"{self.path}: the store changed under this reader five times "
+                                 "while it was opening (a writer compacting); try again")  # fmt: skip
+            self._close_segments()
+            self.sealed, self.unsealed, self.recovery = [], [], Recovery()
 
     def _close_segments(self) -> None:
         for seg in self._segments():
@@ -318,11 +328,6 @@ class Store:
             elif kind == "seg":
                 tail[first_seq] = name
         self.recovery.leftovers = leftovers
-        if leftovers and not self.readonly:
-            for name in leftovers:
-                self.fs.unlink(self._file(name))
-                self.recovery.removed_files.append(name)
-            self.fs.fsync_dir(self.path)
         next_seq = self.first_seq
         for info in self.manifest["segments"]:
             gen = info.get("gen", 0)
@@ -337,6 +342,13 @@ class Store:
             seg.sealed_size, seg.gen = info["size"], gen
             self.sealed.append(seg)
             next_seq = info["end_seq"]
+        # Only now, with every file the manifest names found: were one missing, the other
+        # generation might be all that is left of it.
+        if leftovers and not self.readonly:
+            for name in leftovers:
+                self.fs.unlink(self._file(name))
+                self.recovery.removed_files.append(name)
+            self.fs.fsync_dir(self.path)
         self._recover_tail(next_seq, [tail[s] for s in sorted(tail)])
 
     def _index_path(self, seg: Segment) -> str:
@@ -438,6 +450,9 @@ class Store:
         for texts a parser has just checked (a JSONL or bag source); the text is still
         stored and returned byte for byte.
         """
+        if meta is not None and AGED_META_KEY in meta:
+            raise InvalidInputError(f"{self.path}: window meta key {AGED_META_KEY!r} is reserved: compaction "
+                                    "writes it, with the AGED flag, to say how a window was aged")  # fmt: skip
         enc = self._encode_window(name, messages, meta, codec, check_json)
         stamps, raw_len = enc.stamps, enc.raw_len
         with self._lock:

@@ -199,3 +199,45 @@ def test_recorder_refuses_incomplete_upkeep_flags(tmp_path, capsys, args, match)
     assert main(["record", str(tmp_path / "run.jsonl"), "--store", str(tmp_path / "s"), *args]) == 1
     assert match in capsys.readouterr().err
     assert not (tmp_path / "s").exists()
+
+
+# -- found in review -------------------------------------------------------------------
+
+
+def test_aging_with_a_budget_never_drops_the_segment_it_sealed(tmp_path):
+    build(tmp_path / "s")  # everything in the active segment
+    with cclogfs.open_store(tmp_path / "s") as store:
+        report = compact(store, policy=Policy([parse_rule("1e-3")]), older_than_ns=30 * NS, budget=1)
+        assert report.over_budget and report.segments_dropped == 0
+        assert len(list(store.query("/odom"))) == 12
+
+
+def test_policies_taking_turns_settle_after_one_pass_each(tmp_path):
+    build(tmp_path / "s", windows=2)
+    fine, coarse = Policy([parse_rule("1e-3")]), Policy([parse_rule("2.5e-3")])
+    with cclogfs.open_store(tmp_path / "s") as store:
+        for night in range(6):
+            report = compact(store, policy=fine if night % 2 == 0 else coarse)
+            assert bool(report.aged) == (night < 2), night
+        w = next(iter(store.query("/odom")))
+        assert [p["rules"] for p in w.aged] == [[["**", 0.001]], [["**", 0.0025]]]
+
+
+def test_a_window_aging_leaves_unchanged_gets_no_pass(tmp_path):
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        store.put_window("/odom", [(1, '{"n": 1, "s": "1.23456"}'), (2, '{"n": 2, "x": [5, -7]}')])
+        report = compact(store, policy=Policy([parse_rule("1e-3")]))
+        assert report.aged == {}
+        assert next(iter(store.query())).aged is None
+
+
+def test_windows_aged_by_another_writer_are_aged_again_and_their_statement_kept(tmp_path):
+    from cclogfs.store import Replacement
+
+    build(tmp_path / "s", windows=2)
+    with cclogfs.open_store(tmp_path / "s") as store:
+        store.seal()
+        store.rewrite(lambda w: Replacement(list(w.messages()), dict(w.meta, aged={"float_abs": 0.01}), flags=1))
+        compact(store, policy=Policy([parse_rule("1e-3")]))
+        w = next(iter(store.query("/odom")))
+        assert w.aged[0] == {"float_abs": 0.01} and w.aged[1]["rules"] == [["**", 0.001]]

@@ -338,3 +338,93 @@ def test_a_damaged_segment_is_refused_not_copied(tmp_path, damage):
             store.rewrite(aged)
         assert files(tmp_path / "s") == before
         store.rewrite(aged, segments=[0, 6])  # the intact segments still can be
+
+
+# -- found in review: an interrupt after the commit, and readers racing a compaction ------
+
+
+class Interrupted(BaseException):
+    """Stands for KeyboardInterrupt (which would stop pytest itself)."""
+
+
+class FailAfterManifestRename(FileSystem):
+    """Raises (as Ctrl-C would) in the directory fsync right after the manifest rename."""
+
+    armed = renamed = False
+
+    def rename(self, src, dst):
+        super().rename(src, dst)
+        self.renamed = self.armed and dst.endswith(MANIFEST)
+
+    def fsync_dir(self, path):
+        if self.renamed:
+            self.armed = self.renamed = False
+            raise Interrupted
+        super().fsync_dir(path)
+
+
+@pytest.mark.parametrize("step", ["rewrite", "drop"])
+def test_interrupt_after_the_commit_keeps_every_file_the_manifest_names(tmp_path, step):
+    fs = FailAfterManifestRename()
+    store = cclogfs.open_store(tmp_path / "s", create=True, fs=fs, **OPTS)
+    for i in range(6):
+        store.put_window("/odom", [(i * 100 + k, json.dumps({"x": 1.25 + k})) for k in range(3)])
+    store.seal()
+    fs.armed = True
+    with pytest.raises(StoreFailedError, match="at its commit"):
+        store.rewrite(aged) if step == "rewrite" else store.drop_oldest()
+    with pytest.raises(StoreFailedError):
+        store.put_window("/odom", [(10_000, "{}")])
+    store.close()
+    # The rename happened, so the new state is the store; opening finds every file it names.
+    with cclogfs.open_store(tmp_path / "s") as s:
+        windows = list(s.query())
+        if step == "rewrite":
+            assert len(windows) == 6 and all(w.aged == {"abs": 0.5} for w in windows)
+        else:
+            assert s.first_seq == 3 and [w.seq for w in windows] == [3, 4, 5]
+    assert not check_store(str(tmp_path / "s"), deep=True).errors
+
+
+def test_open_deletes_no_leftover_while_a_named_segment_is_missing(tmp_path):
+    store = make(tmp_path / "s")
+    store.rewrite(aged, segments=[0])
+    store.close()
+    named = tmp_path / "s" / "00000000000000000000-1.seg"
+    old = tmp_path / "s" / "00000000000000000000.seg"
+    named.rename(old)  # as if the new generation were lost: only the old one is left
+    before = files(tmp_path / "s")
+    with pytest.raises(CorruptionError, match="missing"):
+        cclogfs.open_store(tmp_path / "s")
+    assert files(tmp_path / "s") == before  # the only copy left is not deleted as a leftover
+
+
+@pytest.mark.parametrize("when", ["before listdir", "after listdir"])
+def test_a_reader_opening_during_a_compaction_sees_one_consistent_store(tmp_path, when):
+    writer = cclogfs.open_store(tmp_path / "s", create=True, sync_every_ms=None)
+    for i in range(4):
+        writer.put_window("/odom", [(i * 10 + k, json.dumps({"x": 1.5 + k})) for k in range(3)])
+    writer.sync()  # all in the unsealed tail, which the race seals and rewrites
+
+    class Racy(FileSystem):
+        fired = False
+
+        def listdir(self, path):
+            names = super().listdir(path) if when == "after listdir" else None
+            if not self.fired:
+                self.fired = True
+                writer.seal()
+                writer.rewrite(aged)
+            return names if names is not None else super().listdir(path)
+
+    reader = cclogfs.open_store(tmp_path / "s", readonly=True, fs=Racy())
+    assert [w.seq for w in reader.query()] == [0, 1, 2, 3]
+    assert not reader.recovery.problems
+    writer.close()
+
+
+def test_put_window_refuses_the_reserved_aged_meta_key(tmp_path):
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        with pytest.raises(InvalidInputError, match="'aged' is reserved"):
+            store.put_window("/odom", [(1, "{}")], meta={"aged": "no"})
+        assert list(store.query()) == []
