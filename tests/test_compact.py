@@ -241,3 +241,13 @@ def test_windows_aged_by_another_writer_are_aged_again_and_their_statement_kept(
         compact(store, policy=Policy([parse_rule("1e-3")]))
         w = next(iter(store.query("/odom")))
         assert w.aged[0] == {"float_abs": 0.01} and w.aged[1]["rules"] == [["**", 0.001]]
+
+
+def test_cat_says_how_many_printed_windows_were_aged(tmp_path, capsys):
+    build(tmp_path / "s", windows=4)
+    with cclogfs.open_store(tmp_path / "s") as store:
+        compact(store, policy=Policy([parse_rule("1e-3")]), before_ns=10 * NS)
+    assert main(["cat", str(tmp_path / "s"), "--topic", "/odom"]) == 0
+    captured = capsys.readouterr()
+    assert len(captured.out.splitlines()) == 200
+    assert "2 of 4 windows were aged" in captured.err

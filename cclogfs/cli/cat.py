@@ -19,7 +19,8 @@ examples:
 
 Times: nanoseconds (1432235695834049087), seconds (1432235695.83 or 12s) or ISO-8601
 (UTC when no zone is given). Each msg is printed exactly as it was stored; messages of
-several streams are merged by stamp.
+several streams are merged by stamp. Windows that `cclog compact` aged hold values within
+their stated error bounds; a note on stderr says how many were printed.
 """
 
 
@@ -57,13 +58,24 @@ def selected_windows(store, args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
+    aged = [0, 0]  # windows aged, windows in all
+
+    def counted(windows):
+        for w in windows:
+            aged[1] += 1
+            aged[0] += w.aged is not None
+            yield w
+
     with open_store(args.store, readonly=True) as store, Progress("cat") as progress:
         write_jsonl(
-            selected_windows(store, args),
+            counted(selected_windows(store, args)),
             sys.stdout,
             start_ns=args.start,
             end_ns=args.end,
             progress=progress,
         )
         sys.stdout.flush()
+    if aged[0]:
+        print(f"cclog: note: {aged[0]} of {aged[1]} windows were aged by compaction: their values are "
+              "within stated error bounds, not byte-exact (`cclog info` says how)", file=sys.stderr)  # fmt: skip
     return 0
