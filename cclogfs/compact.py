@@ -9,9 +9,9 @@ rewritten and segments dropped, crash-safely; see docs/FORMAT.md). Order of work
    policies that take turns settle) or it changes nothing. Each aged window's metadata
    gains a pass in `meta["aged"]`: the rules, the max rate, and the message count
    before. Errors add up over passes.
-2. While the store is over its budget, the oldest sealed segment is dropped (retention).
-   The active segment is never dropped; if the budget cannot be met without it, the
-   report says so.
+2. While the store's files (manifest, segments, indexes) are over the budget, the
+   oldest sealed segment is dropped (retention). The active segment is never dropped;
+   if the budget cannot be met without it, the report says so.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from fnmatch import fnmatchcase
 from typing import Sequence
 
 from .aging import Policy
+from .errors import InvalidInputError
 from .compaction import Replacement
 from .format import RecordFlag
 from .index import merge_stream_stats
@@ -78,18 +79,18 @@ def compact(
     more than `budget` bytes.
 
     Which windows age: those ending before `before_ns`, or ending more than `older_than_ns`
-    before the newest window of their own stream (streams may run on different clocks: sim
+    before the last window of their own stream (streams may run on different clocks: sim
     time, log time), or all of them when neither is given; only in the sealed segments
     starting at `segments` (first seqs; default all). With `seal`, the segment being
-    written is sealed first when it holds windows to age (a recorder passes False).
+    written is sealed first when it holds windows to age.
     """
-    report = CompactReport(disk_before=store.disk_bytes(), budget=budget)
+    report = CompactReport(disk_before=store.data_bytes(), budget=budget)
     # The segment being written is never dropped, not even once sealed here for aging.
     keep_from = store.active.first_seq if store.active is not None else None
     if policy is not None:
         _age(store, policy, _cutoffs(store, before_ns, older_than_ns), streams, report, segments, seal)
     if budget is not None:
-        while store.disk_bytes() > budget:
+        while store.data_bytes() > budget:
             if keep_from is not None and store.sealed and store.sealed[0].first_seq >= keep_from:
                 break
             gone = store.drop_oldest()
@@ -97,7 +98,7 @@ def compact(
                 break
             report.segments_dropped += 1
             merge_stream_stats(report.dropped, gone.streams)
-    report.disk_after = store.disk_bytes()
+    report.disk_after = store.data_bytes()
     return report
 
 
@@ -112,15 +113,39 @@ def passes_of(window: Window) -> list:
 
 
 def _cutoffs(store: Store, before_ns: int | None, older_than_ns: int | None) -> dict[str, int] | None:
-    """Per stream, the end time before which its windows age (None: every window ages)."""
+    """Per stream, the end time before which its windows age (None: every window ages).
+
+    "Newest" is the end of the stream's last window in log order, not its largest stamp:
+    after a simulator restart (its clock back at 0) or one wild stamp, the largest stamp
+    would make the fresh windows look old.
+    """
     if before_ns is None and older_than_ns is None:
         return None
+    last: dict[str, tuple[int, int]] = {}  # stream -> (seq, end_ns) of its last window
+    if older_than_ns is not None:
+        for w in store.query():
+            if w.seq > last.get(w.name, (-1, 0))[0]:
+                last[w.name] = (w.seq, w.end_ns)
     out = {}
-    for name, st in store.streams().items():
+    for name in store.streams():
         limits = [before_ns] if before_ns is not None else []
         if older_than_ns is not None:
-            limits.append(st["end_ns"] - older_than_ns)
+            limits.append(last[name][1] - older_than_ns)
         out[name] = min(limits)
+    return out
+
+
+def _candidates(store: Store, cutoff: dict[str, int] | None, streams, segments: Sequence[int] | None) -> list[int]:
+    """Sealed segments that may hold a window to age: one of the selected streams starts in
+    them before its cutoff (the manifest's statistics say so without reading a record)."""
+    wanted = None if segments is None else set(segments)
+    out = []
+    for info in store.manifest["segments"]:
+        if wanted is not None and info["first_seq"] not in wanted:
+            continue
+        if any(selected(name, streams) and (cutoff is None or st["start_ns"] < cutoff.get(name, st["start_ns"]))
+               for name, st in info["streams"].items()):  # fmt: skip
+            out.append(info["first_seq"])
     return out
 
 
@@ -159,32 +184,46 @@ def _age(store: Store, policy: Policy, cutoff: dict[str, int] | None, streams, r
         store.seal()
         if segments is not None:
             segments = [*segments, active.first_seq]
-    done = store.rewrite(rewrite, segments=segments)
-    for name, (windows, before, after) in counts.items():
+    before: dict[str, dict[str, int]] = {}
+    after: dict[str, dict[str, int]] = {}
+    # One segment per commit: the disk holds both generations of only one segment at a time.
+    for first_seq in _candidates(store, cutoff, streams, segments):
+        done = store.rewrite(rewrite, segments=[first_seq])
+        merge_stream_stats(before, done.before)
+        merge_stream_stats(after, done.after)
+    for name, (windows, n_before, n_after) in counts.items():
         report.aged[name] = {
-            "windows": windows, "messages_before": before, "messages_after": after,
-            "bytes_before": done.before[name]["stored_bytes"], "bytes_after": done.after[name]["stored_bytes"],
+            "windows": windows, "messages_before": n_before, "messages_after": n_after,
+            "bytes_before": before[name]["stored_bytes"], "bytes_after": after[name]["stored_bytes"],
         }  # fmt: skip
 
 
 class Upkeep:
-    """Compaction run by the recorder itself, which holds the store's only writer lock.
+    """Retention run by the recorder itself, which holds the store's only writer lock.
 
-    `after_put(store)` is cheap until a segment is sealed (at most 64 MiB, 16,384 windows
-    or an hour by default); then old windows are aged and, over the budget, the oldest
-    segments dropped. So the store can exceed its budget by up to one segment. Segments
-    whose every window was old enough when they were aged are not visited again.
+    `after_put(store)` is one comparison until a segment is sealed; then, while the store
+    is over `budget`, the oldest sealed segments are dropped (each a manifest rename and an
+    unlink: milliseconds). Segments are at most 1/8 of the budget (`store_options`), so the
+    store stays within about that much over it.
+
+    Aging is not done here: rewriting a segment reads and re-encodes all of it (seconds to
+    minutes for 64 MiB) while the recorder would wait. Age with `cclog compact` while the
+    robot is not recording (docked, charging).
     """
 
-    def __init__(self, *, policy: Policy | None = None, older_than_ns: int | None = None,
-                 streams: Sequence[str] | None = None, budget: int | None = None):  # fmt: skip
-        self.policy, self.older_than_ns, self.streams, self.budget = policy, older_than_ns, streams, budget
+    def __init__(self, *, budget: int):
+        if budget <= 0:
+            raise InvalidInputError(f"A storage budget must be a positive number of bytes, got {budget}.")
+        self.budget = budget
         self.sealed_upto = -1  # end seq of the newest sealed segment at the last run
-        self.done: set[int] = set()  # first seqs of segments with nothing left to age
         self.runs = 0
-        self.last: CompactReport | None = None
-        self.aged_windows = 0
         self.dropped_segments = 0
+        self.last: CompactReport | None = None
+
+    def store_options(self) -> dict:
+        """Options for open_store: retention drops whole segments, so small ones keep the
+        store close to its budget."""
+        return {"segment_bytes": max(64 << 10, min(64 << 20, self.budget // 8))}
 
     @property
     def over_budget(self) -> bool:
@@ -195,18 +234,9 @@ class Upkeep:
         upto = store.sealed[-1].next_seq if store.sealed else -1
         if upto == self.sealed_upto:
             return None
-        todo = [seg.first_seq for seg in store.sealed if seg.first_seq not in self.done]
-        report = compact(store, policy=self.policy, older_than_ns=self.older_than_ns, streams=self.streams,
-                         budget=self.budget, segments=todo, seal=False)  # fmt: skip
-        if self.policy is not None:
-            cutoff = _cutoffs(store, None, self.older_than_ns)
-            for seg, info in zip(store.sealed, store.manifest["segments"]):
-                if cutoff is None or all(st["end_ns"] < cutoff.get(name, st["end_ns"] + 1)
-                                         for name, st in info["streams"].items()):  # fmt: skip
-                    self.done.add(seg.first_seq)
+        report = compact(store, budget=self.budget)
         self.sealed_upto = store.sealed[-1].next_seq if store.sealed else -1
         self.runs += 1
-        self.last = report
-        self.aged_windows += sum(a["windows"] for a in report.aged.values())
         self.dropped_segments += report.segments_dropped
+        self.last = report
         return report

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from ._signals import signals_deferred
-from .errors import CorruptionError, InvalidInputError, StoreFailedError
+from .errors import CorruptionError, InvalidInputError, StoreError, StoreFailedError
 from .format import (
     AGED_META_KEY,
     COMPACTED_FORMAT_VERSION,
@@ -214,6 +214,24 @@ def _remove(store: Store, names: Iterable[str]) -> None:
     store.fs.fsync_dir(store.path)
 
 
+def _partial_files(store: Store, chosen: Iterable[int]) -> list[str]:
+    """The next generation's file names of the chosen segments, written or half-written."""
+    names = []
+    for i in chosen:
+        seg = store.sealed[i]
+        names += [segment_name(seg.first_seq, seg.gen + 1), index_name(seg.first_seq, seg.gen + 1)]
+    return names
+
+
+def _remove_quietly(store: Store, names: Iterable[str]) -> None:
+    """Remove unnamed files after a failed rewrite; what cannot be removed now is a leftover
+    the writer removes on its next open."""
+    try:
+        _remove(store, sorted(set(names)))
+    except OSError:
+        pass
+
+
 def _commit_manifest(store: Store, manifest: dict[str, Any]) -> None:
     store.fs.write_file_atomic(store._file(MANIFEST), pack_manifest(manifest))
     store.manifest = manifest
@@ -258,13 +276,14 @@ def rewrite(store: Store, fn: Callable[[Window], Replacement | None],
             for plan in plans:
                 segs[plan.position] = plan.info
             manifest = dict(store.manifest, format_version=COMPACTED_FORMAT_VERSION, segments=segs)
-        except OSError as err:
-            store._failed = err
-            raise StoreFailedError(f"{store.path}: rewriting failed: {err}; the store refuses further "
-                                   "writes (reopen it: the manifest names the old segments)") from err  # fmt: skip
-        except BaseException:
-            # Refused (or interrupted) before the commit: remove the unnamed new generations.
-            _remove(store, _generation_files(plans, old=False))
+        except BaseException as err:
+            # Refused, failed (a full disk: both generations must fit) or interrupted before
+            # the commit: the manifest still names only the old files, which nothing changed.
+            # Remove the unnamed new generations; the store stays usable.
+            _remove_quietly(store, _generation_files(plans, old=False) + _partial_files(store, chosen))
+            if isinstance(err, OSError):
+                raise StoreError(f"{store.path}: rewriting failed before its commit: {err}; the store is "
+                                 "unchanged") from err  # fmt: skip
             raise
         # From the commit on nothing may be undone: once the rename happened, the manifest on
         # disk names the new files, so an interrupt must not reach the cleanup above.

@@ -139,7 +139,7 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
     On any exit, Ctrl-C included, the policy's open windows are flushed into the store, so
     nothing already seen is lost; the caller closes (and so syncs) the store.
     `trusted_json`: the source already parsed every text (JSONL, bags), skip the re-check.
-    `upkeep`: ages and drops old data each time a segment is sealed (`compact.Upkeep`).
+    `upkeep`: drops the oldest segments to a budget as segments are sealed (`compact.Upkeep`).
     """
     stats = stats or RecordStats()
     started = time.perf_counter()
@@ -155,10 +155,10 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
             try:
                 for window in policy.push(m.topic, m.stamp_ns, m.text):
                     store_window(store, window, stats)
-                    if upkeep is not None:
-                        upkeep.after_put(store)
             finally:
                 INTERRUPTS.critical = False
+            if upkeep is not None:  # after the critical section: windows taken are stored
+                upkeep.after_put(store)
             if INTERRUPTS.pending:
                 INTERRUPTS.pending = False
                 raise KeyboardInterrupt
@@ -204,8 +204,8 @@ class Logger:
     Without `model` every message is kept (in windows of `chunk`); with it, only logging
     windows around anomalies. Thread-safe: executor callbacks may call it concurrently.
     Puts become durable by the store's group commit (`sync_every_ms`); `close()` flushes
-    the open windows and syncs. With `upkeep` (`compact.Upkeep`), old data is aged and the
-    oldest dropped to a budget each time a segment is sealed.
+    the open windows and syncs. With `upkeep` (`compact.Upkeep(budget=...)`), the oldest
+    segments are dropped to the budget as segments are sealed.
     """
 
     def __init__(self, store_path: str, *, model: Any = None, topics: Iterable[str] | None = None,
@@ -214,7 +214,9 @@ class Logger:
         self.topics = None if topics is None else frozenset(topics)
         self.policy = (smart_policy(model, topics=topics, before=before, after=after)
                        if model is not None else KeepAll(chunk=chunk))  # fmt: skip
-        self.store: Store | None = open_store(store_path, create=True, codec=codec, sync_every_ms=sync_every_ms)
+        options = upkeep.store_options() if upkeep is not None else {}
+        self.store: Store | None = open_store(store_path, create=True, codec=codec, sync_every_ms=sync_every_ms,
+                                              **options)  # fmt: skip
         self.stats = RecordStats()
         self.upkeep = upkeep
         self._lock = threading.Lock()
@@ -233,8 +235,8 @@ class Logger:
             self.stats.saw(topic, text)
             for window in self.policy.push(topic, stamp_ns, text):
                 store_window(self.store, window, self.stats)
-                if self.upkeep is not None:
-                    self.upkeep.after_put(self.store)
+            if self.upkeep is not None:
+                self.upkeep.after_put(self.store)
 
     def close(self) -> None:
         with self._lock:

@@ -342,8 +342,11 @@ class Store:
             seg.sealed_size, seg.gen = info["size"], gen
             self.sealed.append(seg)
             next_seq = info["end_seq"]
-        # Only now, with every file the manifest names found: were one missing, the other
-        # generation might be all that is left of it.
+        # Only now, with every file the manifest names found, and of the size it states: were
+        # one missing or cut short, the other generation might be all that is left of it.
+        damaged = {seg.first_seq for seg in self.sealed if seg.size != seg.sealed_size}
+        if damaged:
+            self.recovery.leftovers = leftovers = [n for n in leftovers if parse_seq_name(n)[0] not in damaged]
         if leftovers and not self.readonly:
             for name in leftovers:
                 self.fs.unlink(self._file(name))
@@ -732,6 +735,19 @@ class Store:
             self.sealed, self.unsealed, self._sealed_by_stream = [], [], None
             self.recovery = Recovery()
             self._open_segments_retrying()
+
+    def data_bytes(self) -> int:
+        """Bytes of the store's own files (manifest, segments, indexes): what a storage
+        budget counts. Recovery's side files (`.seg.tail-N`) and other strays are left out,
+        so evidence kept for a repair never makes retention drop data."""
+        total = 0
+        for name in self.fs.listdir(self.path):
+            if name == MANIFEST or parse_seq_name(name) is not None:
+                try:
+                    total += os.path.getsize(self._file(name))
+                except FileNotFoundError:  # removed meanwhile (a writer compacting while we read)
+                    pass
+        return total
 
     def disk_bytes(self) -> int:
         """Bytes of every file in the store directory."""

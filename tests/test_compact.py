@@ -108,7 +108,7 @@ def test_cli_ages_reports_and_exits_by_outcome(tmp_path, capsys):
     path = str(tmp_path / "s")
     assert main(["compact", path, "--older-than", "30s", "--error", "1e-3", "--stream", "/odom"]) == 0
     out = capsys.readouterr().out
-    assert "windows ending over 30s before their stream's newest" in out and "/odom" in out
+    assert "windows ending over 30s before their stream's last" in out and "/odom" in out
     assert main(["compact", path, "--older-than", "30s", "--error", "1e-3", "--stream", "/odom"]) == 0
     assert "nothing to age" in capsys.readouterr().out
     assert main(["compact", path, "--budget", "1B", "--json"]) == 3
@@ -166,38 +166,38 @@ def jsonl(path, n, hz=20):
             f.write(json.dumps({"topic": "/odom", "stamp_ns": i * NS // hz, "msg": json.loads(odom(i))}) + "\n")
 
 
-def test_recorder_ages_and_keeps_to_its_budget_as_it_goes(tmp_path, capsys):
-    jsonl(tmp_path / "run.jsonl", 40_000)  # 2000 s at 20 Hz, about 7 MiB of JSON
+def test_recorder_keeps_to_its_budget_as_it_goes(tmp_path, capsys):
+    jsonl(tmp_path / "run.jsonl", 40_000)  # 2000 s at 20 Hz: 651 KiB stored
     store = str(tmp_path / "s")
-    assert main(["record", str(tmp_path / "run.jsonl"), "--store", store, "--budget", "256KiB",
-                 "--age-older-than", "600s", "--age-error", "1e-3", "--chunk", "100"]) == 0  # fmt: skip
+    assert main(["record", str(tmp_path / "run.jsonl"), "--store", store, "--budget", "256KiB", "--chunk", "100"]) == 0
     err = capsys.readouterr().err
-    assert "windows aged" in err and "budget 256.0 KiB met" in err, err
+    assert "budget 256.0 KiB met" in err, err
     with cclogfs.open_store(store, readonly=True) as s:
-        assert s.disk_bytes() <= 256 << 10
+        assert s.data_bytes() <= 256 << 10
         assert s.dropped()["segments"] >= 1
         windows = list(s.query("/odom"))
-        newest = max(w.end_ns for w in windows)
-        # Every window in a sealed segment that ended over 600 s before the newest is aged;
-        # the newest stay exact.
-        sealed_end = s.manifest["segments"][-1]["end_seq"]
-        for w in windows:
-            if w.seq < sealed_end and w.end_ns < newest - 600 * NS - 200 * NS:
-                assert w.aged is not None, w.seq
-            if w.end_ns > newest - 600 * NS:
-                assert w.aged is None and list(w.messages())[0][1] == odom(w.start_ns * 20 // NS)
+        # What is left is the newest stretch, gapless, every window exact.
+        assert windows[-1].end_ns == 39_999 * NS // 20
+        assert [w.seq for w in windows] == list(range(windows[0].seq, windows[0].seq + len(windows)))
+        assert all(w.aged is None for w in windows)
     assert not check_store(store, deep=True).errors
 
 
-@pytest.mark.parametrize(
-    "args, match",
-    [(["--age-older-than", "7d"], "give --age-error or --age-max-rate"),
-     (["--age-error", "1e-3"], "needs --age-older-than"), (["--budget", "big"], "Size 'big'")],
-)  # fmt: skip
-def test_recorder_refuses_incomplete_upkeep_flags(tmp_path, capsys, args, match):
+def test_logger_sizes_its_segments_for_its_budget(tmp_path):
+    from cclogfs.compact import Upkeep
+    from cclogfs.pipeline import Logger
+
+    with Logger(str(tmp_path / "s"), chunk=100, upkeep=Upkeep(budget=256 << 10)) as log:
+        for i in range(40_000):
+            log("/odom", i * NS // 20, odom(i))
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as s:
+        assert s.data_bytes() <= 256 << 10 and s.dropped()["segments"] >= 1
+
+
+def test_recorder_refuses_a_bad_budget(tmp_path, capsys):
     jsonl(tmp_path / "run.jsonl", 10)
-    assert main(["record", str(tmp_path / "run.jsonl"), "--store", str(tmp_path / "s"), *args]) == 1
-    assert match in capsys.readouterr().err
+    assert main(["record", str(tmp_path / "run.jsonl"), "--store", str(tmp_path / "s"), "--budget", "big"]) == 1
+    assert "Size 'big'" in capsys.readouterr().err
     assert not (tmp_path / "s").exists()
 
 
@@ -251,3 +251,29 @@ def test_cat_says_how_many_printed_windows_were_aged(tmp_path, capsys):
     captured = capsys.readouterr()
     assert len(captured.out.splitlines()) == 200
     assert "2 of 4 windows were aged" in captured.err
+
+
+def test_after_a_clock_reset_fresh_windows_are_not_taken_for_old(tmp_path):
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        for start in (5000, 5005, 0, 5):  # a simulator restart: its clock starts again at 0
+            store.put_window("/odom", [((start + k) * NS, odom(k)) for k in range(5)])
+        report = compact(store, policy=Policy([parse_rule("1e-3")]), older_than_ns=30 * NS)
+        assert report.aged == {}  # by its largest stamp, the two fresh windows would have aged
+
+
+def test_budget_counts_the_store_files_not_recovery_side_files(tmp_path):
+    build(tmp_path / "s", segment_records=4)
+    (tmp_path / "s" / "00000000000000000000.seg.tail-64").write_bytes(b"x" * (1 << 20))
+    with cclogfs.open_store(tmp_path / "s") as store:
+        report = compact(store, budget=store.data_bytes())
+        assert report.segments_dropped == 0 and not report.over_budget
+
+
+def test_aging_commits_one_segment_at_a_time(tmp_path):
+    build(tmp_path / "s", segment_records=4)
+    with cclogfs.open_store(tmp_path / "s") as store:
+        sizes = []
+        real = store.rewrite
+        store.rewrite = lambda fn, segments=None: (sizes.append(segments), real(fn, segments=segments))[1]
+        compact(store, policy=Policy([parse_rule("1e-3")]))
+        assert len(sizes) > 1 and all(len(s) == 1 for s in sizes)

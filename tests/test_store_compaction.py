@@ -206,19 +206,22 @@ def test_leftovers_are_warnings_for_fsck_and_removed_by_the_writer(tmp_path):
     assert not check_store(str(s)).findings
 
 
-def test_a_failed_fsync_while_rewriting_fails_the_store_and_reopening_finds_the_old_state(tmp_path):
+def test_a_failed_fsync_while_rewriting_leaves_the_store_unchanged_and_usable(tmp_path):
+    # The new generation is not named yet (a full disk fails the same way): nothing live
+    # changed, so the store removes it and goes on, instead of refusing every later write.
     fs = RecordingFileSystem()
     with make(tmp_path / "s", fs=fs) as store:
         old = state(store)
         fs.fail_fsync = True
-        with pytest.raises(StoreFailedError, match="rewriting failed"):
+        with pytest.raises(StoreError, match="rewriting failed before its commit.*unchanged"):
             store.rewrite(aged)
-        with pytest.raises(StoreFailedError):
-            store.drop_oldest()
         fs.fail_fsync = False
+        assert not [p.name for p in (tmp_path / "s").iterdir() if "-1." in p.name]
+        assert state(store) == old
+        store.put_window("/odom", [(10_000, "{}")])
+        store.drop_oldest()
     with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
-        assert state(store) == old and store.recovery.leftovers == ["00000000000000000000-1.seg"]
-        assert store.manifest["format_version"] == 1
+        assert store.recovery.leftovers == [] and 10_000 in [w.start_ns for w in store.query()]
 
 
 def test_compaction_needs_the_writer(tmp_path):
@@ -428,3 +431,18 @@ def test_put_window_refuses_the_reserved_aged_meta_key(tmp_path):
         with pytest.raises(InvalidInputError, match="'aged' is reserved"):
             store.put_window("/odom", [(1, "{}")], meta={"aged": "no"})
         assert list(store.query()) == []
+
+
+def test_open_keeps_the_old_generation_while_the_named_one_is_cut_short(tmp_path):
+    store = make(tmp_path / "s")
+    old_files = {n: (tmp_path / "s" / n).read_bytes() for n in ("00000000000000000000.seg", "00000000000000000000.idx")}
+    store.rewrite(aged, segments=[0])
+    store.close()
+    for name, data in old_files.items():  # as if the crash came before the old files went
+        (tmp_path / "s" / name).write_bytes(data)
+    new = tmp_path / "s" / "00000000000000000000-1.seg"
+    new.write_bytes(new.read_bytes()[:-10])  # and the new generation lost its end
+    with cclogfs.open_store(tmp_path / "s", **OPTS) as s:
+        with pytest.raises(CorruptionError):
+            list(s.query())
+    assert all((tmp_path / "s" / name).read_bytes() == data for name, data in old_files.items())

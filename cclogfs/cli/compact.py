@@ -15,7 +15,7 @@ from ._fmt import human_bytes, iso_ns, table
 
 EXAMPLES = """examples:
   cclog compact robot.store --older-than 30d --error 1e-3
-      windows that ended over 30 days before the newest window of their stream: every
+      windows that ended over 30 days before the last window of their stream: every
       float within 0.001
   cclog compact robot.store --older-than 7d --error 1e-3 --error 'pose.covariance=0.01' \\
       --error 'header.**=0' --max-rate 5 --stream /odom --stream /tf
@@ -27,8 +27,10 @@ exit status: 0 done, 1 error (nothing half-done: every step is crash-safe),
              3 done but the store is still over its budget.
 
 Field patterns are the JSON keys joined by dots (array levels add no part): `*` matches
-one key, `**` any number. Ages count back from the newest window of each stream, in the
-stream's own stamps (streams may use different clocks). The summary stream (/cclog/summary) stays exact unless
+one key, `**` any number. Ages count back from the end of each stream's last window in log
+order, in the stream's own stamps (streams may use different clocks). The budget counts
+the manifest, segments and indexes. The recorder holds the store's writer lock: stop it
+first (or let `cclog record --budget` drop old segments while it runs). The summary stream (/cclog/summary) stays exact unless
 --stream names it.
 """
 
@@ -56,7 +58,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("store", help="store directory (opened as its writer: stop the recorder first)")
     when = p.add_mutually_exclusive_group()
     when.add_argument("--older-than", metavar="DURATION",
-                      help="age windows that ended this long before their stream's newest (e.g. 30d, 12h)")
+                      help="age windows that ended this long before their stream's last one (e.g. 30d, 12h)")
     when.add_argument("--before", metavar="TIME", help="age windows that ended before this time")
     p.add_argument("--error", action="append", default=[], metavar="[PATTERN=]BOUND",
                    help="absolute error bound for float fields (repeatable; last match wins)")
@@ -93,7 +95,7 @@ def format_report(report, policy: Policy | None, args: argparse.Namespace) -> st
         if args.before:
             cutoff = f"windows ending before {args.before}"
         elif args.older_than:
-            cutoff = f"windows ending over {args.older_than} before their stream's newest"
+            cutoff = f"windows ending over {args.older_than} before their stream's last"
         else:
             cutoff = "all windows"
         rules = ", ".join(f"{p} <= {b:g}" for p, b in policy.describe()["rules"]) or "none"
