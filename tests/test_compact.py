@@ -277,3 +277,10 @@ def test_aging_commits_one_segment_at_a_time(tmp_path):
         store.rewrite = lambda fn, segments=None: (sizes.append(segments), real(fn, segments=segments))[1]
         compact(store, policy=Policy([parse_rule("1e-3")]))
         assert len(sizes) > 1 and all(len(s) == 1 for s in sizes)
+
+
+def test_cli_says_to_stop_the_recorder_when_the_store_is_locked(tmp_path, capsys):
+    build(tmp_path / "s", windows=2)
+    with cclogfs.open_store(tmp_path / "s"):  # a recorder holding the writer lock
+        assert main(["compact", str(tmp_path / "s"), "--budget", "1B"]) == 1
+    assert "stop the recorder first" in capsys.readouterr().err

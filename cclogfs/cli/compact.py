@@ -8,7 +8,7 @@ import re
 
 from ..aging import Policy, parse_rule
 from ..compact import DEFAULT_EXCLUDE, compact
-from ..errors import InvalidInputError
+from ..errors import InvalidInputError, StoreLockedError
 from ..store import open_store
 from ..times import parse_duration, parse_time
 from ._fmt import human_bytes, iso_ns, table
@@ -79,7 +79,13 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError("Nothing to do: give --error and/or --max-rate to age windows, or --budget.")
     before_ns = parse_time(args.before) if args.before else None
     older_than_ns = parse_duration(args.older_than) if args.older_than else None
-    with open_store(args.store) as store:
+    try:
+        store = open_store(args.store)
+    except StoreLockedError as err:
+        held = str(err).split(";")[0]  # "STORE is locked by another writer (pid, host)"
+        raise StoreLockedError(f"{held}; compaction needs the writer's lock: stop the recorder first "
+                               "(`cclog record --budget` drops old segments while it runs)") from None
+    with store:
         report = compact(store, policy=policy, before_ns=before_ns, older_than_ns=older_than_ns,
                          streams=args.stream or None, budget=budget)  # fmt: skip
     if args.json:
