@@ -16,12 +16,13 @@ rewritten and segments dropped, crash-safely; see docs/FORMAT.md). Order of work
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 from fnmatch import fnmatchcase
 from typing import Sequence
 
 from .aging import Policy
-from .errors import InvalidInputError
+from .errors import InvalidInputError, StoreFailedError
 from .compaction import Replacement
 from .format import RecordFlag
 from .index import merge_stream_stats
@@ -149,8 +150,12 @@ def _candidates(store: Store, cutoff: dict[str, int] | None, streams, segments: 
     return out
 
 
+class Stopped(BaseException):
+    """Raised inside a rewrite when its Upkeep is closing: nothing is committed."""
+
+
 def _age(store: Store, policy: Policy, cutoff: dict[str, int] | None, streams, report: CompactReport,
-         segments: Sequence[int] | None, seal: bool) -> None:  # fmt: skip
+         segments: Sequence[int] | None, seal: bool, stop: threading.Event | None = None) -> None:  # fmt: skip
     desc = policy.describe()
     counts: dict[str, list[int]] = {}
 
@@ -164,6 +169,8 @@ def _age(store: Store, policy: Policy, cutoff: dict[str, int] | None, streams, r
         return not any(isinstance(p, dict) and {k: p.get(k) for k in desc} == desc for p in passes_of(window))
 
     def rewrite(window: Window) -> Replacement | None:
+        if stop is not None and stop.is_set():
+            raise Stopped
         if not due(window):
             return None
         messages = list(window.messages())
@@ -198,45 +205,119 @@ def _age(store: Store, policy: Policy, cutoff: dict[str, int] | None, streams, r
         }  # fmt: skip
 
 
+def _cutoffs_sealed(store: Store, older_than_ns: int) -> dict[str, int]:
+    """Per stream, `older_than_ns` before the end of its newest sealed segment's windows
+    (from the manifest: nothing is read)."""
+    out: dict[str, int] = {}
+    for info in reversed(store.manifest["segments"]):
+        for name, st in info["streams"].items():
+            out.setdefault(name, st["end_ns"] - older_than_ns)
+    return out
+
+
 class Upkeep:
-    """Retention run by the recorder itself, which holds the store's only writer lock.
+    """Compaction run by the recorder, which holds the store's only writer lock.
 
-    `after_put(store)` is one comparison until a segment is sealed; then, while the store
-    is over `budget`, the oldest sealed segments are dropped (each a manifest rename and an
-    unlink: milliseconds). Segments are at most 1/8 of the budget (`store_options`), so the
-    store stays within about that much over it.
-
-    Aging is not done here: rewriting a segment reads and re-encodes all of it (seconds to
-    minutes for 64 MiB) while the recorder would wait. Age with `cclog compact` while the
-    robot is not recording (docked, charging).
+    `after_put(store)` is one comparison until a segment is sealed. Then:
+    - with only a `budget`, the oldest sealed segments are dropped while the store's files
+      are over it, right there (each drop is a manifest rename and an unlink);
+    - with an aging `policy` (and `older_than_ns`), a background thread does the work:
+      retention, then aging one sealed segment per commit, oldest first. The rewrite plans
+      without the store's lock, so recording goes on (sharing the interpreter); only the
+      commit waits for it. The thread alone drops or rewrites, so the two never race.
+    Segments are at most 1/8 of the budget (`store_options`), so the store stays within
+    about that much over it, plus what seals while a segment is being aged. `close()` stops
+    the thread (an unfinished rewrite commits nothing) and must come before the store's.
     """
 
-    def __init__(self, *, budget: int):
-        if budget <= 0:
+    def __init__(self, *, budget: int | None = None, policy: Policy | None = None,
+                 older_than_ns: int | None = None, streams: Sequence[str] | None = None):  # fmt: skip
+        if budget is not None and budget <= 0:
             raise InvalidInputError(f"A storage budget must be a positive number of bytes, got {budget}.")
-        self.budget = budget
+        if policy is not None and (older_than_ns is None or older_than_ns < 0):
+            raise InvalidInputError("Aging while recording needs an age (older_than_ns >= 0): else every "
+                                    "window would age as soon as its segment is sealed.")  # fmt: skip
+        if budget is None and policy is None:
+            raise InvalidInputError("An Upkeep needs a budget, an aging policy, or both.")
+        self.budget, self.policy, self.older_than_ns, self.streams = budget, policy, older_than_ns, streams
         self.sealed_upto = -1  # end seq of the newest sealed segment at the last run
-        self.runs = 0
-        self.dropped_segments = 0
-        self.last: CompactReport | None = None
+        self.runs = self.dropped_segments = self.aged_windows = 0
+        self.errors: list[str] = []
+        self.done: set[int] = set()  # first seqs of segments with nothing left to age
+        self._wake, self._stop = threading.Event(), threading.Event()
+        self._finish = False
+        self._thread: threading.Thread | None = None
 
     def store_options(self) -> dict:
         """Options for open_store: retention drops whole segments, so small ones keep the
         store close to its budget."""
+        if self.budget is None:
+            return {}
         return {"segment_bytes": max(64 << 10, min(64 << 20, self.budget // 8))}
 
-    @property
-    def over_budget(self) -> bool:
-        return self.last is not None and self.last.over_budget
-
-    def after_put(self, store: Store) -> CompactReport | None:
+    def after_put(self, store: Store) -> None:
         # A new sealed segment moves this (the count may not change: drops remove others).
         upto = store.sealed[-1].next_seq if store.sealed else -1
         if upto == self.sealed_upto:
-            return None
-        report = compact(store, budget=self.budget)
-        self.sealed_upto = store.sealed[-1].next_seq if store.sealed else -1
+            return
+        self.sealed_upto = upto
+        if self.policy is None:
+            self._retain(store)
+            return
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._work, args=(store,), name="cclogfs-upkeep", daemon=True)
+            self._thread.start()
+        self._wake.set()
+
+    def close(self, *, finish: bool = False) -> None:
+        """Stop the background thread, if any: at once (an unfinished rewrite commits
+        nothing), or with `finish` once it has aged what is due."""
+        if finish:
+            self._finish = True
+        else:
+            self._stop.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join()
+
+    def _retain(self, store: Store) -> None:
+        if self.budget is not None:
+            report = compact(store, budget=self.budget)
+            self.dropped_segments += report.segments_dropped
         self.runs += 1
-        self.dropped_segments += report.segments_dropped
-        self.last = report
-        return report
+
+    def _work(self, store: Store) -> None:
+        while True:
+            self._wake.wait()
+            self._wake.clear()
+            if self._stop.is_set():
+                return
+            try:
+                self._retain(store)
+                self._age_all(store)
+                if self._finish:
+                    return
+            except Stopped:
+                return
+            except StoreFailedError as err:  # the recorder sees it at its next put
+                self.errors.append(str(err))
+                return
+            except Exception as err:  # noqa: BLE001 - recording must go on; say what failed
+                self.errors.append(f"{type(err).__name__}: {err}")
+
+    def _age_all(self, store: Store) -> None:
+        while not self._stop.is_set():
+            cutoff = _cutoffs_sealed(store, self.older_than_ns)
+            todo = [s for s in _candidates(store, cutoff, self.streams, None) if s not in self.done]
+            if not todo:
+                return
+            report = CompactReport()
+            _age(store, self.policy, cutoff, self.streams, report, [todo[0]], False, self._stop)
+            self.aged_windows += sum(a["windows"] for a in report.aged.values())
+            info = next((i for i in store.manifest["segments"] if i["first_seq"] == todo[0]), None)
+            if info is None or all(st["end_ns"] < cutoff.get(name, st["end_ns"] + 1)
+                                   for name, st in info["streams"].items()):  # fmt: skip
+                self.done.add(todo[0])  # every window was old enough: nothing left to age
+            else:
+                return  # the rest is younger: wait for the next seal
+            self._retain(store)

@@ -80,7 +80,7 @@ class Dropped:
 class _Plan:
     """A rewritten segment, written and synced but not yet named by the manifest."""
 
-    position: int  # in store.sealed
+    old_info: dict[str, Any]  # the old generation's manifest entry
     old: Segment
     gen: int
     size: int
@@ -141,12 +141,11 @@ def _replacement_record(store: Store, seg: Segment, header: RecordHeader, rep: o
     return enc.pack(header.seq, rep.flags)
 
 
-def _plan(store: Store, position: int, fn: Callable, report: RewriteReport) -> _Plan | None:
+def _plan(store: Store, seg: Segment, info: dict[str, Any], fn: Callable, report: RewriteReport) -> _Plan | None:
     """Call `fn` on every record of a sealed segment; when it replaced any, write the new
     generation (segment, then index, each durable) and say what the manifest must name."""
     from .store import Window  # here: store imports this module
 
-    seg, info = store.sealed[position], store.manifest["segments"][position]
     buf = bytearray(pack_segment_header(seg.first_seq, seg.created_ns))
     rows, aged, replaced, kept = [], {}, 0, 0
     for offset, header, data, skip in _records(seg, info["end_seq"]):
@@ -194,7 +193,7 @@ def _plan(store: Store, position: int, fn: Callable, report: RewriteReport) -> _
     fs.write_file_atomic(index_path, index.encode(seg.first_seq, len(buf)))
     report.replaced += replaced
     report.kept += kept
-    return _Plan(position, seg, gen, len(buf), index, new_info)
+    return _Plan(info, seg, gen, len(buf), index, new_info)
 
 
 def _file_bytes(store: Store, seg: Segment, gen: int) -> int:
@@ -214,11 +213,10 @@ def _remove(store: Store, names: Iterable[str]) -> None:
     store.fs.fsync_dir(store.path)
 
 
-def _partial_files(store: Store, chosen: Iterable[int]) -> list[str]:
+def _partial_files(chosen: Iterable[Segment]) -> list[str]:
     """The next generation's file names of the chosen segments, written or half-written."""
     names = []
-    for i in chosen:
-        seg = store.sealed[i]
+    for seg in chosen:
         names += [segment_name(seg.first_seq, seg.gen + 1), index_name(seg.first_seq, seg.gen + 1)]
     return names
 
@@ -249,48 +247,62 @@ def _generation_files(plans: list[_Plan], old: bool) -> list[str]:
 
 def rewrite(store: Store, fn: Callable[[Window], Replacement | None],
             segments: Iterable[int] | None) -> RewriteReport:  # fmt: skip
-    """See `Store.rewrite`."""
+    """See `Store.rewrite`. The new generations are planned and written without the store's
+    lock (sealed segments never change, so the writer may go on putting meanwhile); the
+    lock is held for the commit."""
     with store._lock:
         store._check_writable()
-        infos = store.manifest["segments"]
-        chosen = range(len(store.sealed))
-        if segments is not None:
-            by_first = {info["first_seq"]: i for i, info in enumerate(infos)}
-            wanted = sorted(set(segments))
-            unknown = [s for s in wanted if s not in by_first]
-            if unknown:
-                raise InvalidInputError(f"{store.path}: no sealed segment starts at seq "
-                                        f"{unknown[0]}; sealed segments start at "
-                                        f"{sorted(by_first)[:10]}")  # fmt: skip
-            chosen = [by_first[s] for s in wanted]
-        report = RewriteReport()
-        plans: list[_Plan] = []
+        infos = {info["first_seq"]: info for info in store.manifest["segments"]}
+        segs = {seg.first_seq: seg for seg in store.sealed}
+        wanted = sorted(infos) if segments is None else sorted(set(segments))
+        unknown = [s for s in wanted if s not in infos]
+        if unknown:
+            raise InvalidInputError(f"{store.path}: no sealed segment starts at seq {unknown[0]}; "
+                                    f"sealed segments start at {sorted(infos)[:10]}")  # fmt: skip
+        chosen = [(segs[s], infos[s]) for s in wanted]
+    report = RewriteReport()
+    plans: list[_Plan] = []
+    try:
+        for seg, info in chosen:
+            plan = _plan(store, seg, info, fn, report)
+            if plan is not None:
+                plans.append(plan)
+        if not plans:
+            return report
+        store._lock.acquire()
         try:
-            for i in chosen:
-                plan = _plan(store, i, fn, report)
-                if plan is not None:
-                    plans.append(plan)
-            if not plans:
-                return report
-            segs = list(infos)
-            for plan in plans:
-                segs[plan.position] = plan.info
-            manifest = dict(store.manifest, format_version=COMPACTED_FORMAT_VERSION, segments=segs)
-        except BaseException as err:
-            # Refused, failed (a full disk: both generations must fit) or interrupted before
-            # the commit: the manifest still names only the old files, which nothing changed.
-            # Remove the unnamed new generations; the store stays usable.
-            _remove_quietly(store, _generation_files(plans, old=False) + _partial_files(store, chosen))
-            if isinstance(err, OSError):
-                raise StoreError(f"{store.path}: rewriting failed before its commit: {err}; the store is "
-                                 "unchanged") from err  # fmt: skip
+            store._check_writable()
+            current = {info["first_seq"]: info for info in store.manifest["segments"]}
+            for plan in plans:  # one rewrite or drop at a time; refuse rather than guess
+                now = current.get(plan.old.first_seq)
+                if now is None or now.get("gen", 0) != plan.old_info.get("gen", 0):
+                    raise StoreError(f"{store.path}: segment {os.path.basename(plan.old.path)} was "
+                                     "rewritten or dropped while this rewrite ran; nothing committed")  # fmt: skip
+        except BaseException:
+            store._lock.release()
             raise
+    except BaseException as err:
+        # Refused, failed (a full disk: both generations must fit) or interrupted before
+        # the commit: the manifest still names only the old files, which nothing changed.
+        # Remove the unnamed new generations; the store stays usable.
+        _remove_quietly(store, _generation_files(plans, old=False) + _partial_files(seg for seg, _ in chosen))
+        if isinstance(err, OSError):
+            raise StoreError(f"{store.path}: rewriting failed before its commit: {err}; the store is "
+                             "unchanged") from err  # fmt: skip
+        raise
+    try:  # the lock is held from the check above to the end of the commit
+        by_first = {plan.old.first_seq: plan for plan in plans}
+        segs_now = [by_first[i["first_seq"]].info if i["first_seq"] in by_first else i
+                    for i in store.manifest["segments"]]  # fmt: skip
+        manifest = dict(store.manifest, format_version=COMPACTED_FORMAT_VERSION, segments=segs_now)
         # From the commit on nothing may be undone: once the rename happened, the manifest on
         # disk names the new files, so an interrupt must not reach the cleanup above.
         with signals_deferred():
             _commit(store, manifest, "rewriting")
-            _finish_rewrite(store, plans, infos, report)
-        return report
+            _finish_rewrite(store, plans, report)
+    finally:
+        store._lock.release()
+    return report
 
 
 def _commit(store: Store, manifest: dict[str, Any], what: str) -> None:
@@ -305,7 +317,7 @@ def _commit(store: Store, manifest: dict[str, Any], what: str) -> None:
                                "new segments, and both are kept)") from err  # fmt: skip
 
 
-def _finish_rewrite(store: Store, plans: list[_Plan], infos: list[dict[str, Any]], report: RewriteReport) -> None:
+def _finish_rewrite(store: Store, plans: list[_Plan], report: RewriteReport) -> None:
     """After the commit: swap the new generations in, delete the old ones."""
     with store._lock:
         try:
@@ -314,13 +326,13 @@ def _finish_rewrite(store: Store, plans: list[_Plan], infos: list[dict[str, Any]
                 report.segments.append(old.first_seq)
                 report.bytes_before += _file_bytes(store, old, old.gen)
                 report.bytes_after += _file_bytes(store, old, plan.gen)
-                merge_stream_stats(report.before, infos[plan.position]["streams"])
+                merge_stream_stats(report.before, plan.old_info["streams"])
                 merge_stream_stats(report.after, plan.info["streams"])
                 path = store._file(segment_name(old.first_seq, plan.gen))
                 new, _ok = open_segment(store.fs, path, write=False, lock=store._lock)
                 new.first_seq, new.next_seq, new.gen = old.first_seq, old.next_seq, plan.gen
                 new.sealed_size, new._index = plan.size, plan.index
-                store.sealed[plan.position] = new
+                store.sealed[[s.first_seq for s in store.sealed].index(old.first_seq)] = new
                 store.fs.close(old.fd)
                 old.fd = -1
             # Past the commit point: a crash now leaves only leftovers, removed on open.

@@ -139,7 +139,8 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
     On any exit, Ctrl-C included, the policy's open windows are flushed into the store, so
     nothing already seen is lost; the caller closes (and so syncs) the store.
     `trusted_json`: the source already parsed every text (JSONL, bags), skip the re-check.
-    `upkeep`: drops the oldest segments to a budget as segments are sealed (`compact.Upkeep`).
+    `upkeep`: retention and aging as segments are sealed (`compact.Upkeep`); the caller
+    closes it before the store.
     """
     stats = stats or RecordStats()
     started = time.perf_counter()
@@ -204,8 +205,8 @@ class Logger:
     Without `model` every message is kept (in windows of `chunk`); with it, only logging
     windows around anomalies. Thread-safe: executor callbacks may call it concurrently.
     Puts become durable by the store's group commit (`sync_every_ms`); `close()` flushes
-    the open windows and syncs. With `upkeep` (`compact.Upkeep(budget=...)`), the oldest
-    segments are dropped to the budget as segments are sealed.
+    the open windows and syncs. With `upkeep` (`compact.Upkeep`), the oldest segments are
+    dropped to a budget and old windows aged (in a background thread) as segments seal.
     """
 
     def __init__(self, store_path: str, *, model: Any = None, topics: Iterable[str] | None = None,
@@ -247,6 +248,8 @@ class Logger:
                     for window in self.policy.flush():
                         store_window(self.store, window, self.stats)
             finally:
+                if self.upkeep is not None:
+                    self.upkeep.close()  # before the store: its thread may be reading segments
                 self.store.close()
                 self.store = None
 

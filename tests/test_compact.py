@@ -183,6 +183,31 @@ def test_recorder_keeps_to_its_budget_as_it_goes(tmp_path, capsys):
     assert not check_store(store, deep=True).errors
 
 
+def test_recorder_ages_in_the_background_within_bounds(tmp_path, capsys):
+    jsonl(tmp_path / "run.jsonl", 40_000)  # 2000 s at 20 Hz
+    store = str(tmp_path / "s")
+    assert main(["record", str(tmp_path / "run.jsonl"), "--store", store, "--budget", "600KiB", "--chunk", "100",
+                 "--age-older-than", "600s", "--age-error", "1e-3"]) == 0  # fmt: skip
+    err = capsys.readouterr().err
+    assert "windows aged" in err and "budget 600.0 KiB met" in err and "upkeep failed" not in err, err
+    with cclogfs.open_store(store, readonly=True) as s:
+        windows = list(s.query("/odom"))
+        assert [w.seq for w in windows] == list(range(windows[0].seq, windows[0].seq + len(windows)))
+        newest_sealed = max(st["end_ns"] for info in s.manifest["segments"] for st in info["streams"].values())
+        aged = [w for w in windows if w.aged is not None]
+        assert len(aged) > 100
+        for w in windows:
+            if w.aged is None:
+                assert [t for _, t in w.messages()] == [odom(s // (NS // 20)) for s, _ in w.messages()]
+            else:
+                assert w.end_ns < newest_sealed - 600 * NS  # never younger than the age asked for
+                for stamp, text in w.messages():
+                    exact = json.loads(odom(stamp // (NS // 20)))
+                    for u, v in zip(floats(exact), floats(json.loads(text)), strict=True):
+                        assert abs(u - v) <= 1e-3 * (1 + 1e-12)
+    assert not check_store(store, deep=True).errors
+
+
 def test_logger_sizes_its_segments_for_its_budget(tmp_path):
     from cclogfs.compact import Upkeep
     from cclogfs.pipeline import Logger
@@ -194,11 +219,33 @@ def test_logger_sizes_its_segments_for_its_budget(tmp_path):
         assert s.data_bytes() <= 256 << 10 and s.dropped()["segments"] >= 1
 
 
-def test_recorder_refuses_a_bad_budget(tmp_path, capsys):
+@pytest.mark.parametrize(
+    "args, match",
+    [(["--age-older-than", "7d"], "give --age-error or --age-max-rate"),
+     (["--age-error", "1e-3"], "needs --age-older-than"), (["--budget", "big"], "Size 'big'")],
+)  # fmt: skip
+def test_recorder_refuses_incomplete_upkeep_flags(tmp_path, capsys, args, match):
     jsonl(tmp_path / "run.jsonl", 10)
-    assert main(["record", str(tmp_path / "run.jsonl"), "--store", str(tmp_path / "s"), "--budget", "big"]) == 1
-    assert "Size 'big'" in capsys.readouterr().err
+    assert main(["record", str(tmp_path / "run.jsonl"), "--store", str(tmp_path / "s"), *args]) == 1
+    assert match in capsys.readouterr().err
     assert not (tmp_path / "s").exists()
+
+
+def test_logger_with_background_aging_stops_cleanly_and_keeps_every_window(tmp_path):
+    from cclogfs.compact import Upkeep
+    from cclogfs.pipeline import Logger
+
+    upkeep = Upkeep(budget=1 << 20, policy=Policy([parse_rule("1e-3")]), older_than_ns=60 * NS)
+    with Logger(str(tmp_path / "s"), chunk=50, upkeep=upkeep) as log:
+        for i in range(20_000):
+            log("/odom", i * NS // 20, odom(i))
+    assert upkeep.errors == []
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as s:
+        windows = list(s.query("/odom"))
+        assert windows[-1].end_ns == 19_999 * NS // 20
+        assert [w.seq for w in windows] == list(range(windows[0].seq, windows[0].seq + len(windows)))
+    report = check_store(str(tmp_path / "s"), deep=True)
+    assert not report.errors and not report.findings  # no leftover from a stopped rewrite
 
 
 # -- found in review -------------------------------------------------------------------

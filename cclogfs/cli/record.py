@@ -6,11 +6,13 @@ import argparse
 import signal
 import sys
 
-from ..compact import Upkeep
+from ..aging import Policy, parse_rule
+from ..compact import Upkeep, compact
 from ..errors import InvalidInputError
 from ..ingest import open_source
 from ..pipeline import WINDOW_AFTER, WINDOW_BEFORE, KeepAll, RecordStats, interrupt_handler, record, smart_policy
 from ..store import open_store
+from ..times import parse_duration
 from ._fmt import human_bytes
 from .compact import parse_size
 from .progress import Progress
@@ -22,7 +24,8 @@ examples:
   cclog record run.bag --store robot.store --model odom.model --topic /tf --before 4s --after 4s
   cclog record sim.mcap --store all.store --features-out vectors/ --labels sim.labels.json  # collect mode
   some-producer | cclog record - --store robot.store            # live JSON Lines on stdin
-  cclog record - --store robot.store --model odom.model --budget 20GiB  # the disk never fills
+  cclog record - --store robot.store --model odom.model --budget 20GiB \\
+      --age-older-than 7d --age-error 1e-3      # the disk never fills; old windows shrink
 
 JSON Lines: one message per line, {"topic": "/odom", "stamp_ns": 1432235695834049087, "msg": {...}}.
 With --model, odometry on the model's topic is scored; each anomaly opens a window of
@@ -60,10 +63,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--features", default="default", choices=["default", "paper"],
                    help="with --features-out: the feature set")
     p.add_argument("--odom-topic", default="/odom", help="with --features-out: the odometry topic (default /odom)")
-    p.add_argument("--budget", metavar="SIZE",
-                   help="drop the oldest segments while the store is larger (e.g. 20GiB); segments are then "
-                        "at most 1/8 of it, so the store stays within about 1/8 over it. Age old windows with "
-                        "`cclog compact` while not recording.")
+    upkeep = p.add_argument_group("upkeep while recording (as `cclog compact`, each time a segment is sealed)")
+    upkeep.add_argument("--budget", metavar="SIZE",
+                        help="drop the oldest segments while the store is larger (e.g. 20GiB); segments are "
+                             "then at most 1/8 of it, so the store stays within about 1/8 over it")
+    upkeep.add_argument("--age-older-than", metavar="DURATION",
+                        help="age windows that ended this long before their stream's newest sealed one "
+                             "(e.g. 7d), in a background thread")
+    upkeep.add_argument("--age-error", action="append", default=[], metavar="[PATTERN=]BOUND",
+                        help="error bound for aged float fields (repeatable; last match wins)")
+    upkeep.add_argument("--age-max-rate", type=float, metavar="HZ", help="at most HZ messages per second of aged windows")
 
 
 def _tee_odometry(messages, topic: str, rows: list):
@@ -91,6 +100,22 @@ def _write_dataset(args: argparse.Namespace, rows: list) -> None:
           f"({args.features} features)", file=sys.stderr)  # fmt: skip
 
 
+def _upkeep(args: argparse.Namespace) -> Upkeep | None:
+    """The Upkeep the flags ask for (None for none)."""
+    rules = [parse_rule(r) for r in args.age_error]
+    aging = bool(rules) or args.age_max_rate is not None
+    if args.age_older_than and not aging:
+        raise InvalidInputError("--age-older-than says which windows to age; give --age-error or --age-max-rate too.")
+    if aging and not args.age_older_than:
+        raise InvalidInputError("Aging while recording needs --age-older-than (else every window ages when sealed).")
+    budget = parse_size(args.budget) if args.budget else None
+    if not aging and budget is None:
+        return None
+    policy = Policy(rules, args.age_max_rate) if aging else None
+    older = parse_duration(args.age_older_than) if aging else None
+    return Upkeep(budget=budget, policy=policy, older_than_ns=older)
+
+
 def _skipped(err: Exception) -> None:
     print(f"cclog: skipped: {err}", file=sys.stderr)
 
@@ -108,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
         read_topics = None if topics is None else sorted({*topics, policy.odom_topic})
     else:
         policy, read_topics = KeepAll(chunk=args.chunk), topics
-    upkeep = Upkeep(budget=parse_size(args.budget)) if args.budget else None
+    upkeep = _upkeep(args)
     store_options = upkeep.store_options() if upkeep is not None else {}
     previous = {sig: signal.signal(sig, interrupt_handler) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
@@ -130,8 +155,13 @@ def run(args: argparse.Namespace) -> int:
             except KeyboardInterrupt:  # arrived once the input had ended: all was stored
                 stats.interrupted = True
             if upkeep is not None:
-                upkeep.after_put(store)  # the final flush may have sealed a segment
-                final_bytes = store.disk_bytes()
+                # Before the store: its thread may be reading segments. At the end of the
+                # input it finishes what is due; after Ctrl-C or SIGTERM it stops at once.
+                upkeep.close(finish=not stats.interrupted)
+                if upkeep.budget is not None:
+                    compact(store, budget=upkeep.budget)  # the final flush may have sealed one
+                store.sync()  # the active segment's buffered records count too
+                final_bytes = store.data_bytes()
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
@@ -144,7 +174,12 @@ def run(args: argparse.Namespace) -> int:
           f"{human_bytes(stats.json_bytes_in)} JSON) in {stats.windows:,} windows, {stats.seconds:.1f} s "
           f"({stats.messages_in / max(stats.seconds, 1e-9):,.0f} msg/s)", file=sys.stderr)  # fmt: skip
     if upkeep is not None:
-        state = "met" if final_bytes <= upkeep.budget else "NOT met (the segment being written is larger)"
-        print(f"retention: {upkeep.dropped_segments} segments dropped; store {human_bytes(final_bytes)}, budget "
-              f"{human_bytes(upkeep.budget)} {state}", file=sys.stderr)  # fmt: skip
+        state = ""
+        if upkeep.budget is not None:
+            met = "met" if final_bytes <= upkeep.budget else "NOT met (the segment being written is larger)"
+            state = f"; budget {human_bytes(upkeep.budget)} {met}"
+        print(f"upkeep: {upkeep.dropped_segments} segments dropped, {upkeep.aged_windows:,} windows aged; store "
+              f"{human_bytes(final_bytes)}{state}", file=sys.stderr)  # fmt: skip
+        for error in upkeep.errors:
+            print(f"cclog: upkeep failed (recording went on): {error}", file=sys.stderr)
     return 130 if stats.interrupted else 0
