@@ -16,13 +16,15 @@ rewritten and segments dropped, crash-safely; see docs/FORMAT.md). Order of work
 
 from __future__ import annotations
 
+import signal
 import threading
 from dataclasses import dataclass, field
 from fnmatch import fnmatchcase
 from typing import Sequence
 
+from ._signals import signals_deferred
 from .aging import Policy
-from .errors import InvalidInputError, StoreFailedError
+from .errors import CorruptionError, InvalidInputError, StoreFailedError
 from .compaction import Replacement
 from .format import RecordFlag
 from .index import merge_stream_stats
@@ -33,6 +35,7 @@ __all__ = ["DEFAULT_EXCLUDE", "CompactReport", "Upkeep", "compact"]
 # The smart-logging summary answers "how far did the robot drive this year"; it is tiny,
 # so it stays exact unless a stream pattern names it.
 DEFAULT_EXCLUDE = ("/cclog/*",)
+MAX_ERRORS = 20  # background errors kept for the report
 
 
 @dataclass
@@ -242,9 +245,11 @@ class Upkeep:
         self.budget, self.policy, self.older_than_ns, self.streams = budget, policy, older_than_ns, streams
         self.sealed_upto = -1  # end seq of the newest sealed segment at the last run
         self.runs = self.dropped_segments = self.aged_windows = 0
-        self.errors: list[str] = []
+        self.errors: list[str] = []  # what failed in the background (the first MAX_ERRORS)
         self.done: set[int] = set()  # first seqs of segments with nothing left to age
-        self._wake, self._stop = threading.Event(), threading.Event()
+        self.seen: dict[int, dict] = {}  # first seq -> the cutoffs it was last aged at
+        self.broken: set[int] = set()  # segments that failed their checks: not retried
+        self._wake, self._stop, self._exited = threading.Event(), threading.Event(), threading.Event()
         self._finish = False
         self._thread: threading.Thread | None = None
 
@@ -271,14 +276,24 @@ class Upkeep:
 
     def close(self, *, finish: bool = False) -> None:
         """Stop the background thread, if any: at once (an unfinished rewrite commits
-        nothing), or with `finish` once it has aged what is due."""
+        nothing), or with `finish` once it has aged what is due. Call it before closing the
+        store; an interrupt while waiting for it stops the thread at once, then goes on."""
         if finish:
             self._finish = True
         else:
             self._stop.set()
         self._wake.set()
-        if self._thread is not None:
-            self._thread.join()
+        if self._thread is None:
+            return
+        try:
+            self._exited.wait()
+        except BaseException:
+            # Not Thread.join: once interrupted, a second join may return while the thread
+            # still runs (CPython 3.11), and the store would be closed under it.
+            self._stop.set()
+            with signals_deferred():
+                self._exited.wait()
+            raise
 
     def _retain(self, store: Store) -> None:
         if self.budget is not None:
@@ -287,6 +302,14 @@ class Upkeep:
         self.runs += 1
 
     def _work(self, store: Store) -> None:
+        try:
+            self._loop(store)
+        finally:
+            self._exited.set()
+
+    def _loop(self, store: Store) -> None:
+        # Process signals belong to the main thread (see Store._flush_loop).
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         while True:
             self._wake.wait()
             self._wake.clear()
@@ -295,29 +318,42 @@ class Upkeep:
             try:
                 self._retain(store)
                 self._age_all(store)
-                if self._finish:
-                    return
             except Stopped:
                 return
             except StoreFailedError as err:  # the recorder sees it at its next put
-                self.errors.append(str(err))
+                self._error(err)
                 return
             except Exception as err:  # noqa: BLE001 - recording must go on; say what failed
-                self.errors.append(f"{type(err).__name__}: {err}")
+                self._error(err)
+            if self._finish and not self._wake.is_set():  # nothing sealed meanwhile: done
+                return
+
+    def _error(self, err: BaseException) -> None:
+        if len(self.errors) < MAX_ERRORS:
+            self.errors.append(f"{type(err).__name__}: {err}")
 
     def _age_all(self, store: Store) -> None:
-        while not self._stop.is_set():
-            cutoff = _cutoffs_sealed(store, self.older_than_ns)
-            todo = [s for s in _candidates(store, cutoff, self.streams, None) if s not in self.done]
-            if not todo:
+        """Age every sealed segment with windows due, oldest first, one commit each. A
+        segment is read again only once the cutoffs of its streams have moved."""
+        cutoff = _cutoffs_sealed(store, self.older_than_ns)
+        for first_seq in _candidates(store, cutoff, self.streams, None):
+            if self._stop.is_set():
                 return
+            info = next((i for i in store.manifest["segments"] if i["first_seq"] == first_seq), None)
+            if info is None or first_seq in self.done or first_seq in self.broken:
+                continue
+            mine = {name: cutoff.get(name) for name in info["streams"] if selected(name, self.streams)}
+            if self.seen.get(first_seq) == mine:
+                continue  # aged at these cutoffs already: nothing new is due
             report = CompactReport()
-            _age(store, self.policy, cutoff, self.streams, report, [todo[0]], False, self._stop)
+            try:
+                _age(store, self.policy, cutoff, self.streams, report, [first_seq], False, self._stop)
+            except CorruptionError as err:
+                self.broken.add(first_seq)  # reported once; `cclog fsck` says more
+                self._error(err)
+                continue
             self.aged_windows += sum(a["windows"] for a in report.aged.values())
-            info = next((i for i in store.manifest["segments"] if i["first_seq"] == todo[0]), None)
-            if info is None or all(st["end_ns"] < cutoff.get(name, st["end_ns"] + 1)
-                                   for name, st in info["streams"].items()):  # fmt: skip
-                self.done.add(todo[0])  # every window was old enough: nothing left to age
-            else:
-                return  # the rest is younger: wait for the next seal
+            self.seen[first_seq] = mine
+            if all(info["streams"][name]["end_ns"] < limit for name, limit in mine.items() if limit is not None):
+                self.done.add(first_seq)  # every selected window was old enough
             self._retain(store)

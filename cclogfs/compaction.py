@@ -222,12 +222,16 @@ def _partial_files(chosen: Iterable[Segment]) -> list[str]:
 
 
 def _remove_quietly(store: Store, names: Iterable[str]) -> None:
-    """Remove unnamed files after a failed rewrite; what cannot be removed now is a leftover
-    the writer removes on its next open."""
-    try:
-        _remove(store, sorted(set(names)))
-    except OSError:
-        pass
+    """Remove unnamed files after a failed rewrite (never one the manifest names); what
+    cannot be removed now is a leftover the writer removes on its next open."""
+    with store._lock:
+        named = {n for info in store.manifest["segments"]
+                 for n in (segment_name(info["first_seq"], info.get("gen", 0)),
+                           index_name(info["first_seq"], info.get("gen", 0)))}  # fmt: skip
+        try:
+            _remove(store, sorted(set(names) - named))
+        except OSError:
+            pass
 
 
 def _commit_manifest(store: Store, manifest: dict[str, Any]) -> None:
@@ -249,7 +253,13 @@ def rewrite(store: Store, fn: Callable[[Window], Replacement | None],
             segments: Iterable[int] | None) -> RewriteReport:  # fmt: skip
     """See `Store.rewrite`. The new generations are planned and written without the store's
     lock (sealed segments never change, so the writer may go on putting meanwhile); the
-    lock is held for the commit."""
+    lock is held for the commit. Rewrites and drops never overlap."""
+    with store._compaction_lock:
+        return _rewrite(store, fn, segments)
+
+
+def _rewrite(store: Store, fn: Callable[[Window], Replacement | None],
+             segments: Iterable[int] | None) -> RewriteReport:  # fmt: skip
     with store._lock:
         store._check_writable()
         infos = {info["first_seq"]: info for info in store.manifest["segments"]}
@@ -346,7 +356,7 @@ def _finish_rewrite(store: Store, plans: list[_Plan], report: RewriteReport) -> 
 
 def drop_oldest(store: Store) -> Dropped | None:
     """See `Store.drop_oldest`."""
-    with store._lock:
+    with store._compaction_lock, store._lock:
         store._check_writable()
         if not store.sealed:
             return None

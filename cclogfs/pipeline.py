@@ -248,10 +248,12 @@ class Logger:
                     for window in self.policy.flush():
                         store_window(self.store, window, self.stats)
             finally:
-                if self.upkeep is not None:
-                    self.upkeep.close()  # before the store: its thread may be reading segments
-                self.store.close()
-                self.store = None
+                try:
+                    if self.upkeep is not None:
+                        self.upkeep.close()  # before the store: its thread may be reading segments
+                finally:
+                    self.store.close()
+                    self.store = None
 
     def __enter__(self) -> Logger:
         return self

@@ -177,6 +177,9 @@ class Store:
         self.active: Segment | None = None  # writer: the segment appended to
         self.unsealed: list[Segment] = []  # reader: what it saw past the manifest
         self._lock = threading.RLock()
+        # One rewrite or drop at a time, from planning to commit: two overlapping rewrites of
+        # a segment would both write its next generation.
+        self._compaction_lock = threading.Lock()
         self._wake = threading.Condition(self._lock)
         self._lock_fd: int | None = None
         self._failed: BaseException | None = None

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import math
+import threading
+import time
 
 import pytest
 
@@ -243,6 +245,7 @@ def test_logger_with_background_aging_stops_cleanly_and_keeps_every_window(tmp_p
     with cclogfs.open_store(tmp_path / "s", readonly=True) as s:
         windows = list(s.query("/odom"))
         assert windows[-1].end_ns == 19_999 * NS // 20
+        assert upkeep.aged_windows > 0 and any(w.aged is not None for w in windows)
         assert [w.seq for w in windows] == list(range(windows[0].seq, windows[0].seq + len(windows)))
     report = check_store(str(tmp_path / "s"), deep=True)
     assert not report.errors and not report.findings  # no leftover from a stopped rewrite
@@ -331,3 +334,72 @@ def test_cli_says_to_stop_the_recorder_when_the_store_is_locked(tmp_path, capsys
     with cclogfs.open_store(tmp_path / "s"):  # a recorder holding the writer lock
         assert main(["compact", str(tmp_path / "s"), "--budget", "1B"]) == 1
     assert "stop the recorder first" in capsys.readouterr().err
+
+
+# -- found in the review of background aging ------------------------------------------------
+
+
+def _sealed_store(path, windows=16):
+    """/tf_static once, then /odom windows of 5 s at 10 Hz, four windows per segment."""
+    store = cclogfs.open_store(path, create=True, segment_records=4, sync_every_ms=None)
+    store.put_window("/tf_static", [(0, '{"x": 1.2345678}')])
+    for w in range(windows):
+        store.put_window("/odom", [(i * NS // 10, odom(i)) for i in range(w * 50, (w + 1) * 50)])
+    return store
+
+
+def test_background_aging_goes_past_a_segment_holding_a_stream_that_stopped(tmp_path):
+    from cclogfs.compact import Upkeep
+
+    store = _sealed_store(tmp_path / "s")
+    upkeep = Upkeep(policy=Policy([parse_rule("1e-3")]), older_than_ns=20 * NS, streams=["/odom"])
+    upkeep.after_put(store)
+    upkeep.close(finish=True)
+    aged = [w.seq for w in store.query("/odom") if w.aged is not None]
+    # /odom windows ending over 20 s before the newest sealed one (74.9 s): 0-9, all of them
+    assert aged == list(range(1, 11)) and upkeep.errors == []
+    store.close()
+
+
+def test_finishing_after_an_error_returns_and_later_segments_still_age(tmp_path):
+    from cclogfs.compact import Upkeep
+
+    store = _sealed_store(tmp_path / "s")
+    store.close()
+    seg = tmp_path / "s" / "00000000000000000000.seg"
+    data = bytearray(seg.read_bytes())
+    data[-5] ^= 0xFF  # damage the oldest segment
+    seg.write_bytes(bytes(data))
+    store = cclogfs.open_store(tmp_path / "s", segment_records=4, sync_every_ms=None)
+    upkeep = Upkeep(policy=Policy([parse_rule("1e-3")]), older_than_ns=20 * NS)
+    upkeep.after_put(store)
+    closer = threading.Thread(target=upkeep.close, kwargs={"finish": True})
+    closer.start()
+    closer.join(30)
+    assert not closer.is_alive(), "close(finish=True) hung after an error"
+    assert len(upkeep.errors) == 1 and "CorruptionError" in upkeep.errors[0]
+    assert any(w.aged is not None for w in store.query("/odom") if w.seq >= 4)
+    store.close()
+
+
+def test_overlapping_rewrites_of_one_segment_never_lose_it(tmp_path):
+    from cclogfs.store import Replacement
+
+    store = _sealed_store(tmp_path / "s", windows=3)
+
+    def slow(w):
+        time.sleep(0.05)
+        return Replacement(list(w.messages()), dict(w.meta, aged=[{"by": "slow"}]), flags=1)
+
+    def fast(w):
+        return Replacement(list(w.messages()), dict(w.meta, aged=[{"by": "fast"}]), flags=1)
+
+    threads = [threading.Thread(target=store.rewrite, args=(fn,), kwargs={"segments": [0]}) for fn in (slow, fast)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    store.close()
+    with cclogfs.open_store(tmp_path / "s") as s:  # both ran, one after the other
+        assert [w.aged[0]["by"] for w in s.query() if w.seq < 4] in (["fast"] * 4, ["slow"] * 4)
+    assert not check_store(str(tmp_path / "s"), deep=True).errors

@@ -150,14 +150,21 @@ def run(args: argparse.Namespace) -> int:
             stats = RecordStats()
             rows: list = []
             messages = _tee_odometry(source, args.odom_topic, rows) if args.features_out else source
+            ended = False  # the input ran out, with no error or interrupt
             try:
                 record(messages, store, policy, trusted_json=True, progress=tick, stats=stats, upkeep=upkeep)
+                ended = not stats.interrupted
             except KeyboardInterrupt:  # arrived once the input had ended: all was stored
                 stats.interrupted = True
+            finally:
+                if upkeep is not None:
+                    # Before the store closes: its thread may be reading segments. At the end
+                    # of the input it finishes what is due (the last flush may have sealed a
+                    # segment); after an error, Ctrl-C or SIGTERM it stops at once.
+                    if ended:
+                        upkeep.after_put(store)
+                    upkeep.close(finish=ended)
             if upkeep is not None:
-                # Before the store: its thread may be reading segments. At the end of the
-                # input it finishes what is due; after Ctrl-C or SIGTERM it stops at once.
-                upkeep.close(finish=not stats.interrupted)
                 if upkeep.budget is not None:
                     compact(store, budget=upkeep.budget)  # the final flush may have sealed one
                 store.sync()  # the active segment's buffered records count too
