@@ -312,6 +312,15 @@ def _rewrite(store: Store, fn: Callable[[Window], Replacement | None],
             _finish_rewrite(store, plans, report)
     finally:
         store._lock.release()
+    # The old generations are no longer named: deleting them needs no lock (the writer's
+    # puts need not wait for it), and a crash before it leaves leftovers removed on open.
+    with signals_deferred():
+        try:
+            _remove(store, _generation_files(plans, old=True))
+        except OSError as err:
+            store._failed = err
+            raise StoreFailedError(f"{store.path}: cleaning up after a rewrite failed: {err}; the "
+                                   "rewrite is committed, reopen the store to finish") from err  # fmt: skip
     return report
 
 
@@ -328,7 +337,8 @@ def _commit(store: Store, manifest: dict[str, Any], what: str) -> None:
 
 
 def _finish_rewrite(store: Store, plans: list[_Plan], report: RewriteReport) -> None:
-    """After the commit: swap the new generations in, delete the old ones."""
+    """After the commit: swap the new generations in (the old files are deleted after the
+    store's lock is released)."""
     with store._lock:
         try:
             for plan in plans:
@@ -345,8 +355,6 @@ def _finish_rewrite(store: Store, plans: list[_Plan], report: RewriteReport) -> 
                 store.sealed[[s.first_seq for s in store.sealed].index(old.first_seq)] = new
                 store.fs.close(old.fd)
                 old.fd = -1
-            # Past the commit point: a crash now leaves only leftovers, removed on open.
-            _remove(store, _generation_files(plans, old=True))
         except OSError as err:
             store._failed = err
             raise StoreFailedError(f"{store.path}: cleaning up after a rewrite failed: {err}; the "
