@@ -24,8 +24,8 @@ from typing import Sequence
 
 from ._signals import signals_deferred
 from .aging import Policy
-from .errors import CorruptionError, InvalidInputError, StoreFailedError
 from .compaction import Replacement
+from .errors import CorruptionError, InvalidInputError, StoreFailedError
 from .format import RecordFlag
 from .index import merge_stream_stats
 from .store import Store, Window
