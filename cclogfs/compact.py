@@ -16,6 +16,7 @@ rewritten and segments dropped, crash-safely; see docs/FORMAT.md). Order of work
 
 from __future__ import annotations
 
+import os
 import signal
 import threading
 from dataclasses import dataclass, field
@@ -26,11 +27,11 @@ from ._signals import signals_deferred
 from .aging import Policy
 from .compaction import Replacement
 from .errors import CorruptionError, InvalidInputError, StoreFailedError
-from .format import RecordFlag
+from .format import RecordFlag, index_name, segment_name
 from .index import merge_stream_stats
 from .store import Store, Window
 
-__all__ = ["DEFAULT_EXCLUDE", "CompactReport", "Upkeep", "compact"]
+__all__ = ["DEFAULT_EXCLUDE", "CompactReport", "Upkeep", "compact", "preview"]
 
 # The smart-logging summary answers "how far did the robot drive this year"; it is tiny,
 # so it stays exact unless a stream pattern names it.
@@ -106,6 +107,57 @@ def compact(
     return report
 
 
+def _due(window: Window, desc: dict, cutoff: dict[str, int] | None, streams) -> bool:
+    """Whether `window` is to be aged by the policy described by `desc`."""
+    if not selected(window.name, streams):
+        return False
+    if cutoff is not None and window.end_ns >= cutoff.get(window.name, window.end_ns):
+        return False
+    # Already aged by this policy (in any pass: policies that take turns settle after one
+    # pass each): a nightly run rewrites nothing.
+    return not any(isinstance(p, dict) and {k: p.get(k) for k in desc} == desc for p in passes_of(window))
+
+
+def preview(
+    store: Store,
+    *,
+    policy: Policy | None = None,
+    before_ns: int | None = None,
+    older_than_ns: int | None = None,
+    streams: Sequence[str] | None = None,
+    budget: int | None = None,
+) -> CompactReport:
+    """What `compact` with the same arguments would do, changing nothing (works on a
+    read-only store): the windows it would age, with their messages and stored bytes now,
+    and the segments retention would drop were aging to save nothing."""
+    report = CompactReport(disk_before=store.data_bytes(), budget=budget)
+    if policy is not None:
+        desc, cutoff = policy.describe(), _cutoffs(store, before_ns, older_than_ns)
+        for w in store.query():
+            if _due(w, desc, cutoff, streams):
+                a = report.aged.setdefault(w.name, {"windows": 0, "messages_before": 0, "bytes_before": 0})
+                a["windows"] += 1
+                a["messages_before"] += w.count
+                a["bytes_before"] += w.stored_bytes
+    size = report.disk_before
+    if budget is not None:
+        for seg, info in zip(store.sealed, store.manifest["segments"]):
+            if size <= budget or (store.active is not None and seg.first_seq >= store.active.first_seq):
+                break
+            size -= _segment_bytes(store, seg.first_seq, info.get("gen", 0))
+            report.segments_dropped += 1
+            merge_stream_stats(report.dropped, info["streams"])
+    report.disk_after = size
+    return report
+
+
+def _segment_bytes(store: Store, first_seq: int, gen: int) -> int:
+    """Bytes of a sealed segment's file and its index."""
+    return sum(os.path.getsize(os.path.join(store.path, name)) for name in
+               (segment_name(first_seq, gen), index_name(first_seq, gen))
+               if os.path.exists(os.path.join(store.path, name)))  # fmt: skip
+
+
 def passes_of(window: Window) -> list:
     """The aging passes a window went through, oldest first ([] for a byte-exact window).
     Each is a dict as `compact` writes them; another writer's statement is kept as one
@@ -163,13 +215,7 @@ def _age(store: Store, policy: Policy, cutoff: dict[str, int] | None, streams, r
     counts: dict[str, list[int]] = {}
 
     def due(window: Window) -> bool:
-        if not selected(window.name, streams):
-            return False
-        if cutoff is not None and window.end_ns >= cutoff.get(window.name, window.end_ns):
-            return False
-        # Already aged by this policy (in any pass: policies that take turns settle after
-        # one pass each): a nightly run rewrites nothing.
-        return not any(isinstance(p, dict) and {k: p.get(k) for k in desc} == desc for p in passes_of(window))
+        return _due(window, desc, cutoff, streams)
 
     def rewrite(window: Window) -> Replacement | None:
         if stop is not None and stop.is_set():

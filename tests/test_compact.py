@@ -403,3 +403,26 @@ def test_overlapping_rewrites_of_one_segment_never_lose_it(tmp_path):
     with cclogfs.open_store(tmp_path / "s") as s:  # both ran, one after the other
         assert [w.aged[0]["by"] for w in s.query() if w.seq < 4] in (["fast"] * 4, ["slow"] * 4)
     assert not check_store(str(tmp_path / "s"), deep=True).errors
+
+
+def test_dry_run_changes_nothing_and_foretells_the_real_run(tmp_path, capsys):
+    from cclogfs.compact import preview
+
+    build(tmp_path / "s", segment_records=4)
+    before = {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir()}
+    policy = Policy([parse_rule("1e-3")])
+    with cclogfs.open_store(tmp_path / "s") as writer:  # a recorder holds the lock: still fine
+        assert main(["compact", str(tmp_path / "s"), "--older-than", "30s", "--error", "1e-3", "--dry-run"]) == 0
+        assert "dry run: nothing changed" in capsys.readouterr().out
+        with cclogfs.open_store(tmp_path / "s", readonly=True) as reader:
+            aging = preview(reader, policy=policy, older_than_ns=30 * NS)
+            dropping = preview(reader, budget=writer.data_bytes() // 2)
+    assert {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir() if p.name != "LOCK"} == {
+        k: v for k, v in before.items() if k != "LOCK"}
+    with cclogfs.open_store(tmp_path / "s") as store:
+        done = compact(store, policy=policy, older_than_ns=30 * NS)
+    assert {k: v["windows"] for k, v in aging.aged.items()} == {k: v["windows"] for k, v in done.aged.items()}
+    build(tmp_path / "t", segment_records=4)
+    with cclogfs.open_store(tmp_path / "t") as store:
+        real = compact(store, budget=store.data_bytes() // 2)
+    assert (dropping.segments_dropped, dropping.dropped) == (real.segments_dropped, real.dropped)

@@ -7,7 +7,7 @@ import json
 import re
 
 from ..aging import Policy, parse_rule
-from ..compact import DEFAULT_EXCLUDE, compact
+from ..compact import DEFAULT_EXCLUDE, compact, preview
 from ..errors import InvalidInputError, StoreLockedError
 from ..store import open_store
 from ..times import parse_duration, parse_time
@@ -23,6 +23,8 @@ EXAMPLES = """examples:
       5 messages per second of each window
   cclog compact robot.store --budget 20GiB
       drop the oldest segments until the store fits in 20 GiB
+  cclog compact robot.store --older-than 30d --error 1e-3 --budget 20GiB --dry-run
+      what that would age and drop, changing nothing
 exit status: 0 done, 1 error (nothing half-done: every step is crash-safe),
              3 done but the store is still over its budget.
 
@@ -66,6 +68,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stream", action="append", default=[], metavar="PATTERN",
                    help=f"streams to age (glob, repeatable; default: all but {', '.join(DEFAULT_EXCLUDE)})")
     p.add_argument("--budget", metavar="SIZE", help="drop the oldest segments while the store is larger (e.g. 20GiB)")
+    p.add_argument("--dry-run", action="store_true",
+                   help="say what would be aged and dropped, change nothing (works while a recorder runs)")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
 
 
@@ -79,34 +83,62 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError("Nothing to do: give --error and/or --max-rate to age windows, or --budget.")
     before_ns = parse_time(args.before) if args.before else None
     older_than_ns = parse_duration(args.older_than) if args.older_than else None
-    try:
-        store = open_store(args.store)
-    except StoreLockedError as err:
-        held = str(err).split(";")[0]  # "STORE is locked by another writer (pid, host)"
-        raise StoreLockedError(f"{held}; compaction needs the writer's lock: stop the recorder first "
-                               "(`cclog record --budget` drops old segments while it runs)") from None
-    with store:
-        report = compact(store, policy=policy, before_ns=before_ns, older_than_ns=older_than_ns,
-                         streams=args.stream or None, budget=budget)  # fmt: skip
-    if args.json:
-        print(json.dumps(report.to_dict(), indent=2))
+    options = dict(policy=policy, before_ns=before_ns, older_than_ns=older_than_ns, streams=args.stream or None,
+                   budget=budget)  # fmt: skip
+    if args.dry_run:
+        with open_store(args.store, readonly=True) as store:
+            report = preview(store, **options)
     else:
-        print(format_report(report, policy, args))
+        try:
+            store = open_store(args.store)
+        except StoreLockedError as err:
+            held = str(err).split(";")[0]  # "STORE is locked by another writer (pid, host)"
+            raise StoreLockedError(f"{held}; compaction needs the writer's lock: stop the recorder first "
+                                   "(`cclog record --budget` drops old segments while it runs)") from None
+        with store:
+            report = compact(store, **options)
+    if args.json:
+        print(json.dumps(dict(report.to_dict(), dry_run=args.dry_run), indent=2))
+    else:
+        print(format_preview(report, policy, args) if args.dry_run else format_report(report, policy, args))
     return 3 if report.over_budget else 0
+
+
+def _aging_line(policy: Policy, args: argparse.Namespace) -> str:
+    if args.before:
+        cutoff = f"windows ending before {args.before}"
+    elif args.older_than:
+        cutoff = f"windows ending over {args.older_than} before their stream's last"
+    else:
+        cutoff = "all windows"
+    rules = ", ".join(f"{p} <= {b:g}" for p, b in policy.describe()["rules"]) or "none"
+    rate = f", at most {policy.max_rate_hz:g} msg/s" if policy.max_rate_hz else ""
+    return f"aging {cutoff}: error bounds {rules}{rate}"
+
+
+def format_preview(report, policy: Policy | None, args: argparse.Namespace) -> str:
+    """What --dry-run prints: what would happen, nothing done."""
+    lines = ["dry run: nothing changed"]
+    if policy is not None:
+        lines.append("would be " + _aging_line(policy, args))
+        rows = [[name, str(a["windows"]), str(a["messages_before"]), human_bytes(a["bytes_before"])]
+                for name, a in sorted(report.aged.items())]  # fmt: skip
+        lines.append(table(rows, ["stream", "windows to age", "messages", "stored now"]) if rows
+                     else "nothing to age (no window old enough, or already aged this way)")  # fmt: skip
+    for name, d in sorted(report.dropped.items()):
+        lines.append(f"would drop {d['windows']} windows of {name} ({d['messages']} messages) from "
+                     f"{iso_ns(d['start_ns'])} to {iso_ns(d['end_ns'])}")  # fmt: skip
+    if report.budget is not None:
+        saved = " (before what aging saves)" if policy is not None else ""
+        lines.append(f"store: {human_bytes(report.disk_before)} -> {human_bytes(report.disk_after)}{saved}, "
+                     f"budget {human_bytes(report.budget)} " + ("NOT met" if report.over_budget else "met"))  # fmt: skip
+    return "\n".join(lines)
 
 
 def format_report(report, policy: Policy | None, args: argparse.Namespace) -> str:
     lines = []
     if policy is not None:
-        if args.before:
-            cutoff = f"windows ending before {args.before}"
-        elif args.older_than:
-            cutoff = f"windows ending over {args.older_than} before their stream's last"
-        else:
-            cutoff = "all windows"
-        rules = ", ".join(f"{p} <= {b:g}" for p, b in policy.describe()["rules"]) or "none"
-        rate = f", at most {policy.max_rate_hz:g} msg/s" if policy.max_rate_hz else ""
-        lines.append(f"aging {cutoff}: error bounds {rules}{rate}")
+        lines.append(_aging_line(policy, args))
         rows = [[name, str(a["windows"]), f"{a['messages_before']} -> {a['messages_after']}",
                  f"{human_bytes(a['bytes_before'])} -> {human_bytes(a['bytes_after'])}",
                  f"{a['bytes_after'] / a['bytes_before']:.2f}x" if a["bytes_before"] else "-"]
