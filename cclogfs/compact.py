@@ -16,7 +16,6 @@ rewritten and segments dropped, crash-safely; see docs/FORMAT.md). Order of work
 
 from __future__ import annotations
 
-import os
 import signal
 import threading
 from dataclasses import dataclass, field
@@ -25,9 +24,9 @@ from typing import Sequence
 
 from ._signals import signals_deferred
 from .aging import Policy
-from .compaction import Replacement
+from .compaction import Replacement, file_bytes
 from .errors import CorruptionError, InvalidInputError, StoreFailedError
-from .format import RecordFlag, index_name, segment_name
+from .format import RecordFlag
 from .index import merge_stream_stats
 from .store import Store, Window
 
@@ -93,7 +92,7 @@ def compact(
     # The segment being written is never dropped, not even once sealed here for aging.
     keep_from = store.active.first_seq if store.active is not None else None
     if policy is not None:
-        _age(store, policy, _cutoffs(store, before_ns, older_than_ns), streams, report, segments, seal)
+        _age(store, policy, _cutoffs(store, before_ns, older_than_ns), streams, report, segments=segments, seal=seal)
     if budget is not None:
         while store.data_bytes() > budget:
             if keep_from is not None and store.sealed and store.sealed[0].first_seq >= keep_from:
@@ -144,18 +143,11 @@ def preview(
         for seg, info in zip(store.sealed, store.manifest["segments"]):
             if size <= budget or (store.active is not None and seg.first_seq >= store.active.first_seq):
                 break
-            size -= _segment_bytes(store, seg.first_seq, info.get("gen", 0))
+            size -= file_bytes(store, seg, seg.gen)
             report.segments_dropped += 1
             merge_stream_stats(report.dropped, info["streams"])
     report.disk_after = size
     return report
-
-
-def _segment_bytes(store: Store, first_seq: int, gen: int) -> int:
-    """Bytes of a sealed segment's file and its index."""
-    return sum(os.path.getsize(os.path.join(store.path, name)) for name in
-               (segment_name(first_seq, gen), index_name(first_seq, gen))
-               if os.path.exists(os.path.join(store.path, name)))  # fmt: skip
 
 
 def passes_of(window: Window) -> list:
@@ -341,11 +333,14 @@ class Upkeep:
                 self._exited.wait()
             raise
 
-    def _retain(self, store: Store) -> None:
-        if self.budget is not None:
-            report = compact(store, budget=self.budget)
-            self.dropped_segments += report.segments_dropped
+    def _retain(self, store: Store) -> int:
+        """Drop the oldest segments while over the budget; how many were dropped."""
         self.runs += 1
+        if self.budget is None:
+            return 0
+        dropped = compact(store, budget=self.budget).segments_dropped
+        self.dropped_segments += dropped
+        return dropped
 
     def _work(self, store: Store) -> None:
         try:
@@ -382,10 +377,11 @@ class Upkeep:
         """Age every sealed segment with windows due, oldest first, one commit each. A
         segment is read again only once the cutoffs of its streams have moved."""
         cutoff = _cutoffs_sealed(store, self.older_than_ns)
+        infos = {i["first_seq"]: i for i in store.manifest["segments"]}  # again after each drop
         for first_seq in _candidates(store, cutoff, self.streams, None):
             if self._stop.is_set():
                 return
-            info = next((i for i in store.manifest["segments"] if i["first_seq"] == first_seq), None)
+            info = infos.get(first_seq)
             if info is None or first_seq in self.done or first_seq in self.broken:
                 continue
             mine = {name: cutoff.get(name) for name in info["streams"] if selected(name, self.streams)}
@@ -393,7 +389,8 @@ class Upkeep:
                 continue  # aged at these cutoffs already: nothing new is due
             report = CompactReport()
             try:
-                _age(store, self.policy, cutoff, self.streams, report, [first_seq], False, self._stop)
+                _age(store, self.policy, cutoff, self.streams, report, segments=[first_seq], seal=False,
+                     stop=self._stop)  # fmt: skip
             except CorruptionError as err:
                 self.broken.add(first_seq)  # reported once; `cclog fsck` says more
                 self._error(err)
@@ -402,4 +399,5 @@ class Upkeep:
             self.seen[first_seq] = mine
             if all(info["streams"][name]["end_ns"] < limit for name, limit in mine.items() if limit is not None):
                 self.done.add(first_seq)  # every selected window was old enough
-            self._retain(store)
+            if self._retain(store):
+                infos = {i["first_seq"]: i for i in store.manifest["segments"]}

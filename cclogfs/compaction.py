@@ -40,7 +40,7 @@ from .segment import Segment, open_segment
 if TYPE_CHECKING:
     from .store import Store, Window
 
-__all__ = ["Dropped", "Replacement", "RewriteReport", "drop_oldest", "rewrite"]
+__all__ = ["Dropped", "Replacement", "RewriteReport", "drop_oldest", "file_bytes", "rewrite"]
 
 
 @dataclass(frozen=True)
@@ -196,7 +196,8 @@ def _plan(store: Store, seg: Segment, info: dict[str, Any], fn: Callable, report
     return _Plan(info, seg, gen, len(buf), index, new_info)
 
 
-def _file_bytes(store: Store, seg: Segment, gen: int) -> int:
+def file_bytes(store: Store, seg: Segment, gen: int) -> int:
+    """Bytes of one generation of a sealed segment: its file and its index."""
     total = 0
     for name in (segment_name(seg.first_seq, gen), index_name(seg.first_seq, gen)):
         try:
@@ -344,8 +345,8 @@ def _finish_rewrite(store: Store, plans: list[_Plan], report: RewriteReport) -> 
             for plan in plans:
                 old = plan.old
                 report.segments.append(old.first_seq)
-                report.bytes_before += _file_bytes(store, old, old.gen)
-                report.bytes_after += _file_bytes(store, old, plan.gen)
+                report.bytes_before += file_bytes(store, old, old.gen)
+                report.bytes_after += file_bytes(store, old, plan.gen)
                 merge_stream_stats(report.before, plan.old_info["streams"])
                 merge_stream_stats(report.after, plan.info["streams"])
                 path = store._file(segment_name(old.first_seq, plan.gen))
@@ -376,7 +377,7 @@ def drop_oldest(store: Store) -> Dropped | None:
         manifest = dict(store.manifest, format_version=COMPACTED_FORMAT_VERSION,
                         first_seq=info["end_seq"], segments=store.manifest["segments"][1:],
                         dropped=dropped)  # fmt: skip
-        freed = _file_bytes(store, seg, seg.gen)
+        freed = file_bytes(store, seg, seg.gen)
         with signals_deferred():  # the commit and its aftermath run to the end
             _commit(store, manifest, f"dropping segment {os.path.basename(seg.path)}")
             _finish_drop(store, seg)
