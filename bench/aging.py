@@ -30,7 +30,7 @@ from bench._util import SHARED, machine, save_json, topic_messages  # noqa: E402
 from cclogfs import open_store  # noqa: E402
 from cclogfs.aging import Policy, parse_rule  # noqa: E402
 from cclogfs.compact import compact  # noqa: E402
-from cclogfs.fsck import check_store  # noqa: E402
+from cclogfs.store.fsck import check_store  # noqa: E402
 
 NS = 1_000_000_000
 TOPICS = ("/odom", "/tf", "/amcl_pose", "/tf_static")

@@ -24,11 +24,8 @@ from typing import Sequence
 
 from ._signals import signals_deferred
 from .aging import Policy
-from .compaction import Replacement, file_bytes
 from .errors import CorruptionError, InvalidInputError, StoreFailedError
-from .format import RecordFlag
-from .index import merge_stream_stats
-from .store import Store, Window
+from .store import RecordFlag, Replacement, Store, Window, file_bytes, merge_stream_stats
 
 __all__ = ["DEFAULT_EXCLUDE", "CompactReport", "Upkeep", "compact", "preview"]
 
@@ -90,12 +87,13 @@ def compact(
     """
     report = CompactReport(disk_before=store.data_bytes(), budget=budget)
     # The segment being written is never dropped, not even once sealed here for aging.
-    keep_from = store.active.first_seq if store.active is not None else None
+    keep_from = store.active_first_seq
     if policy is not None:
         _age(store, policy, _cutoffs(store, before_ns, older_than_ns), streams, report, segments=segments, seal=seal)
     if budget is not None:
         while store.data_bytes() > budget:
-            if keep_from is not None and store.sealed and store.sealed[0].first_seq >= keep_from:
+            sealed = store.sealed_segments()
+            if keep_from is not None and sealed and sealed[0].first_seq >= keep_from:
                 break
             gone = store.drop_oldest()
             if gone is None:
@@ -140,12 +138,13 @@ def preview(
                 a["bytes_before"] += w.stored_bytes
     size = report.disk_before
     if budget is not None:
-        for seg, info in zip(store.sealed, store.manifest["segments"]):
-            if size <= budget or (store.active is not None and seg.first_seq >= store.active.first_seq):
+        active = store.active_first_seq
+        for seg in store.sealed_segments():
+            if size <= budget or (active is not None and seg.first_seq >= active):
                 break
             size -= file_bytes(store, seg, seg.gen)
             report.segments_dropped += 1
-            merge_stream_stats(report.dropped, info["streams"])
+            merge_stream_stats(report.dropped, seg.streams)
     report.disk_after = size
     return report
 
@@ -188,12 +187,12 @@ def _candidates(store: Store, cutoff: dict[str, int] | None, streams, segments: 
     them before its cutoff (the manifest's statistics say so without reading a record)."""
     wanted = None if segments is None else set(segments)
     out = []
-    for info in store.manifest["segments"]:
-        if wanted is not None and info["first_seq"] not in wanted:
+    for seg in store.sealed_segments():
+        if wanted is not None and seg.first_seq not in wanted:
             continue
         if any(selected(name, streams) and (cutoff is None or st["start_ns"] < cutoff.get(name, st["start_ns"]))
-               for name, st in info["streams"].items()):  # fmt: skip
-            out.append(info["first_seq"])
+               for name, st in seg.streams.items()):  # fmt: skip
+            out.append(seg.first_seq)
     return out
 
 
@@ -227,11 +226,11 @@ def _age(store: Store, policy: Policy, cutoff: dict[str, int] | None, streams, r
         return Replacement(aged, meta, flags=RecordFlag.AGED)
 
     # Windows in the active segment can be rewritten only once it is sealed.
-    active = store.active
-    if seal and active is not None and any(w.seq >= active.first_seq and due(w) for w in store.query()):
+    active = store.active_first_seq
+    if seal and active is not None and any(w.seq >= active and due(w) for w in store.query()):
         store.seal()
         if segments is not None:
-            segments = [*segments, active.first_seq]
+            segments = [*segments, active]
     before: dict[str, dict[str, int]] = {}
     after: dict[str, dict[str, int]] = {}
     # One segment per commit: the disk holds both generations of only one segment at a time.
@@ -250,8 +249,8 @@ def _cutoffs_sealed(store: Store, older_than_ns: int) -> dict[str, int]:
     """Per stream, `older_than_ns` before the end of its newest sealed segment's windows
     (from the manifest: nothing is read)."""
     out: dict[str, int] = {}
-    for info in reversed(store.manifest["segments"]):
-        for name, st in info["streams"].items():
+    for seg in reversed(store.sealed_segments()):
+        for name, st in seg.streams.items():
             out.setdefault(name, st["end_ns"] - older_than_ns)
     return out
 
@@ -300,7 +299,8 @@ class Upkeep:
 
     def after_put(self, store: Store) -> None:
         # A new sealed segment moves this (the count may not change: drops remove others).
-        upto = store.sealed[-1].next_seq if store.sealed else -1
+        sealed = store.sealed_segments()
+        upto = sealed[-1].end_seq if sealed else -1
         if upto == self.sealed_upto:
             return
         self.sealed_upto = upto
@@ -377,14 +377,14 @@ class Upkeep:
         """Age every sealed segment with windows due, oldest first, one commit each. A
         segment is read again only once the cutoffs of its streams have moved."""
         cutoff = _cutoffs_sealed(store, self.older_than_ns)
-        infos = {i["first_seq"]: i for i in store.manifest["segments"]}  # again after each drop
+        infos = {s.first_seq: s for s in store.sealed_segments()}  # again after each drop
         for first_seq in _candidates(store, cutoff, self.streams, None):
             if self._stop.is_set():
                 return
             info = infos.get(first_seq)
             if info is None or first_seq in self.done or first_seq in self.broken:
                 continue
-            mine = {name: cutoff.get(name) for name in info["streams"] if selected(name, self.streams)}
+            mine = {name: cutoff.get(name) for name in info.streams if selected(name, self.streams)}
             if self.seen.get(first_seq) == mine:
                 continue  # aged at these cutoffs already: nothing new is due
             report = CompactReport()
@@ -397,7 +397,7 @@ class Upkeep:
                 continue
             self.aged_windows += sum(a["windows"] for a in report.aged.values())
             self.seen[first_seq] = mine
-            if all(info["streams"][name]["end_ns"] < limit for name, limit in mine.items() if limit is not None):
+            if all(info.streams[name]["end_ns"] < limit for name, limit in mine.items() if limit is not None):
                 self.done.add(first_seq)  # every selected window was old enough
             if self._retain(store):
-                infos = {i["first_seq"]: i for i in store.manifest["segments"]}
+                infos = {s.first_seq: s for s in store.sealed_segments()}

@@ -30,7 +30,7 @@ class CorruptionError(CclogError):
     """Stored bytes fail a check (checksum, length, magic, framing).
 
     `path`, `offset` and `reason` say where and why; `reason` is one of the fixed
-    strings in `cclogfs.format.Reason`.
+    strings in `cclogfs.store.format.Reason`.
     """
 
     def __init__(self, message: str, *, path: str = "", offset: int = -1, reason: str = ""):

@@ -3,7 +3,7 @@
 import json
 import random
 
-from cclogfs.format import RecordFlag
+from cclogfs.store.format import RecordFlag
 from cclogfs.store import Replacement
 
 CHOICES = ("keep", "same", "downsample", "aged")
@@ -47,7 +47,7 @@ def state(store):
 
 def leftovers(path, manifest):
     """Segment/index/temp files in `path` the manifest does not account for."""
-    from cclogfs.format import parse_seq_name
+    from cclogfs.store.format import parse_seq_name
 
     named = {(s["first_seq"], s.get("gen", 0)) for s in manifest["segments"]}
     end = manifest["segments"][-1]["end_seq"] if manifest["segments"] else manifest.get("first_seq", 0)

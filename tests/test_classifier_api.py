@@ -1,6 +1,3 @@
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 
@@ -106,11 +103,3 @@ def test_collect_dataset(halves, tmp_path):
     assert len(anomalous) == meta["anomalous"] > 0
     with pytest.raises(InvalidInputError, match="other features"):
         collect(run, tmp_path / "ds", features={"id": "paper", "params": {"window": 10, "stride": 1}})
-
-
-def test_classifier_imports_no_storage():
-    code = ("import sys, cclogfs.classifier as c, cclogfs.classifier.testing;"
-            "bad = [m for m in sys.modules if m.startswith('cclogfs.') and m.split('.')[1] in "
-            "('store', 'segment', 'format', 'codecs', 'pipeline', 'manifest', 'compaction')]; print(bad)")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "[]"

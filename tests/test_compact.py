@@ -13,7 +13,7 @@ import cclogfs
 from cclogfs.aging import Policy, parse_rule
 from cclogfs.cli import main
 from cclogfs.compact import compact
-from cclogfs.fsck import check_store
+from cclogfs.store.fsck import check_store
 
 NS = 1_000_000_000
 

@@ -8,7 +8,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import cclogfs
-from cclogfs.fs import RecordingFileSystem
+from cclogfs.store.fs import RecordingFileSystem
 from crashsim import MODES, DiskModel
 
 action = st.one_of(

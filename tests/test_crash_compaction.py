@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 
 import cclogfs
 from cclogfs.errors import CclogError
-from cclogfs.fs import RecordingFileSystem
-from cclogfs.fsck import check_store
+from cclogfs.store.fs import RecordingFileSystem
+from cclogfs.store.fsck import check_store
 from crashsim import MODES, DiskModel
 from _rewrite import leftovers, random_rewrite, state
 

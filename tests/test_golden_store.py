@@ -5,7 +5,7 @@ import shutil
 from pathlib import Path
 
 import cclogfs
-from cclogfs.format import pack_record, CodecId
+from cclogfs.store.format import pack_record, CodecId
 
 GOLDEN = Path(__file__).parent / "golden"
 
@@ -38,7 +38,7 @@ def test_record_bytes_are_pinned():
 
 def test_golden_store_v2_reads_back(tmp_path):
     # Compacted: the log starts at seq 2, generations 1 and 2, an AGED record, an active segment.
-    from cclogfs.fsck import check_store
+    from cclogfs.store.fsck import check_store
 
     expected = json.loads((GOLDEN / "store_v2.expected.json").read_text())
     shutil.copytree(GOLDEN / "store_v2", tmp_path / "s")
@@ -66,7 +66,7 @@ def test_golden_store_v2_reads_back(tmp_path):
 def test_aged_record_bytes_are_pinned():
     # The AGED record (codec none) of the v2 golden store: today's encoder makes the same bytes.
     from cclogfs.codecs import frame
-    from cclogfs.format import RecordFlag
+    from cclogfs.store.format import RecordFlag
 
     data = (GOLDEN / "store_v2" / "00000000000000000002-1.seg").read_bytes()
     (w,) = [w for w in json.loads((GOLDEN / "store_v2.expected.json").read_text())["windows"] if w["seq"] == 2]

@@ -13,7 +13,7 @@ from cclogfs.errors import (
     StoreLockedError,
     UnknownCodecError,
 )
-from cclogfs.fs import RecordingFileSystem
+from cclogfs.store.fs import RecordingFileSystem
 
 
 def msgs(t0, n, step=10, tag="x"):

@@ -8,9 +8,9 @@ import pytest
 
 import cclogfs
 from cclogfs.errors import CorruptionError, InvalidInputError, StoreError, StoreFailedError
-from cclogfs.format import MANIFEST, RecordFlag, pack_manifest, unpack_manifest
-from cclogfs.fs import FileSystem, RecordingFileSystem
-from cclogfs.fsck import check_store
+from cclogfs.store.format import MANIFEST, RecordFlag, pack_manifest, unpack_manifest
+from cclogfs.store.fs import FileSystem, RecordingFileSystem
+from cclogfs.store.fsck import check_store
 from cclogfs.store import Replacement
 from _rewrite import leftovers, state
 

@@ -7,7 +7,7 @@ import pytest
 
 import cclogfs
 from cclogfs.errors import CorruptionError, UnknownCodecError
-from cclogfs.format import RECORD_FIXED, RECORD_FIXED_SIZE, crc32c
+from cclogfs.store.format import RECORD_FIXED, RECORD_FIXED_SIZE, crc32c
 
 SEG = "00000000000000000000.seg"
 
@@ -202,7 +202,7 @@ def test_sealed_segment_cut_at_a_record_boundary_is_not_a_silent_hole(tmp_path):
 def test_record_of_a_newer_version_with_a_longer_header_is_skipped(tmp_path):
     # Version 2 appends 8 bytes to the header (allowed by the extension rules): a version 1
     # reader frames it by header_len, skips it, and keeps every later record.
-    from cclogfs.format import RECORD_FIXED, crc32c, pack_record, xxh3
+    from cclogfs.store.format import RECORD_FIXED, crc32c, pack_record, xxh3
 
     recs = make_store(tmp_path / "s", n=3)
     seg = tmp_path / "s" / SEG
@@ -236,7 +236,7 @@ def test_intact_records_with_impossible_fields(tmp_path, fields, reason):
 
 
 def test_damage_mid_active_segment_keeps_the_bytes_and_fsck_says_error(tmp_path):
-    from cclogfs.fsck import check_store
+    from cclogfs.store.fsck import check_store
 
     recs = make_store(tmp_path / "s", n=5, sync_every_ms=0)  # every put synced
     seq, off, length = recs[1]
@@ -261,7 +261,7 @@ def test_plain_torn_tail_keeps_no_side_file(tmp_path):
 
 
 def test_fsck_deep_reports_damaged_sealed_segment_without_index(tmp_path):
-    from cclogfs.fsck import check_store
+    from cclogfs.store.fsck import check_store
 
     make_store(tmp_path / "s", n=80, segment_bytes=4096, sync_every_bytes=1)
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:

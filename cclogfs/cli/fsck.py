@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from ..fsck import check_store
+from ..store import check_store
 
 EXAMPLES = """examples:
   cclog fsck out/demo/store

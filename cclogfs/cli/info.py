@@ -40,9 +40,9 @@ def store_info(path: str) -> dict:
         return {
             "summary": summary_totals(store) if SUMMARY_TOPIC in streams else None,
             "path": path,
-            "store_id": store.manifest["store_id"],
-            "segments": len(store.sealed) + len(store.unsealed),
-            "format_version": store.manifest["format_version"],
+            "store_id": store.store_id,
+            "segments": store.segment_count(),
+            "format_version": store.format_version,
             "first_seq": store.first_seq,
             "dropped": store.dropped(),
             "disk_bytes": store.disk_bytes(),

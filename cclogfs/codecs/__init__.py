@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..errors import CodecError, UnknownCodecError
-from ..format import CodecId
+from ..store.format import CodecId
 from .base import ByteCodec, Codec, frame, raw_size, unframe
 from .columnar import ColumnarCodec
 from .simple import LzmaCodec, NoneCodec, ZstdCodec

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import BinaryIO, Literal
 
 from ..errors import InvalidInputError, SourceError
-from ..format import MAX_NS, MIN_NS
+from ..store.format import MAX_NS, MIN_NS
 from ..jsoncheck import json_error
 from .base import SourceMessage, topic_filter
 

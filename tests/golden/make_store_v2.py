@@ -19,7 +19,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent.parent))
 
 import cclogfs  # noqa: E402
-from cclogfs.format import RecordFlag  # noqa: E402
+from cclogfs.store.format import RecordFlag  # noqa: E402
 from cclogfs.store import Replacement  # noqa: E402
 
 OUT = HERE / "store_v2"

@@ -1,46 +1,65 @@
 """Compaction and retention: rewrite sealed segments as a new generation, drop the oldest.
 
-Storage only: what a replacement window holds is the caller's business (cclogfs/aging.py
-decides that); this module checks that a replacement keeps the record's place in the log
-and commits it crash-safely, as docs/FORMAT.md ("Compaction and retention") specifies.
+Storage only: what a replacement window holds is the caller's business (upkeep's aging
+policy decides that); this module checks that a replacement keeps the record's place in the
+log and commits it crash-safely, as docs/FORMAT.md ("Compaction and retention") specifies.
+
+The store passes itself in (`Host` says what this module uses of it); this module does not
+import the store, which imports it.
 """
 
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
-from ._signals import signals_deferred
-from .errors import CorruptionError, InvalidInputError, StoreError, StoreFailedError
+from .._signals import signals_deferred
+from ..errors import CorruptionError, InvalidInputError, StoreError, StoreFailedError
+from .encode import Codecs, encode_window
 from .format import (
     AGED_META_KEY,
-    COMPACTED_FORMAT_VERSION,
     KNOWN_FLAGS,
-    MANIFEST,
     RECORD_FIXED_SIZE,
     SEGMENT_HEADER_SIZE,
     Reason,
     RecordError,
     RecordFlag,
     RecordHeader,
-    check_fields,
     check_fixed,
-    check_payload,
     index_name,
-    pack_manifest,
     pack_segment_header,
     parse_header,
     segment_name,
 )
+from .fs import FileSystem
 from .index import SegmentIndex, merge_stream_stats
+from .manifest import Manifest
+from .records import ChunkReader, Record, records
 from .segment import Segment, open_segment
+from .window import Window
 
-if TYPE_CHECKING:
-    from .store import Store, Window
+__all__ = ["Dropped", "Host", "Replacement", "RewriteReport", "drop_oldest", "file_bytes", "rewrite"]
 
-__all__ = ["Dropped", "Replacement", "RewriteReport", "drop_oldest", "file_bytes", "rewrite"]
+
+class Host(Protocol):
+    """What compaction uses of the store (package-internal API of `Store`)."""
+
+    path: str
+    fs: FileSystem
+    lock: threading.RLock
+    compaction_lock: threading.Lock
+    codecs: Codecs
+    manifest: Manifest
+    sealed: list[Segment]
+
+    def check_writable(self) -> None: ...
+
+    def commit_manifest(self, manifest: Manifest) -> None: ...
+
+    def fail(self, err: BaseException) -> None: ...
 
 
 @dataclass(frozen=True)
@@ -88,37 +107,34 @@ class _Plan:
     info: dict[str, Any]
 
 
-def _records(seg: Segment, end_seq: int) -> Iterator[tuple[int, RecordHeader, bytes, str | None]]:
-    """(offset, header, record bytes, skip reason) of every record of a sealed segment, in
-    log order, each fully checked: compaction never copies damage into a new generation."""
+def _file(store: Host, name: str) -> str:
+    return os.path.join(store.path, name)
+
+
+def _records(seg: Segment, end_seq: int) -> Iterator[tuple[Record, bytes]]:
+    """Every record of a sealed segment with its bytes, in log order, each fully checked:
+    compaction never copies damage into a new generation."""
     if seg.size != seg.sealed_size:
         raise CorruptionError(f"{seg.path} is {seg.size} bytes but the manifest says it was sealed "
                               f"at {seg.sealed_size}; it cannot be rewritten (run `cclog fsck`)",
                               path=seg.path, offset=min(seg.size, seg.sealed_size),
-                              reason=Reason.BAD_LENGTH)  # fmt: skip
-    pos, seq = SEGMENT_HEADER_SIZE, seg.first_seq
-    while pos < seg.size:
-        try:
-            header_len = check_fixed(seg.read(pos, RECORD_FIXED_SIZE), seg.size - pos)
-            header = parse_header(seg.read(pos, header_len))
-            data = seg.read(pos, header.record_len)
-            check_payload(header, memoryview(data)[header_len:])
-            if header.seq != seq:
-                raise RecordError(Reason.SEQ_GAP, f"seq {header.seq}, expected {seq}")
-            skip = check_fields(header)
-        except RecordError as err:
-            raise CorruptionError(f"{seg.path}: record at offset {pos} is damaged: {err}; the segment "
-                                  "cannot be rewritten (run `cclog fsck`)",
-                                  path=seg.path, offset=pos, reason=err.reason) from err  # fmt: skip
-        yield pos, header, data, skip
-        pos += header.record_len
-        seq += 1
+                              reason=Reason.SIZE_MISMATCH)  # fmt: skip
+    source = ChunkReader(seg.fs, seg.fd)
+    seq = seg.first_seq
+    try:
+        for rec in records(source, SEGMENT_HEADER_SIZE, seg.size, seg.first_seq):
+            yield rec, bytes(source.read(rec.offset, rec.header.record_len))
+            seq = rec.header.seq + 1
+    except RecordError as err:
+        raise CorruptionError(f"{seg.path}: record at offset {err.offset} is damaged: {err}; the segment "
+                              "cannot be rewritten (run `cclog fsck`)",
+                              path=seg.path, offset=err.offset, reason=err.reason) from err  # fmt: skip
     if seq != end_seq:
         raise CorruptionError(f"{seg.path} ends at seq {seq}, the manifest says {end_seq}",
-                              path=seg.path, offset=pos, reason=Reason.SEQ_GAP)  # fmt: skip
+                              path=seg.path, offset=seg.size, reason=Reason.SEQ_GAP)  # fmt: skip
 
 
-def _replacement_record(store: Store, seg: Segment, header: RecordHeader, rep: object) -> bytes:
+def _replacement_record(codecs: Codecs, seg: Segment, header: RecordHeader, rep: object) -> bytes:
     """The new record's bytes, every rule checked (raises InvalidInputError)."""
     where = f"{os.path.basename(seg.path)}: replacement for seq {header.seq} of {header.name!r}"
     if not isinstance(rep, Replacement):
@@ -130,7 +146,7 @@ def _replacement_record(store: Store, seg: Segment, header: RecordHeader, rep: o
         raise InvalidInputError(f"{where}: the AGED flag needs meta[{AGED_META_KEY!r}] saying how "
                                 "the texts differ from what was put")  # fmt: skip
     try:
-        enc = store._encode_window(header.name, rep.messages, rep.meta, rep.codec, True)
+        enc = encode_window(codecs, header.name, rep.messages, rep.meta, rep.codec, True)
     except InvalidInputError as err:
         raise InvalidInputError(f"{where}: {err}") from err
     first, last = enc.stamps[0], enc.stamps[-1]
@@ -141,76 +157,87 @@ def _replacement_record(store: Store, seg: Segment, header: RecordHeader, rep: o
     return enc.pack(header.seq, rep.flags)
 
 
-def _plan(store: Store, seg: Segment, info: dict[str, Any], fn: Callable, report: RewriteReport) -> _Plan | None:
-    """Call `fn` on every record of a sealed segment; when it replaced any, write the new
-    generation (segment, then index, each durable) and say what the manifest must name."""
-    from .store import Window  # here: store imports this module
+@dataclass
+class _Replayed:
+    """A segment's records after the callback: the new file's bytes and index rows."""
 
-    buf = bytearray(pack_segment_header(seg.first_seq, seg.created_ns))
-    rows, aged, replaced, kept = [], {}, 0, 0
-    for offset, header, data, skip in _records(seg, info["end_seq"]):
-        rep = None
-        if skip is None:
-            window = Window(header.name, header.seq, header.start_ns, header.end_ns,
-                            header.count, seg, offset, header.record_len)  # fmt: skip
-            window._record = (header, data[header.header_len :])  # already read and checked
-            rep = fn(window)
+    buf: bytearray
+    rows: list[tuple] = field(default_factory=list)
+    aged: dict[str, int] = field(default_factory=dict)
+    replaced: int = 0
+    kept: int = 0
+
+
+def _replay(codecs: Codecs, seg: Segment, end_seq: int, fn: Callable) -> _Replayed:
+    """Call `fn` on every record of a sealed segment; the records it keeps or replaces."""
+    out = _Replayed(bytearray(pack_segment_header(seg.first_seq, seg.created_ns)))
+    for rec, data in _records(seg, end_seq):
+        header, rep = rec.header, None
+        if rec.skip is None:
+            rep = fn(Window(header.name, header.seq, header.start_ns, header.end_ns, header.count, seg,
+                            rec.offset, header.record_len, record=(header, bytes(rec.payload))))  # fmt: skip
         if rep is None:
-            record, kept = data, kept + 1
+            record, out.kept = data, out.kept + 1
             new_header = header
         else:
-            record, replaced = _replacement_record(store, seg, header, rep), replaced + 1
-            header_len = check_fixed(record[:RECORD_FIXED_SIZE], len(record))
-            new_header = parse_header(record[:header_len])
-        if skip is None:
-            rows.append((new_header.name, new_header.count, new_header.seq, new_header.start_ns,
-                         new_header.end_ns, len(buf), len(record), new_header.raw_len))  # fmt: skip
+            record, out.replaced = _replacement_record(codecs, seg, header, rep), out.replaced + 1
+            new_header = parse_header(record[: check_fixed(record[:RECORD_FIXED_SIZE], len(record))])
+        if rec.skip is None:
+            out.rows.append((new_header.name, new_header.count, new_header.seq, new_header.start_ns,
+                             new_header.end_ns, len(out.buf), len(record), new_header.raw_len))  # fmt: skip
             if new_header.flags & RecordFlag.AGED:
-                aged[new_header.name] = aged.get(new_header.name, 0) + 1
-        buf += record
-    if not replaced:
+                out.aged[new_header.name] = out.aged.get(new_header.name, 0) + 1
+        out.buf += record
+    return out
+
+
+def _plan(store: Host, seg: Segment, info: dict[str, Any], fn: Callable, report: RewriteReport) -> _Plan | None:
+    """Replay a sealed segment through `fn`; when it replaced any record, write the new
+    generation (segment, then index, each durable) and say what the manifest must name."""
+    done = _replay(store.codecs, seg, info["end_seq"], fn)
+    if not done.replaced:
         return None
-    gen = seg.gen + 1
-    index = SegmentIndex.build(rows)
-    new_info = {"first_seq": seg.first_seq, "end_seq": info["end_seq"], "size": len(buf),
+    gen, size = seg.gen + 1, len(done.buf)
+    index = SegmentIndex.build(done.rows)
+    new_info = {"first_seq": seg.first_seq, "end_seq": info["end_seq"], "size": size,
                 "streams": index.stream_stats(), "gen": gen}  # fmt: skip
-    if aged:
-        new_info["aged"] = aged
+    if done.aged:
+        new_info["aged"] = done.aged
     fs = store.fs
-    path = store._file(segment_name(seg.first_seq, gen))
+    path = _file(store, segment_name(seg.first_seq, gen))
     if fs.exists(path):  # left by an earlier rewrite of this session that failed
         fs.unlink(path)
     # The new generation is complete and durable (data, index, directory entries) before the
     # manifest names it: the manifest rename is the one commit point.
     fd = fs.open(path, write=True, create=True)
     try:
-        fs.pwrite(fd, bytes(buf), 0)
+        fs.pwrite(fd, bytes(done.buf), 0)
         fs.fsync(fd)
     finally:
         fs.close(fd)
     fs.fsync_dir(store.path)
-    index_path = store._file(index_name(seg.first_seq, gen))
-    fs.write_file_atomic(index_path, index.encode(seg.first_seq, len(buf)))
-    report.replaced += replaced
-    report.kept += kept
-    return _Plan(info, seg, gen, len(buf), index, new_info)
+    fs.write_file_atomic(_file(store, index_name(seg.first_seq, gen)), index.encode(seg.first_seq, size))
+    report.replaced += done.replaced
+    report.kept += done.kept
+    return _Plan(info, seg, gen, size, index, new_info)
 
 
-def file_bytes(store: Store, seg: Segment, gen: int) -> int:
-    """Bytes of one generation of a sealed segment: its file and its index."""
+def file_bytes(store: Any, seg: Any, gen: int) -> int:
+    """Bytes of one generation of a sealed segment (anything with `first_seq`: a Segment or
+    a SealedSegment) of `store` (anything with `path`): its file and its index."""
     total = 0
     for name in (segment_name(seg.first_seq, gen), index_name(seg.first_seq, gen)):
         try:
-            total += os.path.getsize(store._file(name))
+            total += os.path.getsize(os.path.join(store.path, name))
         except FileNotFoundError:
             pass
     return total
 
 
-def _remove(store: Store, names: Iterable[str]) -> None:
+def _remove(store: Host, names: Iterable[str]) -> None:
     for name in names:
-        if store.fs.exists(store._file(name)):
-            store.fs.unlink(store._file(name))
+        if store.fs.exists(_file(store, name)):
+            store.fs.unlink(_file(store, name))
     store.fs.fsync_dir(store.path)
 
 
@@ -222,23 +249,14 @@ def _partial_files(chosen: Iterable[Segment]) -> list[str]:
     return names
 
 
-def _remove_quietly(store: Store, names: Iterable[str]) -> None:
+def _remove_quietly(store: Host, names: Iterable[str]) -> None:
     """Remove unnamed files after a failed rewrite (never one the manifest names); what
     cannot be removed now is a leftover the writer removes on its next open."""
-    with store._lock:
-        named = {n for info in store.manifest["segments"]
-                 for n in (segment_name(info["first_seq"], info.get("gen", 0)),
-                           index_name(info["first_seq"], info.get("gen", 0)))}  # fmt: skip
+    with store.lock:
         try:
-            _remove(store, sorted(set(names) - named))
+            _remove(store, sorted(set(names) - store.manifest.named_files()))
         except OSError:
             pass
-
-
-def _commit_manifest(store: Store, manifest: dict[str, Any]) -> None:
-    store.fs.write_file_atomic(store._file(MANIFEST), pack_manifest(manifest))
-    store.manifest = manifest
-    store._sealed_by_stream = None
 
 
 def _generation_files(plans: list[_Plan], old: bool) -> list[str]:
@@ -250,28 +268,38 @@ def _generation_files(plans: list[_Plan], old: bool) -> list[str]:
     return names
 
 
-def rewrite(store: Store, fn: Callable[[Window], Replacement | None],
+def rewrite(store: Host, fn: Callable[[Window], Replacement | None],
             segments: Iterable[int] | None) -> RewriteReport:  # fmt: skip
     """See `Store.rewrite`. The new generations are planned and written without the store's
     lock (sealed segments never change, so the writer may go on putting meanwhile); the
     lock is held for the commit. Rewrites and drops never overlap."""
-    with store._compaction_lock:
-        return _rewrite(store, fn, segments)
+    with store.compaction_lock:
+        chosen = _choose(store, segments)
+        report = RewriteReport()
+        plans = _plan_all(store, chosen, fn, report)
+        if plans:
+            _commit_rewrite(store, plans, report)
+        return report
 
 
-def _rewrite(store: Store, fn: Callable[[Window], Replacement | None],
-             segments: Iterable[int] | None) -> RewriteReport:  # fmt: skip
-    with store._lock:
-        store._check_writable()
-        infos = {info["first_seq"]: info for info in store.manifest["segments"]}
+def _choose(store: Host, segments: Iterable[int] | None) -> list[tuple[Segment, dict[str, Any]]]:
+    """The sealed segments to rewrite, with their manifest entries."""
+    with store.lock:
+        store.check_writable()
+        infos = {info["first_seq"]: info for info in store.manifest.segments}
         segs = {seg.first_seq: seg for seg in store.sealed}
         wanted = sorted(infos) if segments is None else sorted(set(segments))
         unknown = [s for s in wanted if s not in infos]
         if unknown:
             raise InvalidInputError(f"{store.path}: no sealed segment starts at seq {unknown[0]}; "
                                     f"sealed segments start at {sorted(infos)[:10]}")  # fmt: skip
-        chosen = [(segs[s], infos[s]) for s in wanted]
-    report = RewriteReport()
+        return [(segs[s], infos[s]) for s in wanted]
+
+
+def _plan_all(store: Host, chosen: list[tuple[Segment, dict[str, Any]]], fn: Callable,
+              report: RewriteReport) -> list[_Plan]:  # fmt: skip
+    """Write the new generations; when any replaced a record, return holding the store's
+    lock, every plan checked against the current manifest, ready to commit."""
     plans: list[_Plan] = []
     try:
         for seg, info in chosen:
@@ -279,18 +307,18 @@ def _rewrite(store: Store, fn: Callable[[Window], Replacement | None],
             if plan is not None:
                 plans.append(plan)
         if not plans:
-            return report
-        store._lock.acquire()
+            return plans
+        store.lock.acquire()
         try:
-            store._check_writable()
-            current = {info["first_seq"]: info for info in store.manifest["segments"]}
+            store.check_writable()
+            current = {info["first_seq"]: info for info in store.manifest.segments}
             for plan in plans:  # one rewrite or drop at a time; refuse rather than guess
                 now = current.get(plan.old.first_seq)
                 if now is None or now.get("gen", 0) != plan.old_info.get("gen", 0):
                     raise StoreError(f"{store.path}: segment {os.path.basename(plan.old.path)} was "
                                      "rewritten or dropped while this rewrite ran; nothing committed")  # fmt: skip
         except BaseException:
-            store._lock.release()
+            store.lock.release()
             raise
     except BaseException as err:
         # Refused, failed (a full disk: both generations must fit) or interrupted before
@@ -301,46 +329,48 @@ def _rewrite(store: Store, fn: Callable[[Window], Replacement | None],
             raise StoreError(f"{store.path}: rewriting failed before its commit: {err}; the store is "
                              "unchanged") from err  # fmt: skip
         raise
-    try:  # the lock is held from the check above to the end of the commit
-        by_first = {plan.old.first_seq: plan for plan in plans}
-        segs_now = [by_first[i["first_seq"]].info if i["first_seq"] in by_first else i
-                    for i in store.manifest["segments"]]  # fmt: skip
-        manifest = dict(store.manifest, format_version=COMPACTED_FORMAT_VERSION, segments=segs_now)
+    return plans
+
+
+def _commit_rewrite(store: Host, plans: list[_Plan], report: RewriteReport) -> None:
+    """Commit the plans (the caller's `_plan_all` left the store's lock held), then delete
+    the old generations."""
+    try:  # the lock is held from the check in _plan_all to the end of the commit
+        manifest = store.manifest.with_replaced({plan.old.first_seq: plan.info for plan in plans})
         # From the commit on nothing may be undone: once the rename happened, the manifest on
         # disk names the new files, so an interrupt must not reach the cleanup above.
         with signals_deferred():
             _commit(store, manifest, "rewriting")
             _finish_rewrite(store, plans, report)
     finally:
-        store._lock.release()
+        store.lock.release()
     # The old generations are no longer named: deleting them needs no lock (the writer's
     # puts need not wait for it), and a crash before it leaves leftovers removed on open.
     with signals_deferred():
         try:
             _remove(store, _generation_files(plans, old=True))
         except OSError as err:
-            store._failed = err
+            store.fail(err)
             raise StoreFailedError(f"{store.path}: cleaning up after a rewrite failed: {err}; the "
                                    "rewrite is committed, reopen the store to finish") from err  # fmt: skip
-    return report
 
 
-def _commit(store: Store, manifest: dict[str, Any], what: str) -> None:
+def _commit(store: Host, manifest: Manifest, what: str) -> None:
     """The commit point of a rewrite or drop; any failure leaves the store failed (whether
     the rename happened is unknown, so neither generation may be removed)."""
     try:
-        _commit_manifest(store, manifest)
+        store.commit_manifest(manifest)
     except BaseException as err:
-        store._failed = err
+        store.fail(err)
         raise StoreFailedError(f"{store.path}: {what} failed at its commit: {err}; the store refuses "
                                "further writes (reopen it: the manifest names either the old or the "
                                "new segments, and both are kept)") from err  # fmt: skip
 
 
-def _finish_rewrite(store: Store, plans: list[_Plan], report: RewriteReport) -> None:
+def _finish_rewrite(store: Host, plans: list[_Plan], report: RewriteReport) -> None:
     """After the commit: swap the new generations in (the old files are deleted after the
     store's lock is released)."""
-    with store._lock:
+    with store.lock:
         try:
             for plan in plans:
                 old = plan.old
@@ -349,44 +379,37 @@ def _finish_rewrite(store: Store, plans: list[_Plan], report: RewriteReport) -> 
                 report.bytes_after += file_bytes(store, old, plan.gen)
                 merge_stream_stats(report.before, plan.old_info["streams"])
                 merge_stream_stats(report.after, plan.info["streams"])
-                path = store._file(segment_name(old.first_seq, plan.gen))
-                new, _ok = open_segment(store.fs, path, write=False, lock=store._lock)
+                path = _file(store, segment_name(old.first_seq, plan.gen))
+                new, _ok = open_segment(store.fs, path, write=False, lock=store.lock)
                 new.first_seq, new.next_seq, new.gen = old.first_seq, old.next_seq, plan.gen
                 new.sealed_size, new._index = plan.size, plan.index
                 store.sealed[[s.first_seq for s in store.sealed].index(old.first_seq)] = new
                 store.fs.close(old.fd)
                 old.fd = -1
         except OSError as err:
-            store._failed = err
+            store.fail(err)
             raise StoreFailedError(f"{store.path}: cleaning up after a rewrite failed: {err}; the "
                                    "rewrite is committed, reopen the store to finish"
                                    ) from err  # fmt: skip
 
 
-def drop_oldest(store: Store) -> Dropped | None:
+def drop_oldest(store: Host) -> Dropped | None:
     """See `Store.drop_oldest`."""
-    with store._compaction_lock, store._lock:
-        store._check_writable()
+    with store.compaction_lock, store.lock:
+        store.check_writable()
         if not store.sealed:
             return None
-        seg, info = store.sealed[0], store.manifest["segments"][0]
-        before = store.dropped()
-        streams = {k: dict(v) for k, v in before["streams"].items()}
-        merge_stream_stats(streams, info["streams"])
-        dropped = {"segments": before["segments"] + 1, "streams": streams}
-        manifest = dict(store.manifest, format_version=COMPACTED_FORMAT_VERSION,
-                        first_seq=info["end_seq"], segments=store.manifest["segments"][1:],
-                        dropped=dropped)  # fmt: skip
+        seg, info = store.sealed[0], store.manifest.segments[0]
         freed = file_bytes(store, seg, seg.gen)
         with signals_deferred():  # the commit and its aftermath run to the end
-            _commit(store, manifest, f"dropping segment {os.path.basename(seg.path)}")
+            _commit(store, store.manifest.without_oldest(), f"dropping segment {os.path.basename(seg.path)}")
             _finish_drop(store, seg)
         return Dropped(info["first_seq"], info["end_seq"], info["streams"], freed)
 
 
-def _finish_drop(store: Store, seg: Segment) -> None:
+def _finish_drop(store: Host, seg: Segment) -> None:
     """After the commit: forget the dropped segment and delete its files."""
-    with store._lock:
+    with store.lock:
         try:
             store.sealed.pop(0)
             store.fs.close(seg.fd)
@@ -394,7 +417,7 @@ def _finish_drop(store: Store, seg: Segment) -> None:
             # Past the commit point: a crash now leaves only leftovers, removed on open.
             _remove(store, [segment_name(seg.first_seq, seg.gen), index_name(seg.first_seq, seg.gen)])
         except OSError as err:
-            store._failed = err
+            store.fail(err)
             raise StoreFailedError(f"{store.path}: cleaning up after dropping segment "
                                    f"{os.path.basename(seg.path)} failed: {err}; the drop is "
                                    "committed, reopen the store to finish") from err  # fmt: skip

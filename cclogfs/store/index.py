@@ -94,12 +94,12 @@ class SegmentIndex:
         if digest != xxh3(memoryview(data)[:-8]):
             raise RecordError(Reason.PAYLOAD_HASH, "index checksum")
         if seq != first_seq or size != segment_size:
-            raise RecordError(Reason.BAD_LENGTH, "index describes another version of the segment")
+            raise RecordError(Reason.INDEX_MISMATCH, "index describes another version of the segment")
         pos = INDEX_HEADER.size
         names = json.loads(data[pos : pos + names_len])
         entries = np.frombuffer(data, ENTRY, count, pos + names_len).copy()
         if len(entries) and int(entries["stream"].max()) >= len(names):
-            raise RecordError(Reason.BAD_LENGTH, "index entry names an unknown stream")
+            raise RecordError(Reason.BAD_FIELD, "index entry names an unknown stream")
         return cls(names, entries)
 
     def stream_stats(self) -> dict[str, dict[str, int]]:

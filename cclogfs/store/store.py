@@ -12,175 +12,77 @@ import signal
 import socket
 import threading
 import time
-import uuid
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from . import compaction
-from ._signals import signals_deferred as _signals_deferred
-from .compaction import Dropped, Replacement, RewriteReport
-from .codecs import Codec, codec_from_config, codec_numeric_id, raw_size
-from .errors import (
+from .._signals import signals_deferred as _signals_deferred
+from ..codecs import codec_from_config
+from ..errors import (
     CorruptionError,
     InvalidInputError,
     StoreError,
     StoreFailedError,
     StoreLockedError,
 )
+from . import compaction
+from .check import check_stream_name
+from .compaction import Dropped, Replacement, RewriteReport
+from .encode import Codecs, encode_window
 from .format import (
     AGED_META_KEY,
-    FORMAT_VERSION,
-    FORMAT_VERSIONS,
     LOCK,
     MANIFEST,
-    MAX_CONFIG,
-    MAX_META,
     MAX_NS,
     MIN_NS,
-    MAX_RAW,
     SEGMENT_HEADER_SIZE,
     TMP_SUFFIX,
     Reason,
     RecordError,
-    RecordFlag,
     index_name,
-    pack_manifest,
-    pack_record,
     pack_segment_header,
     parse_seq_name,
     segment_name,
-    unpack_manifest,
 )
 from .fs import FileSystem
 from .index import SegmentIndex, merge_stream_stats, overlap_slice
-from .segment import Problem, Segment, intact_after, open_segment, scan
-from .validate import check_stream_name, encode_messages
+from .manifest import Manifest, SealedSegment
+from .recovery import Recovery, SegmentOpener
+from .segment import Problem, Segment, scan
+from .window import Receipt, Window
 
-__all__ = ["Dropped", "Receipt", "Recovery", "Replacement", "RewriteReport", "Store", "Window", "open_store"]
-
-
-@dataclass(frozen=True)
-class Receipt:
-    """What `put_window` stored. Durable once a later `sync()` (or group commit) completes."""
-
-    seq: int
-    name: str
-    start_ns: int
-    end_ns: int
-    count: int
-    raw_bytes: int
-    stored_bytes: int
-
-
-@dataclass
-class Recovery:
-    """What opening the store found and did."""
-
-    problems: list[Problem] = field(default_factory=list)  # truncated or dropped tails
-    skipped: list[Problem] = field(default_factory=list)  # intact records of unknown kind
-    sealed_on_open: list[str] = field(default_factory=list)
-    removed_files: list[str] = field(default_factory=list)
-    # Files of an interrupted compaction or retention step (a generation the manifest does
-    # not name, a dropped segment): never data, removed by the writer on open.
-    leftovers: list[str] = field(default_factory=list)
-
-    @property
-    def clean(self) -> bool:
-        return not (self.problems or self.skipped)
-
-
-class Window:
-    """One stored window, as a query returns it. Reads its record on first use."""
-
-    __slots__ = ("name", "seq", "start_ns", "end_ns", "count", "_segment", "_offset",
-                 "_length", "_record")  # fmt: skip
-
-    def __init__(self, name: str, seq: int, start_ns: int, end_ns: int, count: int,
-                 segment: Segment, offset: int, length: int):  # fmt: skip
-        self.name, self.seq, self.start_ns, self.end_ns, self.count = name, seq, start_ns, end_ns, count
-        self._segment, self._offset, self._length = segment, offset, length
-        self._record = None
-
-    def _read(self):
-        if self._record is None:
-            with self._segment.lock:  # the group-commit thread may be flushing this segment
-                if self._segment.fd < 0:
-                    raise StoreError(f"{self._segment.path} is closed: the store was closed, or compaction "
-                                     "replaced or dropped this segment; query again")  # fmt: skip
-                self._record = self._segment.read_record(self._offset, self._length)
-        return self._record
-
-    @property
-    def meta(self) -> dict[str, Any]:
-        return json.loads(self._read()[0].meta)
-
-    @property
-    def codec_config(self) -> dict[str, Any]:
-        return json.loads(self._read()[0].config)
-
-    @property
-    def stored_bytes(self) -> int:
-        return self._length
-
-    @property
-    def flags(self) -> int:
-        """The record's flag bits (`cclogfs.format.RecordFlag`)."""
-        return self._read()[0].flags
-
-    @property
-    def aged(self) -> Any:
-        """How the texts differ from what was put (meta key "aged"), or None when byte-exact."""
-        header = self._read()[0]
-        return json.loads(header.meta).get(AGED_META_KEY) if header.flags & RecordFlag.AGED else None
-
-    def messages(self) -> Iterator[tuple[int, str]]:
-        """(stamp_ns, JSON text) of each message, exactly as put."""
-        header, payload = self._read()
-        codec = codec_from_config(json.loads(header.config))
-        if codec_numeric_id(codec) != header.codec:
-            raise CorruptionError(
-                f"{self._segment.path}: record at offset {self._offset} names codec "
-                f"{header.codec} in its header but {codec.codec_id!r} in its config",
-                path=self._segment.path, offset=self._offset, reason=Reason.BAD_LENGTH,
-            )  # fmt: skip
-        stamps, texts = codec.decode(payload, count=header.count, raw_len=header.raw_len)
-        return zip(stamps, (t.decode("utf-8") for t in texts))
-
-    def __repr__(self) -> str:
-        return f"Window({self.name!r}, seq={self.seq}, {self.start_ns}..{self.end_ns}, count={self.count})"
+__all__ = ["Dropped", "Receipt", "Recovery", "Replacement", "RewriteReport", "SealedSegment", "Store", "Window",
+           "open_store"]
 
 
 class Store:
     """A store directory opened by `open_store`. Not for use from several threads at once
     (the group-commit thread is internal and takes the store's lock)."""
 
-    def __init__(self, path: str, fs: FileSystem, readonly: bool, codec: Codec,
-                 stream_codecs: Mapping[str, Codec], sync_every_ms: float | None,
-                 sync_every_bytes: int | None, segment_bytes: int, segment_age_s: float,
-                 segment_records: int):  # fmt: skip
+    def __init__(self, path: str, fs: FileSystem, readonly: bool, codecs: Codecs,
+                 sync_every_ms: float | None, sync_every_bytes: int | None, segment_bytes: int,
+                 segment_age_s: float, segment_records: int):  # fmt: skip
         self.path = path
         self.fs = fs
         self.readonly = readonly
-        self.codec = codec
-        self.stream_codecs = dict(stream_codecs)
+        self.codecs = codecs
         self.sync_every_ms = sync_every_ms
         self.sync_every_bytes = sync_every_bytes
         self.segment_bytes = segment_bytes
         self.segment_age_s = segment_age_s
         self.segment_records = segment_records
         self.recovery = Recovery()
-        self.manifest: dict[str, Any] = {}
+        self.manifest = Manifest({"segments": []})
         self.sealed: list[Segment] = []  # in seq order
         self.active: Segment | None = None  # writer: the segment appended to
         self.unsealed: list[Segment] = []  # reader: what it saw past the manifest
-        self._lock = threading.RLock()
-        # One rewrite or drop at a time, from planning to commit: two overlapping rewrites of
-        # a segment would both write its next generation.
-        self._compaction_lock = threading.Lock()
-        self._wake = threading.Condition(self._lock)
+        # Package-internal (compaction takes them): the store's lock, and one rewrite or drop
+        # at a time, from planning to commit: two overlapping rewrites of a segment would
+        # both write its next generation.
+        self.lock = threading.RLock()
+        self.compaction_lock = threading.Lock()
+        self._wake = threading.Condition(self.lock)
         self._lock_fd: int | None = None
         self._failed: BaseException | None = None
         self._closed = False
@@ -188,7 +90,6 @@ class Store:
         self._unsynced_since: float | None = None
         self._flusher: threading.Thread | None = None
         self._sealed_by_stream: dict[str, tuple[np.ndarray, np.ndarray, list[Segment]]] | None = None
-        self._codec_headers: dict[int, tuple[Codec, bytes, int]] = {}
 
     # -- context manager -------------------------------------------------------------------
 
@@ -198,49 +99,49 @@ class Store:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def _file(self, name: str) -> str:
+    def file_path(self, name: str) -> str:
+        """The path of a file of this store."""
         return os.path.join(self.path, name)
 
-    # -- opening ---------------------------------------------------------------------------
+    # -- what the manifest says ------------------------------------------------------------
 
-    def _create(self) -> None:
-        self.fs.mkdir(self.path)
-        self.manifest = {
-            "format_version": FORMAT_VERSION,
-            "store_id": uuid.uuid4().hex,
-            "created_ns": time.time_ns(),
-            "codec": self.codec.get_config(),
-            "segments": [],
-        }
-        self.fs.write_file_atomic(self._file(MANIFEST), pack_manifest(self.manifest))
+    @property
+    def store_id(self) -> str:
+        return self.manifest.store_id
 
-    def _load_manifest(self) -> bytes:
-        """Read and check the manifest; returns its bytes."""
-        path = self._file(MANIFEST)
-        raw = self.fs.read_file(path)
-        try:
-            self.manifest = unpack_manifest(raw)
-        except RecordError as err:
-            raise CorruptionError(f"{path} is damaged: {err}", path=path, offset=0,
-                                  reason=err.reason) from err  # fmt: skip
-        version = self.manifest.get("format_version")
-        if version not in FORMAT_VERSIONS:
-            raise StoreError(f"{path}: field format_version is {version!r}, which this cclogfs cannot read "
-                             f"(it reads versions {', '.join(map(str, FORMAT_VERSIONS))}); use a newer cclogfs")  # fmt: skip
-        return raw
+    @property
+    def format_version(self) -> int:
+        return self.manifest.format_version
 
     @property
     def first_seq(self) -> int:
         """Sequence number of the store's first record (> 0 once retention dropped segments)."""
-        return self.manifest.get("first_seq", 0)
+        return self.manifest.first_seq
 
     def dropped(self) -> dict[str, Any]:
         """What retention dropped so far: {"segments": n, "streams": {name: stats}} (stats as
         in `streams()`, their time range is what was dropped)."""
-        return self.manifest.get("dropped", {"segments": 0, "streams": {}})
+        return self.manifest.dropped
+
+    def sealed_segments(self) -> list[SealedSegment]:
+        """The sealed segments, in seq order, as the manifest describes them."""
+        return list(self.manifest.sealed)
+
+    @property
+    def active_first_seq(self) -> int | None:
+        """First seq of the writer's active segment; None for a reader."""
+        active = self.active
+        return active.first_seq if active is not None else None
+
+    def segment_count(self) -> int:
+        """Segments sealed, plus the active one (writer) or those past the manifest (reader)."""
+        with self.lock:
+            return len(self._segments())
+
+    # -- opening ---------------------------------------------------------------------------
 
     def _open(self, create: bool) -> None:
-        manifest_path = self._file(MANIFEST)
+        manifest_path = self.file_path(MANIFEST)
         if not self.fs.exists(manifest_path):
             # Only a lock and temporary files: a crash while the store was being created.
             leftovers = [n for n in self.fs.listdir(self.path)] if self.fs.exists(self.path) else []
@@ -255,19 +156,20 @@ class Store:
             self.fs.mkdir(self.path)
             self._take_lock()
         if not self.fs.exists(manifest_path):
-            self._create()
-        self._load_manifest()
+            self.fs.mkdir(self.path)
+            Manifest.new(self.codecs.default.get_config()).commit(self.fs, manifest_path)
+        self.manifest, _raw = Manifest.load(self.fs, manifest_path)
         if not self.readonly:
             for name in self.fs.listdir(self.path):
                 if name.endswith(TMP_SUFFIX):  # a crash while replacing a file
-                    self.fs.unlink(self._file(name))
+                    self.fs.unlink(self.file_path(name))
                     self.recovery.removed_files.append(name)
         self._open_segments_retrying()
         if not self.readonly:
             self._start_flusher()
 
     def _take_lock(self) -> None:
-        path = self._file(LOCK)
+        path = self.file_path(LOCK)
         fd = self.fs.lock(path)
         if fd is None:
             try:
@@ -285,15 +187,15 @@ class Store:
         """Load the manifest and open its segments. A reader retries when a listed segment
         is missing: a writer compacted between its reading the manifest and the files."""
         for attempt in range(5):
-            raw = self._load_manifest()
+            self.manifest, raw = Manifest.load(self.fs, self.file_path(MANIFEST))
             try:
-                self._open_segments()
+                self._open_segments(self.recovery.removed_files)
                 # A reader must see files and manifest of one moment: if the manifest
                 # changed meanwhile, a segment may have been sealed and rewritten under it.
-                if not self.readonly or self.fs.read_file(self._file(MANIFEST)) == raw:
+                if not self.readonly or self.fs.read_file(self.file_path(MANIFEST)) == raw:
                     return
             except (CorruptionError, FileNotFoundError) as err:
-                retry = isinstance(err, FileNotFoundError) or err.reason == "missing segment"
+                retry = isinstance(err, FileNotFoundError) or err.reason == Reason.MISSING_SEGMENT
                 if not (self.readonly and retry and attempt < 4):
                     raise
             if attempt == 4:
@@ -308,134 +210,35 @@ class Store:
                 self.fs.close(seg.fd)
             seg.fd = -1
 
-    def _is_leftover(self, first_seq: int, gen: int, sealed_firsts: set[int]) -> bool:
-        """A segment or index file that only an interrupted compaction or retention step
-        leaves behind: a generation > 0 the manifest does not name, an older generation of
-        a listed segment, or a segment before the store's first (dropped)."""
-        return gen > 0 or first_seq in sealed_firsts or first_seq < self.first_seq
-
-    def _open_segments(self) -> None:
-        named = {(info["first_seq"], info.get("gen", 0)) for info in self.manifest["segments"]}
-        sealed_firsts = {info["first_seq"] for info in self.manifest["segments"]}
-        files, tail, leftovers = {}, {}, []
-        for name in self.fs.listdir(self.path):
-            parsed = parse_seq_name(name)
-            if parsed is None:
-                continue
-            first_seq, kind, gen = parsed
-            if (first_seq, gen) in named:
-                if kind == "seg":
-                    files[first_seq, gen] = name
-            elif self._is_leftover(first_seq, gen, sealed_firsts):
-                leftovers.append(name)
-            elif kind == "seg":
-                tail[first_seq] = name
-        self.recovery.leftovers = leftovers
-        next_seq = self.first_seq
-        for info in self.manifest["segments"]:
-            gen = info.get("gen", 0)
-            name = files.get((info["first_seq"], gen))
-            if name is None:
-                raise CorruptionError(
-                    f"{self.path}: {MANIFEST} lists segment {segment_name(info['first_seq'], gen)}, "
-                    "which is missing", path=self._file(MANIFEST), reason="missing segment",
-                )  # fmt: skip
-            seg, _ok = open_segment(self.fs, self._file(name), write=False, lock=self._lock)
-            seg.first_seq, seg.next_seq = info["first_seq"], info["end_seq"]
-            seg.sealed_size, seg.gen = info["size"], gen
-            self.sealed.append(seg)
-            next_seq = info["end_seq"]
-        # Only now, with every file the manifest names found, and of the size it states: were
-        # one missing or cut short, the other generation might be all that is left of it.
-        damaged = {seg.first_seq for seg in self.sealed if seg.size != seg.sealed_size}
-        if damaged:
-            self.recovery.leftovers = leftovers = [n for n in leftovers if parse_seq_name(n)[0] not in damaged]
-        if leftovers and not self.readonly:
-            for name in leftovers:
-                self.fs.unlink(self._file(name))
-                self.recovery.removed_files.append(name)
-            self.fs.fsync_dir(self.path)
-        self._recover_tail(next_seq, [tail[s] for s in sorted(tail)])
-
-    def _index_path(self, seg: Segment) -> str:
-        return self._file(index_name(seg.first_seq, seg.gen))
-
-    def _recover_tail(self, next_seq: int, names: list[str]) -> None:
-        """Scan the unsealed segments; keep exactly their valid prefix (see FORMAT.md)."""
-        kept: list[Segment] = []
-        broken = False
-        for name in names:
-            path = self._file(name)
-            first_seq = parse_seq_name(name)[0]
-            if first_seq < next_seq:  # older than the manifest's end: not ours to touch
-                self.recovery.problems.append(Problem(path, 0, "stray segment", "ignored"))
-                continue
-            seg, header_ok = open_segment(self.fs, path, write=not self.readonly, lock=self._lock)
-            if broken or first_seq != next_seq:
-                reason = Reason.DROPPED_SEGMENT if broken else Reason.SEQ_GAP
-                self.recovery.problems.append(Problem(path, 0, reason, "", seg.size))
-                self._drop_segment(seg)
-                broken = True
-                continue
-            if not header_ok or seg.first_seq != first_seq:
-                # Created but its header never reached the disk: it cannot hold synced data.
-                self.recovery.problems.append(Problem(path, 0, Reason.BAD_SEGMENT_HEADER, "", seg.size))
-                self._drop_segment(seg)
-                broken = True
-                continue
-            result = scan(seg)
-            self.recovery.skipped.extend(result.skipped)
-            seg.rows, seg.next_seq = result.rows, result.next_seq
-            if result.problem:
-                problem = result.problem
-                problem.intact_after = intact_after(seg, problem.offset)
-                self.recovery.problems.append(problem)
-                broken = True
-                if not self.readonly:
-                    if problem.intact_after:
-                        problem.kept_in = self._keep_tail(seg, problem.offset)
-                    self.fs.truncate(seg.fd, result.end)
-                    self.fs.fsync(seg.fd)
-                seg.size = result.end
-            kept.append(seg)
-            next_seq = seg.next_seq
+    def _open_segments(self, removed: list[str]) -> None:
+        opener = SegmentOpener(self.fs, self.path, self.readonly, self.lock)
+        opener.recovery.removed_files = removed
+        opener.open(self.manifest)
+        self.recovery, self.sealed = opener.recovery, opener.sealed
         if self.readonly:
-            self.unsealed = kept
+            self.unsealed = opener.tail
             return
-        for seg in kept[:-1]:  # a crash while sealing left it complete but unsealed
+        for seg in opener.tail[:-1]:  # a crash while sealing left it complete but unsealed
             self._seal(seg)
             self.recovery.sealed_on_open.append(os.path.basename(seg.path))
-        self.active = kept[-1] if kept else self._new_segment(next_seq)
+        self.active = opener.tail[-1] if opener.tail else self._new_segment(self.manifest.end_seq)
 
-    def _keep_tail(self, seg: Segment, offset: int) -> str:
-        """Copy the bytes recovery is about to cut to a side file, when intact records lie
-        among them: they were written but perhaps never synced (a reordered write), or a
-        synced record was damaged (bit rot). The log keeps its prefix guarantee either
-        way, and no byte is destroyed."""
-        name = f"{os.path.basename(seg.path)}.tail-{offset}"
-        data = self.fs.pread(seg.fd, self.fs.size(seg.fd) - offset, offset)
-        self.fs.write_file_atomic(self._file(name), data)
-        return name
-
-    def _drop_segment(self, seg: Segment) -> None:
-        self.fs.close(seg.fd)
-        if not self.readonly:
-            self.fs.unlink(seg.path)
-            self.fs.fsync_dir(self.path)
-            self.recovery.removed_files.append(os.path.basename(seg.path))
+    def _index_path(self, seg: Segment) -> str:
+        return self.file_path(index_name(seg.first_seq, seg.gen))
 
     def _new_segment(self, first_seq: int) -> Segment:
-        path = self._file(segment_name(first_seq))
+        path = self.file_path(segment_name(first_seq))
         created = time.time_ns()
         fd = self.fs.open(path, write=True, create=True)
         self.fs.pwrite(fd, pack_segment_header(first_seq, created), 0)
         self.fs.fsync(fd)
         self.fs.fsync_dir(self.path)
-        return Segment(self.fs, path, first_seq, created, fd, SEGMENT_HEADER_SIZE, lock=self._lock)
+        return Segment(self.fs, path, first_seq, created, fd, SEGMENT_HEADER_SIZE, lock=self.lock)
 
     # -- writing ---------------------------------------------------------------------------
 
-    def _check_writable(self) -> None:
+    def check_writable(self) -> None:
+        """Raise unless this store may write now (open, not read-only, not failed)."""
         if self._closed:
             raise StoreError(f"{self.path}: the store is closed")
         if self.readonly:
@@ -459,10 +262,10 @@ class Store:
         if meta is not None and AGED_META_KEY in meta:
             raise InvalidInputError(f"{self.path}: window meta key {AGED_META_KEY!r} is reserved: compaction "
                                     "writes it, with the AGED flag, to say how a window was aged")  # fmt: skip
-        enc = self._encode_window(name, messages, meta, codec, check_json)
+        enc = encode_window(self.codecs, name, messages, meta, codec, check_json)
         stamps, raw_len = enc.stamps, enc.raw_len
-        with self._lock:
-            self._check_writable()
+        with self.lock:
+            self.check_writable()
             seg = self.active
             seq = seg.next_seq
             record = enc.pack(seq)
@@ -481,32 +284,6 @@ class Store:
                 self._commit()
             return Receipt(seq, name, stamps[0], stamps[-1], len(stamps), raw_len, len(record))
 
-    def _encode_window(self, name: str, messages: Sequence[tuple[int, str]], meta: Mapping[str, Any] | None,
-                       codec: Any, check_json: bool) -> _Encoded:  # fmt: skip
-        """Check and encode a window (everything but its seq and flags); raises InvalidInputError."""
-        name_bytes = check_stream_name(name)
-        stamps, texts = encode_messages(messages, check_json=check_json)
-        meta_bytes = b"{}" if meta is None else _encode_meta(meta)
-        chosen = codec_from_config(codec) if codec is not None else self.stream_codecs.get(name, self.codec)
-        config, codec_number = self._codec_header(chosen)
-        raw_len = raw_size(stamps, texts)
-        if raw_len > MAX_RAW:
-            raise InvalidInputError(f"window for {name!r} is {raw_len} bytes, over the {MAX_RAW}-byte "
-                                    "record limit; split it into several windows")  # fmt: skip
-        return _Encoded(name_bytes, stamps, meta_bytes, config, codec_number, raw_len, chosen.encode(stamps, texts))
-
-    def _codec_header(self, codec: Codec) -> tuple[bytes, int]:
-        """The config bytes and number that go in each record, cached per codec object."""
-        cached = self._codec_headers.get(id(codec))
-        if cached is None or cached[0] is not codec:
-            config = json.dumps(codec.get_config(), separators=(",", ":")).encode()
-            if len(config) > MAX_CONFIG:
-                raise InvalidInputError(f"codec config is {len(config)} bytes, over {MAX_CONFIG}")
-            cached = (codec, config, int(codec_numeric_id(codec)))
-            if codec is self.codec or codec in self.stream_codecs.values():
-                self._codec_headers[id(codec)] = cached
-        return cached[1], cached[2]
-
     def _commit_due(self) -> bool:
         if self.sync_every_ms is not None and (
             self.sync_every_ms == 0
@@ -517,8 +294,8 @@ class Store:
 
     def sync(self) -> None:
         """Make every put before this call durable (one fsync for the whole group)."""
-        with self._lock:
-            self._check_writable()
+        with self.lock:
+            self.check_writable()
             self._commit()
 
     def _commit(self) -> None:
@@ -550,8 +327,8 @@ class Store:
     def seal(self) -> bool:
         """Seal the active segment now, if it holds records, so that compaction can rewrite
         them; False when it is empty. Same ordering as automatic sealing (FORMAT.md)."""
-        with self._lock:
-            self._check_writable()
+        with self.lock:
+            self.check_writable()
             sealed = len(self.sealed)
             self._commit()  # which seals by itself when a limit is reached
             seg = self.active
@@ -582,12 +359,20 @@ class Store:
         self.fs.write_file_atomic(self._index_path(seg), index.encode(seg.first_seq, seg.size))
         info = {"first_seq": seg.first_seq, "end_seq": seg.next_seq, "size": seg.size,
                 "streams": index.stream_stats()}  # fmt: skip
-        manifest = dict(self.manifest, segments=[*self.manifest["segments"], info])
-        self.fs.write_file_atomic(self._file(MANIFEST), pack_manifest(manifest))
-        self.manifest = manifest
+        self.commit_manifest(self.manifest.with_sealed(info))
         seg.sealed_size = seg.size
         self.sealed.append(seg)
+
+    def commit_manifest(self, manifest: Manifest) -> None:
+        """Make `manifest` the store's (package-internal: sealing and compaction); the
+        caller holds the lock and updates `sealed` to match."""
+        manifest.commit(self.fs, self.file_path(MANIFEST))
+        self.manifest = manifest
         self._sealed_by_stream = None
+
+    def fail(self, err: BaseException) -> None:
+        """Refuse further writes: what reached the disk is unknown (package-internal)."""
+        self._failed = err
 
     def _start_flusher(self) -> None:
         if self.sync_every_ms:
@@ -601,7 +386,7 @@ class Store:
         # one to this thread, a main thread blocked reading its input would not wake up.
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         interval = self.sync_every_ms / 1000
-        with self._lock:
+        with self.lock:
             while not self._closed and self._failed is None:
                 if self._unsynced_since is None:
                     self._wake.wait(interval)
@@ -617,7 +402,7 @@ class Store:
 
     def close(self) -> None:
         """Commit what is buffered, seal nothing, release the lock. Idempotent."""
-        with self._lock, _signals_deferred():  # a second Ctrl-C must not skip the last fsync
+        with self.lock, _signals_deferred():  # a second Ctrl-C must not skip the last fsync
             if self._closed:
                 return
             try:
@@ -648,7 +433,7 @@ class Store:
                 raise CorruptionError(f"{seg.path} is {seg.size} bytes but the manifest says it was sealed "
                                       f"at {seg.sealed_size}; its records cannot be trusted (run `cclog fsck`)",
                                       path=seg.path, offset=min(seg.size, seg.sealed_size),
-                                      reason=Reason.BAD_LENGTH)  # fmt: skip
+                                      reason=Reason.SIZE_MISMATCH)  # fmt: skip
             path = self._index_path(seg)
             try:
                 seg._index = SegmentIndex.decode(self.fs.read_file(path), seg.first_seq, seg.size)
@@ -666,11 +451,30 @@ class Store:
                     self.fs.write_file_atomic(path, seg._index.encode(seg.first_seq, seg.size))
         return seg._index
 
+    def segment_first_seqs(self) -> list[int]:
+        """First seq of every segment in log order: the sealed ones, then the active one
+        (writer) or those past the manifest (reader)."""
+        with self.lock:
+            return [seg.first_seq for seg in self._segments()]
+
+    def segment_windows(self, first_seq: int) -> list[Window]:
+        """Every window of the segment starting at `first_seq`, in its index's order (the
+        time index of a sealed segment is rebuilt when missing or damaged, as for a query)."""
+        with self.lock:
+            found = [seg for seg in self._segments() if seg.first_seq == first_seq]
+            if not found:
+                raise InvalidInputError(f"{self.path}: no segment starts at seq {first_seq}")
+            seg = found[0]
+            index = self._sealed_index(seg) if seg in self.sealed else seg.index()
+        return [Window(index.names[int(e["stream"])], int(e["seq"]), int(e["start"]), int(e["end"]),
+                       int(e["count"]), seg, int(e["offset"]), int(e["length"]))
+                for e in index.entries]  # fmt: skip
+
     def _sealed_candidates(self, name: str, t0: int, t1: int) -> list[Segment]:
         """Sealed segments whose stream `name` may overlap [t0, t1], by binary search."""
         if self._sealed_by_stream is None:
             by_stream: dict[str, list[tuple[int, int, Segment]]] = {}
-            for seg, info in zip(self.sealed, self.manifest["segments"]):
+            for seg, info in zip(self.sealed, self.manifest.segments):
                 for stream, st in info["streams"].items():
                     by_stream.setdefault(stream, []).append((st["start_ns"], st["end_ns"], seg))
             self._sealed_by_stream = {}
@@ -688,8 +492,8 @@ class Store:
     def streams(self) -> dict[str, dict[str, int]]:
         """Per stream: windows, messages, start_ns, end_ns, raw_bytes, stored_bytes, json_bytes,
         aged (windows flagged AGED)."""
-        with self._lock:
-            infos = list(self.manifest["segments"])
+        with self.lock:
+            infos = list(self.manifest.segments)
             per_segment = [info["streams"] for info in infos]
             per_segment += [seg.index().stream_stats() for seg in self._segments()[len(self.sealed):]]
         total: dict[str, dict[str, int]] = {}
@@ -706,7 +510,7 @@ class Store:
         in (start_ns, seq) order. Includes this writer's puts not yet synced."""
         t0 = MIN_NS if start_ns is None else int(start_ns)
         t1 = MAX_NS if end_ns is None else int(end_ns)
-        with self._lock:
+        with self.lock:
             if self._closed:
                 raise StoreError(f"{self.path}: the store is closed")
             names = [name] if name is not None else list(self.streams())
@@ -729,7 +533,7 @@ class Store:
         """Reader: see what the writer has committed since this store was opened."""
         if not self.readonly:
             raise StoreError(f"{self.path}: refresh() is for readers; the writer always sees its own puts")
-        with self._lock:
+        with self.lock:
             if self._closed:
                 raise StoreError(f"{self.path}: the store is closed")
             # Windows already handed out keep their segment objects; once closed here they
@@ -747,7 +551,7 @@ class Store:
         for name in self.fs.listdir(self.path):
             if name == MANIFEST or parse_seq_name(name) is not None:
                 try:
-                    total += os.path.getsize(self._file(name))
+                    total += os.path.getsize(self.file_path(name))
                 except FileNotFoundError:  # removed meanwhile (a writer compacting while we read)
                     pass
         return total
@@ -757,42 +561,10 @@ class Store:
         total = 0
         for name in self.fs.listdir(self.path):
             try:
-                total += os.path.getsize(self._file(name))
+                total += os.path.getsize(self.file_path(name))
             except FileNotFoundError:  # removed meanwhile (a writer compacting while we read)
                 pass
         return total
-
-
-@dataclass(frozen=True, slots=True)
-class _Encoded:
-    """A checked, encoded window waiting for its seq and flags."""
-
-    name: bytes
-    stamps: list[int]
-    meta: bytes
-    config: bytes
-    codec: int
-    raw_len: int
-    payload: bytes
-
-    def pack(self, seq: int, flags: int = 0) -> bytes:
-        return pack_record(
-            seq=seq, start_ns=self.stamps[0], end_ns=self.stamps[-1], count=len(self.stamps),
-            codec=self.codec, name=self.name, config=self.config, meta=self.meta,
-            raw_len=self.raw_len, payload=self.payload, flags=flags,
-        )  # fmt: skip
-
-
-def _encode_meta(meta: Mapping[str, Any]) -> bytes:
-    if not isinstance(meta, Mapping):
-        raise InvalidInputError(f"meta must be a dict, got {type(meta).__name__}")
-    try:
-        data = json.dumps(dict(meta), separators=(",", ":"), allow_nan=False).encode()
-    except (TypeError, ValueError) as err:
-        raise InvalidInputError(f"meta is not JSON-serializable: {err}") from err
-    if len(data) > MAX_META:
-        raise InvalidInputError(f"meta is {len(data)} bytes as JSON, over the {MAX_META}-byte limit")
-    return data
 
 
 def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: bool = False,
@@ -811,12 +583,11 @@ def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: 
         raise InvalidInputError("sync_every_ms must be >= 0 or None")
     if segment_bytes < 4096 or segment_records < 1:
         raise InvalidInputError("segment_bytes must be at least 4096 and segment_records at least 1")
+    codecs = Codecs(codec_from_config(codec), {k: codec_from_config(v) for k, v in (stream_codecs or {}).items()})
     store = Store(
-        os.fspath(path), fs or FileSystem(), readonly, codec_from_config(codec),
-        {k: codec_from_config(v) for k, v in (stream_codecs or {}).items()},
-        sync_every_ms, sync_every_bytes, segment_bytes, segment_age_s, segment_records,
+        os.fspath(path), fs or FileSystem(), readonly, codecs, sync_every_ms, sync_every_bytes, segment_bytes, segment_age_s, segment_records,
     )  # fmt: skip
-    for name in store.stream_codecs:
+    for name in codecs.per_stream:
         check_stream_name(name)
     try:
         store._open(create)

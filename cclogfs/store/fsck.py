@@ -5,12 +5,13 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
-from .errors import CclogError, UnknownCodecError
-from .format import parse_seq_name, segment_name
+from ..errors import CclogError, UnknownCodecError
+from .format import index_name, parse_seq_name, segment_name
 from .fs import FileSystem
 from .index import SegmentIndex
-from .segment import Problem, open_segment, scan
-from .store import Window, open_store
+from .manifest import SealedSegment
+from .segment import Problem, Segment, open_segment, scan
+from .store import Store, open_store
 
 
 @dataclass
@@ -67,10 +68,12 @@ def check_store(path: str, *, deep: bool = False, fs: FileSystem | None = None) 
                                         "the manifest); the writer removes it on open")  # fmt: skip
         leftovers = set(store.recovery.leftovers)
         _check_sealed(store, fs, report)
-        report.segments = len(store.sealed) + len(store.unsealed)
-        for seg in store.unsealed:
-            report.records += len(seg.rows)
-            report.messages += sum(r[1] for r in seg.rows)
+        firsts = store.segment_first_seqs()
+        report.segments = len(firsts)
+        for first_seq in firsts[len(store.sealed_segments()):]:
+            windows = store.segment_windows(first_seq)
+            report.records += len(windows)
+            report.messages += sum(w.count for w in windows)
         if deep:
             _decode_all(store, report)
     names = set(os.listdir(path))
@@ -82,80 +85,95 @@ def check_store(path: str, *, deep: bool = False, fs: FileSystem | None = None) 
     return report
 
 
-def _decode_all(store, report: FsckReport) -> None:
+def _decode_all(store: Store, report: FsckReport) -> None:
     """Decode every window, segment by segment, so one damaged segment hides no other."""
-    for seg in store._segments():
-        name = os.path.basename(seg.path)
+    for first_seq in store.segment_first_seqs():
         try:
-            index = store._sealed_index(seg) if seg in store.sealed else seg.index()
+            windows = store.segment_windows(first_seq)
         except CclogError as err:
-            report.add("error", name, f"windows cannot be listed for --deep: {err}")
+            report.add("error", _segment_file(store, first_seq), f"windows cannot be listed for --deep: {err}")
             continue
-        for e in index.entries:
-            window = Window(index.names[int(e["stream"])], int(e["seq"]), int(e["start"]), int(e["end"]),
-                            int(e["count"]), seg, int(e["offset"]), int(e["length"]))  # fmt: skip
+        for window in windows:
+            where = f"{os.path.basename(window.segment_path)}@{window.offset}"
             try:
                 for _ in window.messages():
                     pass
                 report.decoded += 1
             except UnknownCodecError as err:  # intact, written by a newer cclogfs: not damage
-                report.add("warning", f"{name}@{window._offset}", f"window seq {window.seq}: {err}")
+                report.add("warning", where, f"window seq {window.seq}: {err}")
             except CclogError as err:
-                report.add("error", f"{name}@{window._offset}",
-                           f"window seq {window.seq} of {window.name!r} does not decode: {err}")  # fmt: skip
+                report.add("error", where, f"window seq {window.seq} of {window.name!r} does not decode: {err}")
+
+
+def _segment_file(store: Store, first_seq: int) -> str:
+    """The file name of the segment starting at `first_seq` (its current generation)."""
+    gens = {s.first_seq: s.gen for s in store.sealed_segments()}
+    return segment_name(first_seq, gens.get(first_seq, 0))
 
 
 def _loc(p: Problem) -> str:
     return f"{os.path.basename(p.path)}@{p.offset}"
 
 
-def _check_sealed(store, fs: FileSystem, report: FsckReport) -> None:
+def _check_sealed(store: Store, fs: FileSystem, report: FsckReport) -> None:
     expect_seq = store.first_seq
-    for seg, info in zip(store.sealed, store.manifest["segments"]):
-        name = os.path.basename(seg.path)
-        checked, header_ok = open_segment(fs, seg.path, write=False)
+    sealed = store.sealed_segments()
+    for info in sealed:
+        path = store.file_path(segment_name(info.first_seq, info.gen))
+        checked, header_ok = open_segment(fs, path, write=False)
         try:
-            if not header_ok or checked.first_seq != info["first_seq"]:
-                report.add("error", name, "segment header is damaged or names another first sequence number")
-                expect_seq = info["end_seq"]
-                continue
-            if info["first_seq"] != expect_seq:
-                report.add("error", name, f"starts at seq {info['first_seq']}, expected {expect_seq}: a gap")
-            expect_seq = info["end_seq"]
-            result = scan(checked)
-            for p in result.skipped:
-                report.add("warning", _loc(p), f"{p.reason}, skipped")
-            if result.problem:
-                p = result.problem
-                report.add("error", _loc(p), f"{p.reason} in a sealed segment")
-                _check_past_damage(store, fs, checked, p.offset, report)
-            elif result.end != info["size"] or checked.size != info["size"]:
-                report.add("error", name, f"is {checked.size} bytes, the manifest says {info['size']}")
-            if not result.problem and result.next_seq != info["end_seq"]:
-                report.add("error", name, f"ends at seq {result.next_seq}, the manifest says {info['end_seq']}")
-            report.records += len(result.rows)
-            report.messages += sum(r[1] for r in result.rows)
-            if not result.problem:
-                scanned = SegmentIndex.build(result.rows)
-                if scanned.stream_stats() != info["streams"]:
-                    report.add("error", name, "stream statistics differ from the manifest's")
-                if result.aged != info.get("aged", {}):
-                    report.add("error", name, f"aged windows per stream {result.aged} differ from the "
-                                              f"manifest's {info.get('aged', {})}")  # fmt: skip
-                report.aged += sum(result.aged.values())
-                _check_index(store, fs, seg, scanned, report)
+            if not header_ok or checked.first_seq != info.first_seq:
+                report.add("error", os.path.basename(path),
+                           "segment header is damaged or names another first sequence number")  # fmt: skip
+            else:
+                if info.first_seq != expect_seq:
+                    report.add("error", os.path.basename(path),
+                               f"starts at seq {info.first_seq}, expected {expect_seq}: a gap")  # fmt: skip
+                _check_segment(store, fs, info, checked, report)
+            expect_seq = info.end_seq
         finally:
             fs.close(checked.fd)
-    if store.unsealed and store.unsealed[0].first_seq != expect_seq:
-        report.add("error", os.path.basename(store.unsealed[0].path),
-                   f"starts at seq {store.unsealed[0].first_seq}, expected {expect_seq}: a gap")  # fmt: skip
+    tail = store.segment_first_seqs()[len(sealed):]
+    if tail and tail[0] != expect_seq:
+        report.add("error", segment_name(tail[0]), f"starts at seq {tail[0]}, expected {expect_seq}: a gap")
 
 
-def _check_past_damage(store, fs: FileSystem, seg, offset: int, report: FsckReport) -> None:
+def _check_segment(store: Store, fs: FileSystem, info: SealedSegment, checked: Segment, report: FsckReport) -> None:
+    """Scan one sealed segment and hold it against its manifest entry and its index."""
+    name = os.path.basename(checked.path)
+    result = scan(checked)
+    for p in result.skipped:
+        report.add("warning", _loc(p), f"{p.reason}, skipped")
+    if result.problem:
+        p = result.problem
+        report.add("error", _loc(p), f"{p.reason} in a sealed segment")
+        _check_past_damage(store, fs, info, checked, p.offset, report)
+    elif result.end != info.size or checked.size != info.size:
+        report.add("error", name, f"is {checked.size} bytes, the manifest says {info.size}")
+    if not result.problem and result.next_seq != info.end_seq:
+        report.add("error", name, f"ends at seq {result.next_seq}, the manifest says {info.end_seq}")
+    report.records += len(result.rows)
+    report.messages += sum(r[1] for r in result.rows)
+    if not result.problem:
+        scanned = SegmentIndex.build(result.rows)
+        if scanned.stream_stats() != info.streams:
+            report.add("error", name, "stream statistics differ from the manifest's")
+        if result.aged != info.aged:
+            report.add("error", name, f"aged windows per stream {result.aged} differ from the "
+                                      f"manifest's {info.aged}")  # fmt: skip
+        report.aged += sum(result.aged.values())
+        _check_index(store, fs, info, checked, scanned, report)
+
+
+def _index_path(store: Store, info: SealedSegment) -> str:
+    return store.file_path(index_name(info.first_seq, info.gen))
+
+
+def _check_past_damage(store: Store, fs: FileSystem, info: SealedSegment, seg: Segment, offset: int,
+                       report: FsckReport) -> None:  # fmt: skip
     """The scan cannot frame records past damage, but the index can: check each one."""
-    path = store._index_path(seg)
     try:
-        index = SegmentIndex.decode(fs.read_file(path), seg.first_seq, seg.size)
+        index = SegmentIndex.decode(fs.read_file(_index_path(store, info)), seg.first_seq, seg.size)
     except Exception:  # noqa: BLE001 - no usable index: nothing more can be framed
         report.add("error", os.path.basename(seg.path), f"no usable index: records after offset {offset} "
                                                        "cannot be framed")  # fmt: skip
@@ -174,8 +192,9 @@ def _check_past_damage(store, fs: FileSystem, seg, offset: int, report: FsckRepo
                                                       f"readable through the index, {bad} are not")  # fmt: skip
 
 
-def _check_index(store, fs: FileSystem, seg, scanned: SegmentIndex, report: FsckReport) -> None:
-    path = store._index_path(seg)
+def _check_index(store: Store, fs: FileSystem, info: SealedSegment, seg: Segment, scanned: SegmentIndex,
+                 report: FsckReport) -> None:  # fmt: skip
+    path = _index_path(store, info)
     where = os.path.basename(path)
     try:
         stored = SegmentIndex.decode(fs.read_file(path), seg.first_seq, seg.size)

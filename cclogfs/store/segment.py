@@ -5,24 +5,11 @@ from __future__ import annotations
 import threading
 from dataclasses import dataclass, field
 
-from .errors import CorruptionError
-from .format import (
-    MAX_HEADER,
-    RECORD_FIXED_SIZE,
-    RECORD_MAGIC,
-    SEGMENT_HEADER_SIZE,
-    Reason,
-    RecordError,
-    RecordFlag,
-    RecordHeader,
-    check_fields,
-    check_fixed,
-    check_payload,
-    parse_header,
-    unpack_segment_header,
-)
+from ..errors import CorruptionError
+from .format import SEGMENT_HEADER_SIZE, Reason, RecordError, RecordFlag, RecordHeader, unpack_segment_header
 from .fs import FileSystem
 from .index import SegmentIndex
+from .records import BytesAt, ChunkReader, count_intact, read_record, records
 
 # Hand buffered records to the OS past this size even when no fsync is due, so the
 # writer's memory stays bounded whatever the sync policy.
@@ -109,21 +96,19 @@ class Segment:
         return self._index
 
     def read_record(self, offset: int, length: int) -> tuple[RecordHeader, bytes]:
-        """Header and payload of the record at `offset`, every check passed."""
+        """Header and payload of the record at `offset` that the index says is `length`
+        bytes long, every check passed."""
         data = self.read(offset, length)
         try:
-            header_len = check_fixed(data[:RECORD_FIXED_SIZE], len(data))
-            header = parse_header(data[:header_len])
+            header, payload = read_record(BytesAt(data, offset), offset, len(data))
             if header.record_len != length:
-                raise RecordError(Reason.BAD_LENGTH, f"record is {header.record_len} bytes, index says {length}")
-            payload = data[header_len:length]
-            check_payload(header, payload)
+                raise RecordError(Reason.INDEX_MISMATCH, f"record is {header.record_len} bytes, index says {length}")
         except RecordError as err:
             raise CorruptionError(
                 f"{self.path}: record at offset {offset} is damaged: {err}",
                 path=self.path, offset=offset, reason=err.reason,
             ) from err  # fmt: skip
-        return header, payload
+        return header, bytes(payload)
 
 
 def open_segment(fs: FileSystem, path: str, *, write: bool,
@@ -136,24 +121,6 @@ def open_segment(fs: FileSystem, path: str, *, write: bool,
     return Segment(fs, path, first_seq, created_ns, fd, size, lock=lock), parsed is not None
 
 
-class _ChunkReader:
-    """Reads a file through a large buffer: one pread serves many small records."""
-
-    CHUNK = 4 << 20
-
-    def __init__(self, fs: FileSystem, fd: int, size: int):
-        self.fs, self.fd, self.size = fs, fd, size
-        self.buf, self.buf_pos = b"", 0
-
-    def read(self, offset: int, n: int) -> bytes:
-        start = offset - self.buf_pos
-        if start < 0 or start + n > len(self.buf):
-            if n > self.CHUNK:  # a big payload: read it alone
-                return self.fs.pread(self.fd, n, offset)
-            self.buf, self.buf_pos, start = self.fs.pread(self.fd, self.CHUNK, offset), offset, 0
-        return self.buf[start : start + n]
-
-
 def scan(segment: Segment) -> ScanResult:
     """Read every record from the start, checking all of it, up to the first that fails.
 
@@ -162,33 +129,24 @@ def scan(segment: Segment) -> ScanResult:
     """
     fs, fd, path = segment.fs, segment.fd, segment.path
     size = fs.size(fd)
-    reader = _ChunkReader(fs, fd, size)
     result = ScanResult(next_seq=segment.first_seq)
-    pos = SEGMENT_HEADER_SIZE
-    while pos < size:
-        try:
-            header_len = check_fixed(reader.read(pos, RECORD_FIXED_SIZE), size - pos)
-            header = parse_header(reader.read(pos, min(header_len, MAX_HEADER)))
-            check_payload(header, reader.read(pos + header_len, header.enc_len))
-            if header.seq != result.next_seq:
-                raise RecordError(Reason.SEQ_GAP, f"seq {header.seq}, expected {result.next_seq}")
-            skip = check_fields(header)
-        except RecordError as err:
-            result.problem = Problem(path, pos, err.reason, str(err), size - pos)
-            break
-        if skip:
-            result.skipped.append(Problem(path, pos, skip, f"kind {header.kind} version {header.version} "
-                                                            f"flags {header.flags}"))  # fmt: skip
-        else:
-            if header.flags & RecordFlag.AGED:
-                result.aged[header.name] = result.aged.get(header.name, 0) + 1
-            result.rows.append(
-                (header.name, header.count, header.seq, header.start_ns, header.end_ns, pos,
-                 header.record_len, header.raw_len)
-            )  # fmt: skip
-        result.next_seq += 1
-        pos += header.record_len
-    result.end = pos
+    try:
+        for rec in records(ChunkReader(fs, fd), SEGMENT_HEADER_SIZE, size, segment.first_seq):
+            header = rec.header
+            if rec.skip:
+                result.skipped.append(Problem(path, rec.offset, rec.skip, f"kind {header.kind} version "
+                                              f"{header.version} flags {header.flags}"))  # fmt: skip
+            else:
+                if header.flags & RecordFlag.AGED:
+                    result.aged[header.name] = result.aged.get(header.name, 0) + 1
+                result.rows.append(
+                    (header.name, header.count, header.seq, header.start_ns, header.end_ns, rec.offset,
+                     header.record_len, header.raw_len)
+                )  # fmt: skip
+            result.next_seq, result.end = header.seq + 1, rec.end
+    except RecordError as err:
+        result.problem = Problem(path, err.offset, err.reason, str(err), size - err.offset)
+        result.end = err.offset
     return result
 
 
@@ -197,16 +155,4 @@ def intact_after(segment: Segment, offset: int) -> int:
     point where a scan stopped. Zero for a torn tail; more means damage in the middle, or
     a later write that landed while an earlier one did not."""
     size = segment.fs.size(segment.fd)
-    data = segment.fs.pread(segment.fd, size - offset, offset)
-    found, pos = 0, data.find(RECORD_MAGIC, 1)
-    while pos >= 0:
-        try:
-            header_len = check_fixed(data[pos : pos + RECORD_FIXED_SIZE], len(data) - pos)
-            header = parse_header(data[pos : pos + header_len])
-            check_payload(header, memoryview(data)[pos + header_len : pos + header.record_len])
-        except RecordError:
-            pos = data.find(RECORD_MAGIC, pos + 1)
-            continue
-        found += 1
-        pos = data.find(RECORD_MAGIC, pos + header.record_len)
-    return found
+    return count_intact(segment.fs.pread(segment.fd, size - offset, offset))

@@ -70,7 +70,10 @@ class CodecId(IntEnum):
 
 
 class Reason:
-    """The fixed set of reasons a record or file is rejected (LevelDB-style reporting)."""
+    """The fixed set of reasons a record or file is rejected (LevelDB-style reporting).
+
+    Each names one kind of damage; docs/FORMAT.md ("Reject reasons") lists where each occurs.
+    """
 
     TORN = "torn record"
     ZERO_FILL = "zero fill"
@@ -85,6 +88,11 @@ class Reason:
     UNKNOWN_FLAGS = "unknown record flags"
     BAD_SEGMENT_HEADER = "bad segment header"
     DROPPED_SEGMENT = "segment after the torn tail"
+    CODEC_MISMATCH = "codec mismatch"
+    INDEX_MISMATCH = "index does not match its segment"
+    SIZE_MISMATCH = "sealed segment size differs from the manifest"
+    MISSING_SEGMENT = "missing segment"
+    STRAY_SEGMENT = "stray segment"
 
 
 # -- limits --------------------------------------------------------------------------------
@@ -212,11 +220,13 @@ def pack_record(
 
 
 class RecordError(Exception):
-    """A record fails a physical check; `reason` is a `Reason` string."""
+    """A record fails a physical check; `reason` is a `Reason` string, `offset` where the
+    record starts in its file (-1 when not known where the check ran)."""
 
-    def __init__(self, reason: str, detail: str = ""):
+    def __init__(self, reason: str, detail: str = "", offset: int = -1):
         super().__init__(f"{reason}{': ' + detail if detail else ''}")
         self.reason = reason
+        self.offset = offset
 
 
 def check_fixed(fixed: bytes, available: int) -> int:
@@ -264,7 +274,7 @@ def parse_header(head: bytes) -> RecordHeader:
     try:
         name = head[pos : pos + name_len].decode("utf-8")
     except UnicodeDecodeError as err:
-        raise RecordError(Reason.BAD_LENGTH, "stream name is not UTF-8") from err
+        raise RecordError(Reason.BAD_FIELD, "stream name is not UTF-8") from err
     pos += name_len
     config = head[pos : pos + config_len]
     meta = head[pos + config_len : pos + config_len + meta_len]

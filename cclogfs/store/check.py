@@ -6,9 +6,9 @@ import operator
 import unicodedata
 from collections.abc import Sequence
 
-from .errors import InvalidInputError
+from ..errors import InvalidInputError
 from .format import MAX_COUNT, MAX_NAME, MAX_NS, MIN_NS
-from .jsoncheck import json_error
+from ..jsoncheck import json_error
 
 
 

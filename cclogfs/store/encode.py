@@ -1,0 +1,90 @@
+"""Turning a window handed to the store into a record: checked, encoded, waiting for its seq.
+
+Shared by `Store.put_window` and compaction's replacements, so both check and encode the
+same way (a replacement is held to every rule a put is).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from ..codecs import Codec, codec_from_config, codec_numeric_id, raw_size
+from ..errors import InvalidInputError
+from .check import check_stream_name, encode_messages
+from .format import MAX_CONFIG, MAX_META, MAX_RAW, pack_record
+
+
+@dataclass(frozen=True, slots=True)
+class Encoded:
+    """A checked, encoded window waiting for its seq and flags."""
+
+    name: bytes
+    stamps: list[int]
+    meta: bytes
+    config: bytes
+    codec: int
+    raw_len: int
+    payload: bytes
+
+    def pack(self, seq: int, flags: int = 0) -> bytes:
+        return pack_record(
+            seq=seq, start_ns=self.stamps[0], end_ns=self.stamps[-1], count=len(self.stamps),
+            codec=self.codec, name=self.name, config=self.config, meta=self.meta,
+            raw_len=self.raw_len, payload=self.payload, flags=flags,
+        )  # fmt: skip
+
+
+def encode_meta(meta: Mapping[str, Any]) -> bytes:
+    if not isinstance(meta, Mapping):
+        raise InvalidInputError(f"meta must be a dict, got {type(meta).__name__}")
+    try:
+        data = json.dumps(dict(meta), separators=(",", ":"), allow_nan=False).encode()
+    except (TypeError, ValueError) as err:
+        raise InvalidInputError(f"meta is not JSON-serializable: {err}") from err
+    if len(data) > MAX_META:
+        raise InvalidInputError(f"meta is {len(data)} bytes as JSON, over the {MAX_META}-byte limit")
+    return data
+
+
+class Codecs:
+    """The store's codecs for new records: a default, per-stream overrides, and the config
+    bytes and number each puts in a record header (computed once per codec object)."""
+
+    def __init__(self, default: Codec, per_stream: Mapping[str, Codec]):
+        self.default = default
+        self.per_stream = dict(per_stream)
+        self._headers: dict[int, tuple[Codec, bytes, int]] = {}
+
+    def for_stream(self, name: str, codec: Any = None) -> Codec:
+        """`codec` (an id or config) when given, else the stream's codec."""
+        return codec_from_config(codec) if codec is not None else self.per_stream.get(name, self.default)
+
+    def header(self, codec: Codec) -> tuple[bytes, int]:
+        """The config bytes and number that go in each record, cached per configured codec."""
+        cached = self._headers.get(id(codec))
+        if cached is None or cached[0] is not codec:
+            config = json.dumps(codec.get_config(), separators=(",", ":")).encode()
+            if len(config) > MAX_CONFIG:
+                raise InvalidInputError(f"codec config is {len(config)} bytes, over {MAX_CONFIG}")
+            cached = (codec, config, int(codec_numeric_id(codec)))
+            if codec is self.default or codec in self.per_stream.values():
+                self._headers[id(codec)] = cached
+        return cached[1], cached[2]
+
+
+def encode_window(codecs: Codecs, name: str, messages: Sequence[tuple[int, str]],
+                  meta: Mapping[str, Any] | None, codec: Any, check_json: bool) -> Encoded:  # fmt: skip
+    """Check and encode a window (everything but its seq and flags); raises InvalidInputError."""
+    name_bytes = check_stream_name(name)
+    stamps, texts = encode_messages(messages, check_json=check_json)
+    meta_bytes = b"{}" if meta is None else encode_meta(meta)
+    chosen = codecs.for_stream(name, codec)
+    config, codec_number = codecs.header(chosen)
+    raw_len = raw_size(stamps, texts)
+    if raw_len > MAX_RAW:
+        raise InvalidInputError(f"window for {name!r} is {raw_len} bytes, over the {MAX_RAW}-byte "
+                                "record limit; split it into several windows")  # fmt: skip
+    return Encoded(name_bytes, stamps, meta_bytes, config, codec_number, raw_len, chosen.encode(stamps, texts))

@@ -1,0 +1,153 @@
+"""The manifest as an object: one immutable version of the store's catalogue.
+
+The store, recovery and compaction share it as LevelDB's DBImpl holds a VersionSet: each
+change (a segment sealed, segments rewritten as a new generation, the oldest dropped) builds
+the next version, which `commit` makes durable by one atomic replace of the MANIFEST file.
+A version reads like the JSON body on disk (`manifest["segments"]`), and never changes.
+"""
+
+from __future__ import annotations
+
+import time
+import uuid
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any
+
+from ..errors import CorruptionError, StoreError
+from .format import (
+    COMPACTED_FORMAT_VERSION,
+    FORMAT_VERSION,
+    FORMAT_VERSIONS,
+    RecordError,
+    index_name,
+    pack_manifest,
+    segment_name,
+    unpack_manifest,
+)
+from .fs import FileSystem
+from .index import merge_stream_stats
+
+
+@dataclass(frozen=True)
+class SealedSegment:
+    """A sealed segment as the manifest describes it (what upkeep and fsck plan with)."""
+
+    first_seq: int
+    end_seq: int
+    size: int  # bytes of the segment file
+    gen: int  # how often compaction rewrote it (names its files)
+    streams: dict[str, dict[str, int]]  # per stream: windows, messages, start_ns, end_ns, raw_bytes, stored_bytes
+    aged: dict[str, int]  # per stream: windows flagged AGED
+
+    @classmethod
+    def from_info(cls, info: Mapping[str, Any]) -> SealedSegment:
+        return cls(info["first_seq"], info["end_seq"], info["size"], info.get("gen", 0),
+                   info["streams"], dict(info.get("aged", {})))  # fmt: skip
+
+
+class Manifest(Mapping[str, Any]):
+    """One version of the manifest body (FORMAT.md, "Manifest")."""
+
+    def __init__(self, body: Mapping[str, Any]):
+        self._body = dict(body)
+
+    # -- reading a version -----------------------------------------------------------------
+
+    def __getitem__(self, key: str) -> Any:
+        return self._body[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._body)
+
+    def __len__(self) -> int:
+        return len(self._body)
+
+    @property
+    def segments(self) -> list[dict[str, Any]]:
+        """The sealed segments' entries, in seq order."""
+        return self._body["segments"]
+
+    @cached_property
+    def sealed(self) -> tuple[SealedSegment, ...]:
+        """The sealed segments' entries as objects (built once per version)."""
+        return tuple(SealedSegment.from_info(info) for info in self.segments)
+
+    @property
+    def first_seq(self) -> int:
+        """Sequence number of the store's first record (> 0 once retention dropped segments)."""
+        return self._body.get("first_seq", 0)
+
+    @property
+    def end_seq(self) -> int:
+        """One past the last sealed record (first_seq when nothing is sealed)."""
+        return self.segments[-1]["end_seq"] if self.segments else self.first_seq
+
+    @property
+    def dropped(self) -> dict[str, Any]:
+        """What retention dropped so far: {"segments": n, "streams": {name: stats}}."""
+        return self._body.get("dropped", {"segments": 0, "streams": {}})
+
+    @property
+    def store_id(self) -> str:
+        return self._body["store_id"]
+
+    @property
+    def format_version(self) -> int:
+        return self._body["format_version"]
+
+    def named_files(self) -> set[str]:
+        """Segment and index file names of every generation this version names."""
+        return {name for info in self.segments
+                for name in (segment_name(info["first_seq"], info.get("gen", 0)),
+                             index_name(info["first_seq"], info.get("gen", 0)))}  # fmt: skip
+
+    # -- the next version ------------------------------------------------------------------
+
+    @classmethod
+    def new(cls, codec_config: dict[str, Any]) -> Manifest:
+        """The first version of a new store."""
+        return cls({"format_version": FORMAT_VERSION, "store_id": uuid.uuid4().hex,
+                    "created_ns": time.time_ns(), "codec": codec_config, "segments": []})  # fmt: skip
+
+    def with_sealed(self, info: dict[str, Any]) -> Manifest:
+        """A segment sealed: appended to the list (sealing is not compaction: the format
+        version stays)."""
+        return Manifest(dict(self._body, segments=[*self.segments, info]))
+
+    def with_replaced(self, infos: Mapping[int, dict[str, Any]]) -> Manifest:
+        """Segments rewritten as new generations: `infos` by first_seq."""
+        segments = [infos.get(info["first_seq"], info) for info in self.segments]
+        return Manifest(dict(self._body, format_version=COMPACTED_FORMAT_VERSION, segments=segments))
+
+    def without_oldest(self) -> Manifest:
+        """Retention: the oldest sealed segment dropped, its statistics added to `dropped`."""
+        oldest = self.segments[0]
+        before = self.dropped
+        streams = {k: dict(v) for k, v in before["streams"].items()}
+        merge_stream_stats(streams, oldest["streams"])
+        return Manifest(dict(self._body, format_version=COMPACTED_FORMAT_VERSION, first_seq=oldest["end_seq"],
+                             segments=self.segments[1:],
+                             dropped={"segments": before["segments"] + 1, "streams": streams}))  # fmt: skip
+
+    # -- on disk ---------------------------------------------------------------------------
+
+    def commit(self, fs: FileSystem, path: str) -> None:
+        """Make this version the store's: one atomic replace of the MANIFEST file."""
+        fs.write_file_atomic(path, pack_manifest(self._body))
+
+    @classmethod
+    def load(cls, fs: FileSystem, path: str) -> tuple[Manifest, bytes]:
+        """Read and check the MANIFEST file; the version and the bytes it was read from."""
+        raw = fs.read_file(path)
+        try:
+            manifest = cls(unpack_manifest(raw))
+        except RecordError as err:
+            raise CorruptionError(f"{path} is damaged: {err}", path=path, offset=0,
+                                  reason=err.reason) from err  # fmt: skip
+        version = manifest.get("format_version")
+        if version not in FORMAT_VERSIONS:
+            raise StoreError(f"{path}: field format_version is {version!r}, which this cclogfs cannot read "
+                             f"(it reads versions {', '.join(map(str, FORMAT_VERSIONS))}); use a newer cclogfs")  # fmt: skip
+        return manifest, raw

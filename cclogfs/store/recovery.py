@@ -1,0 +1,185 @@
+"""Opening a store's segments: the sealed ones the manifest names, and the tail after them.
+
+The tail (segments the manifest does not name yet) is scanned and kept to exactly its
+valid prefix, as docs/FORMAT.md ("Recovery") specifies; files only an interrupted
+compaction or retention step leaves behind are told apart from data and, by the writer,
+removed. What was found and done is reported in a `Recovery`.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from dataclasses import dataclass, field
+
+from ..errors import CorruptionError
+from .format import MANIFEST, Reason, parse_seq_name, segment_name
+from .fs import FileSystem
+from .manifest import Manifest
+from .segment import Problem, Segment, intact_after, open_segment, scan
+
+
+@dataclass
+class Recovery:
+    """What opening the store found and did."""
+
+    problems: list[Problem] = field(default_factory=list)  # truncated or dropped tails
+    skipped: list[Problem] = field(default_factory=list)  # intact records of unknown kind
+    sealed_on_open: list[str] = field(default_factory=list)
+    removed_files: list[str] = field(default_factory=list)
+    # Files of an interrupted compaction or retention step (a generation the manifest does
+    # not name, a dropped segment): never data, removed by the writer on open.
+    leftovers: list[str] = field(default_factory=list)
+
+    @property
+    def clean(self) -> bool:
+        return not (self.problems or self.skipped)
+
+
+@dataclass
+class _Files:
+    """A store directory's segment files, sorted by what the manifest makes of them."""
+
+    named: dict[tuple[int, int], str] = field(default_factory=dict)  # (first_seq, gen) -> name
+    tail: dict[int, str] = field(default_factory=dict)  # first_seq -> name, generation 0
+    leftovers: list[str] = field(default_factory=list)
+
+
+def _is_leftover(manifest: Manifest, first_seq: int, gen: int) -> bool:
+    """A segment or index file that only an interrupted compaction or retention step
+    leaves behind: a generation > 0 the manifest does not name, an older generation of
+    a listed segment, or a segment before the store's first (dropped)."""
+    sealed_firsts = {info["first_seq"] for info in manifest.segments}
+    return gen > 0 or first_seq in sealed_firsts or first_seq < manifest.first_seq
+
+
+def _sort_files(names: list[str], manifest: Manifest) -> _Files:
+    named = {(info["first_seq"], info.get("gen", 0)) for info in manifest.segments}
+    files = _Files()
+    for name in names:
+        parsed = parse_seq_name(name)
+        if parsed is None:
+            continue
+        first_seq, kind, gen = parsed
+        if (first_seq, gen) in named:
+            if kind == "seg":
+                files.named[first_seq, gen] = name
+        elif _is_leftover(manifest, first_seq, gen):
+            files.leftovers.append(name)
+        elif kind == "seg":
+            files.tail[first_seq] = name
+    return files
+
+
+class SegmentOpener:
+    """Opens the segments of one manifest version; a writer also repairs the tail."""
+
+    def __init__(self, fs: FileSystem, path: str, readonly: bool, lock: threading.RLock):
+        self.fs, self.path, self.readonly, self.lock = fs, path, readonly, lock
+        self.recovery = Recovery()
+        self.sealed: list[Segment] = []
+        self.tail: list[Segment] = []
+
+    def _file(self, name: str) -> str:
+        return os.path.join(self.path, name)
+
+    def open(self, manifest: Manifest) -> None:
+        """Fill `sealed` and `tail` (the tail's valid prefix); on failure close what was opened."""
+        try:
+            files = _sort_files(self.fs.listdir(self.path), manifest)
+            self._open_sealed(manifest, files)
+            self._remove_leftovers(files)
+            self._recover_tail(manifest.end_seq, [files.tail[s] for s in sorted(files.tail)])
+        except BaseException:
+            for seg in (*self.sealed, *self.tail):
+                if seg.fd >= 0:
+                    self.fs.close(seg.fd)
+                    seg.fd = -1
+            raise
+
+    def _open_sealed(self, manifest: Manifest, files: _Files) -> None:
+        for info in manifest.segments:
+            gen = info.get("gen", 0)
+            name = files.named.get((info["first_seq"], gen))
+            if name is None:
+                raise CorruptionError(
+                    f"{self.path}: {MANIFEST} lists segment {segment_name(info['first_seq'], gen)}, "
+                    "which is missing", path=self._file(MANIFEST), reason=Reason.MISSING_SEGMENT,
+                )  # fmt: skip
+            seg, _ok = open_segment(self.fs, self._file(name), write=False, lock=self.lock)
+            seg.first_seq, seg.next_seq = info["first_seq"], info["end_seq"]
+            seg.sealed_size, seg.gen = info["size"], gen
+            self.sealed.append(seg)
+
+    def _remove_leftovers(self, files: _Files) -> None:
+        # Only now, with every file the manifest names found, and of the size it states: were
+        # one missing or cut short, the other generation might be all that is left of it.
+        damaged = {seg.first_seq for seg in self.sealed if seg.size != seg.sealed_size}
+        leftovers = [n for n in files.leftovers if parse_seq_name(n)[0] not in damaged]
+        self.recovery.leftovers = leftovers
+        if leftovers and not self.readonly:
+            for name in leftovers:
+                self.fs.unlink(self._file(name))
+                self.recovery.removed_files.append(name)
+            self.fs.fsync_dir(self.path)
+
+    def _recover_tail(self, next_seq: int, names: list[str]) -> None:
+        """Scan the unsealed segments; keep exactly their valid prefix (see FORMAT.md)."""
+        broken = False
+        for name in names:
+            path = self._file(name)
+            first_seq = parse_seq_name(name)[0]
+            if first_seq < next_seq:  # older than the manifest's end: not ours to touch
+                self.recovery.problems.append(Problem(path, 0, Reason.STRAY_SEGMENT, "ignored"))
+                continue
+            seg, header_ok = open_segment(self.fs, path, write=not self.readonly, lock=self.lock)
+            reason = None
+            if broken or first_seq != next_seq:
+                reason = Reason.DROPPED_SEGMENT if broken else Reason.SEQ_GAP
+            elif not header_ok or seg.first_seq != first_seq:
+                # Created but its header never reached the disk: it cannot hold synced data.
+                reason = Reason.BAD_SEGMENT_HEADER
+            if reason is not None:
+                self.recovery.problems.append(Problem(path, 0, reason, "", seg.size))
+                self._drop_segment(seg)
+                broken = True
+                continue
+            broken = self._keep_prefix(seg)
+            self.tail.append(seg)
+            next_seq = seg.next_seq
+
+    def _keep_prefix(self, seg: Segment) -> bool:
+        """Scan one tail segment and cut it to its valid prefix; True when it had to be cut."""
+        result = scan(seg)
+        self.recovery.skipped.extend(result.skipped)
+        seg.rows, seg.next_seq = result.rows, result.next_seq
+        problem = result.problem
+        if problem is None:
+            return False
+        problem.intact_after = intact_after(seg, problem.offset)
+        self.recovery.problems.append(problem)
+        if not self.readonly:
+            if problem.intact_after:
+                problem.kept_in = self._keep_tail(seg, problem.offset)
+            self.fs.truncate(seg.fd, result.end)
+            self.fs.fsync(seg.fd)
+        seg.size = result.end
+        return True
+
+    def _keep_tail(self, seg: Segment, offset: int) -> str:
+        """Copy the bytes recovery is about to cut to a side file, when intact records lie
+        among them: they were written but perhaps never synced (a reordered write), or a
+        synced record was damaged (bit rot). The log keeps its prefix guarantee either
+        way, and no byte is destroyed."""
+        name = f"{os.path.basename(seg.path)}.tail-{offset}"
+        data = self.fs.pread(seg.fd, self.fs.size(seg.fd) - offset, offset)
+        self.fs.write_file_atomic(self._file(name), data)
+        return name
+
+    def _drop_segment(self, seg: Segment) -> None:
+        self.fs.close(seg.fd)
+        seg.fd = -1
+        if not self.readonly:
+            self.fs.unlink(seg.path)
+            self.fs.fsync_dir(self.path)
+            self.recovery.removed_files.append(os.path.basename(seg.path))

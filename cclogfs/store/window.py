@@ -1,0 +1,99 @@
+"""What the store hands out: a `Window` (the read handle a query returns) and a `Receipt`."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+from ..codecs import codec_from_config, codec_numeric_id
+from ..errors import CorruptionError, StoreError
+from .format import AGED_META_KEY, Reason, RecordFlag, RecordHeader
+from .segment import Segment
+
+
+@dataclass(frozen=True)
+class Receipt:
+    """What `put_window` stored. Durable once a later `sync()` (or group commit) completes."""
+
+    seq: int
+    name: str
+    start_ns: int
+    end_ns: int
+    count: int
+    raw_bytes: int
+    stored_bytes: int
+
+
+class Window:
+    """One stored window, as a query returns it. Reads its record on first use
+    (`record`: header and payload already read and checked, as compaction has them)."""
+
+    __slots__ = ("name", "seq", "start_ns", "end_ns", "count", "_segment", "_offset",
+                 "_length", "_record")  # fmt: skip
+
+    def __init__(self, name: str, seq: int, start_ns: int, end_ns: int, count: int,
+                 segment: Segment, offset: int, length: int,
+                 record: tuple[RecordHeader, bytes] | None = None):  # fmt: skip
+        self.name, self.seq, self.start_ns, self.end_ns, self.count = name, seq, start_ns, end_ns, count
+        self._segment, self._offset, self._length = segment, offset, length
+        self._record = record
+
+    def _read(self) -> tuple[RecordHeader, bytes]:
+        if self._record is None:
+            with self._segment.lock:  # the group-commit thread may be flushing this segment
+                if self._segment.fd < 0:
+                    raise StoreError(f"{self._segment.path} is closed: the store was closed, or compaction "
+                                     "replaced or dropped this segment; query again")  # fmt: skip
+                self._record = self._segment.read_record(self._offset, self._length)
+        return self._record
+
+    @property
+    def offset(self) -> int:
+        """Where the record starts in its segment file."""
+        return self._offset
+
+    @property
+    def segment_path(self) -> str:
+        """The segment file holding the record."""
+        return self._segment.path
+
+    @property
+    def meta(self) -> dict[str, Any]:
+        return json.loads(self._read()[0].meta)
+
+    @property
+    def codec_config(self) -> dict[str, Any]:
+        return json.loads(self._read()[0].config)
+
+    @property
+    def stored_bytes(self) -> int:
+        return self._length
+
+    @property
+    def flags(self) -> int:
+        """The record's flag bits (`cclogfs.store.RecordFlag`)."""
+        return self._read()[0].flags
+
+    @property
+    def aged(self) -> Any:
+        """How the texts differ from what was put (meta key "aged"), or None when byte-exact."""
+        header = self._read()[0]
+        return json.loads(header.meta).get(AGED_META_KEY) if header.flags & RecordFlag.AGED else None
+
+    def messages(self) -> Iterator[tuple[int, str]]:
+        """(stamp_ns, JSON text) of each message, exactly as put."""
+        header, payload = self._read()
+        codec = codec_from_config(json.loads(header.config))
+        if codec_numeric_id(codec) != header.codec:
+            raise CorruptionError(
+                f"{self._segment.path}: record at offset {self._offset} names codec "
+                f"{header.codec} in its header but {codec.codec_id!r} in its config",
+                path=self._segment.path, offset=self._offset, reason=Reason.CODEC_MISMATCH,
+            )  # fmt: skip
+        stamps, texts = codec.decode(payload, count=header.count, raw_len=header.raw_len)
+        return zip(stamps, (t.decode("utf-8") for t in texts))
+
+    def __repr__(self) -> str:
+        return f"Window({self.name!r}, seq={self.seq}, {self.start_ns}..{self.end_ns}, count={self.count})"

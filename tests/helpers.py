@@ -1,0 +1,77 @@
+"""Helpers for tests that build stores and damage their files on purpose.
+
+Every test that pokes bytes of a store goes through these, so an offset or a mask means the
+same thing everywhere: `flip` XORs one byte, `zero` overwrites a range, `patch_header`
+rewrites fields of a record's fixed header and re-seals its CRC (damage a checksum cannot
+see), `record_at` finds a record through the store's own index.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+from pathlib import Path
+
+import cclogfs
+from cclogfs.store.format import RECORD_FIXED, crc32c, segment_name
+
+SEG = segment_name(0)  # the first segment of a new store
+HEADER_FIELDS = ["magic", "kind", "version", "flags", "header_len", "seq", "start", "end", "count",
+                 "codec", "name_len", "config_len", "meta_len", "raw_len", "enc_len", "xxh3"]  # fmt: skip
+
+
+def make_store(path, n: int = 4, **opts) -> list[tuple[int, int, int]]:
+    """A store with `n` windows of 20 messages on "/a" (put i spans [10 i, 10 i + 19] ns);
+    returns (seq, offset, length) of each record."""
+    with cclogfs.open_store(path, create=True, **opts) as store:
+        for i in range(n):
+            store.put_window("/a", [(i * 10 + k, json.dumps({"i": i, "k": k})) for k in range(20)])
+        return [(w.seq, w.offset, w.stored_bytes) for w in store.query()]
+
+
+def seqs(store) -> list[int]:
+    return [w.seq for w in store.query()]
+
+
+def record_at(path, seq: int) -> tuple[Path, int, int]:
+    """(segment file, offset, length) of the record `seq` of the store at `path`."""
+    with cclogfs.open_store(path, readonly=True) as store:
+        (w,) = [w for w in store.query() if w.seq == seq]
+        return Path(w.segment_path), w.offset, w.stored_bytes
+
+
+def flip(path, offset: int, mask: int = 0x40) -> None:
+    """XOR the byte at `offset` (negative: from the end) of the file with `mask`."""
+    data = bytearray(Path(path).read_bytes())
+    data[offset] ^= mask
+    Path(path).write_bytes(bytes(data))
+
+
+def zero(path, start: int, end: int) -> None:
+    """Overwrite bytes [start, end) of the file with zeros."""
+    data = bytearray(Path(path).read_bytes())
+    data[start:end] = bytes(end - start)
+    Path(path).write_bytes(bytes(data))
+
+
+def cut(path, size: int) -> None:
+    """Truncate the file to `size` bytes."""
+    with open(path, "r+b") as f:
+        f.truncate(size)
+
+
+def append(path, data: bytes) -> None:
+    with open(path, "ab") as f:
+        f.write(data)
+
+
+def patch_header(path, offset: int, **fields) -> None:
+    """Rewrite fixed-header fields (names in HEADER_FIELDS) of the record at `offset`, then
+    fix its header CRC."""
+    data = bytearray(Path(path).read_bytes())
+    values = dict(zip(HEADER_FIELDS, RECORD_FIXED.unpack_from(data, offset)))
+    values.update(fields)
+    RECORD_FIXED.pack_into(data, offset, *values.values())
+    header_len = values["header_len"]
+    struct.pack_into("<I", data, offset + header_len - 4, crc32c(bytes(data[offset : offset + header_len - 4])))
+    Path(path).write_bytes(bytes(data))

@@ -1,0 +1,141 @@
+"""The package's layering, derived from its files (ast, nothing imported), so it cannot
+drift: a new module is checked the day it is added.
+
+- the storage engine (cclogfs/store) imports nothing from the classifier, ingest, export,
+  upkeep, the pipeline, the CLI, the demo or the simulator;
+- the classifier imports nothing of storage, codecs, ingest, export, upkeep, pipeline or CLI;
+- no import cycle anywhere in cclogfs (module level, as `python3 ../shared/tools/imports.py
+  cclogfs` counts them).
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent / "cclogfs"
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for f in ROOT.rglob("*.py"):
+        parts = list(f.relative_to(ROOT.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        out[".".join(parts)] = f
+    return out
+
+
+MODULES = _modules()
+
+
+def _imports(name: str) -> set[str]:
+    """Absolute names of what module `name` imports (at any depth of its code)."""
+    f = MODULES[name]
+    pkg = name if f.name == "__init__.py" else name.rsplit(".", 1)[0]
+    found = set()
+    for node in ast.walk(ast.parse(f.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            found.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = pkg.split(".")[: len(pkg.split(".")) - node.level + 1]
+                prefix = ".".join(base + ([node.module] if node.module else []))
+            else:
+                prefix = node.module or ""
+            found.add(prefix)
+            found.update(f"{prefix}.{a.name}" for a in node.names)
+    return found
+
+
+def _in_package(name: str) -> str | None:
+    """The cclogfs module an imported name refers to (longest known prefix), or None."""
+    while name and name not in MODULES:
+        name = name.rsplit(".", 1)[0] if "." in name else ""
+    return name or None
+
+
+def _subpackage(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else ""
+
+
+FORBIDDEN = {
+    "store": {"classifier", "ingest", "export", "upkeep", "pipeline", "cli", "demo", "sim", "compact", "aging"},
+    "classifier": {"store", "ingest", "export", "upkeep", "pipeline", "cli", "codecs", "compact", "aging"},
+}
+
+
+def test_the_packages_exist():
+    # Guards the derivation itself: an empty walk would pass every check below.
+    for pkg in FORBIDDEN:
+        assert sum(1 for m in MODULES if m.startswith(f"cclogfs.{pkg}.")) >= 5, pkg
+
+
+@pytest.mark.parametrize("pkg", sorted(FORBIDDEN))
+def test_package_imports_nothing_above_it(pkg):
+    bad = []
+    for module in sorted(m for m in MODULES if m == f"cclogfs.{pkg}" or m.startswith(f"cclogfs.{pkg}.")):
+        for target in _imports(module):
+            if target.startswith("cclogfs") and _subpackage(target) in FORBIDDEN[pkg]:
+                bad.append(f"{module} imports {target}")
+    assert bad == []
+
+
+def _cycles() -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan)."""
+    graph = {m: {t for t in map(_in_package, _imports(m)) if t and t != m} for m in MODULES}
+    index, low, stack, on_stack, out = {}, {}, [], set(), []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    sys.setrecursionlimit(max(sys.getrecursionlimit(), 10 * len(graph)))
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_import_cycles():
+    assert _cycles() == []
+
+
+def test_the_cycle_check_sees_a_cycle(tmp_path, monkeypatch):
+    # The check must be able to fail: two modules importing each other are one cycle.
+    monkeypatch.setitem(MODULES, "cclogfs.zz_a", tmp_path / "a.py")
+    monkeypatch.setitem(MODULES, "cclogfs.zz_b", tmp_path / "b.py")
+    (tmp_path / "a.py").write_text("from .zz_b import y\n")
+    (tmp_path / "b.py").write_text("from .zz_a import x\n")
+    assert ["cclogfs.zz_a", "cclogfs.zz_b"] in _cycles()
+
+
+def test_importing_the_classifier_loads_no_storage():
+    # At run time too: cclogfs/__init__ exports the store lazily.
+    code = ("import sys, cclogfs.classifier, cclogfs.classifier.testing;"
+            "print(sorted({m.split('.')[1] for m in sys.modules if m.startswith('cclogfs.')}))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    loaded = set(eval(out.stdout))  # noqa: S307 - our own printed list
+    assert loaded.isdisjoint(FORBIDDEN["classifier"]), loaded
