@@ -75,3 +75,21 @@ def patch_header(path, offset: int, **fields) -> None:
     header_len = values["header_len"]
     struct.pack_into("<I", data, offset + header_len - 4, crc32c(bytes(data[offset : offset + header_len - 4])))
     Path(path).write_bytes(bytes(data))
+
+
+def unseal(path, keep: int) -> None:
+    """Rewrite the store's MANIFEST to name only its first `keep` sealed segments: the later
+    ones become the unsealed tail, as after a crash while sealing."""
+    from cclogfs.store.format import MANIFEST, pack_manifest, unpack_manifest
+
+    manifest = Path(path) / MANIFEST
+    body = unpack_manifest(manifest.read_bytes())
+    body["segments"] = body["segments"][:keep]
+    manifest.write_bytes(pack_manifest(body))
+    for idx in Path(path).glob("*.idx"):  # a tail segment has no index yet
+        if not any(idx.name == f"{s['first_seq']:020d}.idx" for s in body["segments"]):
+            idx.unlink()
+
+
+def segment_files(path) -> list[Path]:
+    return sorted(Path(path).glob("*.seg"))

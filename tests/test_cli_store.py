@@ -6,6 +6,7 @@ from pathlib import Path
 
 import cclogfs
 from cclogfs.cli import main
+from helpers import flip
 
 
 def build(path, n=60):
@@ -30,9 +31,7 @@ def test_fsck_clean_then_damaged(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "clean" in out and "60 records" in out and "60 windows decoded" in out
     seg = tmp_path / "s" / "00000000000000000000.seg"
-    data = bytearray(seg.read_bytes())
-    data[200] ^= 1
-    seg.write_bytes(bytes(data))
+    flip(seg, 200, 1)
     assert main(["fsck", str(tmp_path / "s")]) == 1
     out = capsys.readouterr().out
     assert "00000000000000000000.seg@" in out and "DAMAGED" in out

@@ -13,7 +13,8 @@ import cclogfs
 from cclogfs.aging import Policy, parse_rule
 from cclogfs.cli import main
 from cclogfs.compact import compact
-from cclogfs.store.fsck import check_store
+from cclogfs.store import check_store
+from helpers import flip
 
 NS = 1_000_000_000
 
@@ -367,9 +368,7 @@ def test_finishing_after_an_error_returns_and_later_segments_still_age(tmp_path)
     store = _sealed_store(tmp_path / "s")
     store.close()
     seg = tmp_path / "s" / "00000000000000000000.seg"
-    data = bytearray(seg.read_bytes())
-    data[-5] ^= 0xFF  # damage the oldest segment
-    seg.write_bytes(bytes(data))
+    flip(seg, -5, 0xFF)  # damage the oldest segment
     store = cclogfs.open_store(tmp_path / "s", segment_records=4, sync_every_ms=None)
     upkeep = Upkeep(policy=Policy([parse_rule("1e-3")]), older_than_ns=20 * NS)
     upkeep.after_put(store)

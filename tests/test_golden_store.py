@@ -38,7 +38,7 @@ def test_record_bytes_are_pinned():
 
 def test_golden_store_v2_reads_back(tmp_path):
     # Compacted: the log starts at seq 2, generations 1 and 2, an AGED record, an active segment.
-    from cclogfs.store.fsck import check_store
+    from cclogfs.store import check_store
 
     expected = json.loads((GOLDEN / "store_v2.expected.json").read_text())
     shutil.copytree(GOLDEN / "store_v2", tmp_path / "s")

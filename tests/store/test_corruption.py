@@ -1,57 +1,25 @@
 """One test per corruption rule: what survives, and the reason reported."""
 
-import json
 import struct
+
+from cclogfs.store.format import Reason, segment_name
 
 import pytest
 
 import cclogfs
 from cclogfs.errors import CorruptionError, UnknownCodecError
 from cclogfs.store.format import RECORD_FIXED, RECORD_FIXED_SIZE, crc32c
-
-SEG = "00000000000000000000.seg"
-
-
-def make_store(path, n=4, **opts):
-    with cclogfs.open_store(path, create=True, **opts) as store:
-        for i in range(n):
-            store.put_window("/a", [(i * 10 + k, json.dumps({"i": i, "k": k})) for k in range(20)])
-        return [(w.seq, w._offset, w._length) for w in store.query()]
-
-
-def seqs(store):
-    return [w.seq for w in store.query()]
-
-
-def patch_header(path, offset, **fields):
-    """Rewrite fixed-header fields of the record at `offset`, then fix its header CRC."""
-    data = bytearray(path.read_bytes())
-    names = ["magic", "kind", "version", "flags", "header_len", "seq", "start", "end", "count",
-             "codec", "name_len", "config_len", "meta_len", "raw_len", "enc_len", "xxh3"]  # fmt: skip
-    values = dict(zip(names, RECORD_FIXED.unpack_from(data, offset)))
-    values.update(fields)
-    RECORD_FIXED.pack_into(data, offset, *values.values())
-    header_len = values["header_len"]
-    struct.pack_into("<I", data, offset + header_len - 4, crc32c(bytes(data[offset : offset + header_len - 4])))
-    path.write_bytes(bytes(data))
-
-
-def flip(path, offset):
-    data = bytearray(path.read_bytes())
-    data[offset] ^= 0x40
-    path.write_bytes(bytes(data))
-
+from helpers import SEG, append, cut, flip, make_store, patch_header, segment_files, seqs, unseal, zero
 
 def test_torn_tail_is_truncated_and_reported(tmp_path):
     recs = make_store(tmp_path / "s")
     seg = tmp_path / "s" / SEG
-    cut = recs[3][1] + recs[3][2] // 2
-    with open(seg, "r+b") as f:
-        f.truncate(cut)
+    size = recs[3][1] + recs[3][2] // 2
+    cut(seg, size)
     with cclogfs.open_store(tmp_path / "s") as store:
         assert seqs(store) == [0, 1, 2]
         (p,) = store.recovery.problems
-        assert (p.reason, p.offset, p.dropped_bytes) == ("torn record", recs[3][1], cut - recs[3][1])
+        assert (p.reason, p.offset, p.dropped_bytes) == ("torn record", recs[3][1], size - recs[3][1])
     assert seg.stat().st_size == recs[3][1]
 
 
@@ -77,8 +45,7 @@ def test_bad_length_is_caught_before_allocating(tmp_path):
 
 def test_zero_fill(tmp_path):
     recs = make_store(tmp_path / "s")
-    with open(tmp_path / "s" / SEG, "ab") as f:
-        f.write(b"\0" * 4096)
+    append(tmp_path / "s" / SEG, b"\0" * 4096)
     with cclogfs.open_store(tmp_path / "s") as store:
         assert seqs(store) == [0, 1, 2, 3]
         assert store.recovery.problems[0].reason == "zero fill"
@@ -102,8 +69,9 @@ def test_unknown_codec_is_kept_and_named_on_read(tmp_path):
     with cclogfs.open_store(tmp_path / "s") as store:
         assert seqs(store) == [0, 1, 2, 3] and store.recovery.clean
         bad = [w for w in store.query() if w.seq == 1][0]
-        with pytest.raises(CorruptionError, match="names codec 77"):
+        with pytest.raises(CorruptionError, match="names codec 77") as err:
             list(bad.messages())
+        assert err.value.reason == "codec mismatch"
         assert len(list([w for w in store.query() if w.seq == 2][0].messages())) == 20
 
 
@@ -112,7 +80,7 @@ def test_unknown_codec_id_in_config(tmp_path):
     with cclogfs.open_store(path, create=True, codec="zstd") as store:
         store.put_window("/a", [(0, "1")])
         (w,) = store.query()
-        offset = w._offset
+        offset = w.offset
     data = bytearray((path / SEG).read_bytes())
     i = data.index(b'"zstd"', offset)
     data[i : i + 6] = b'"zst0"'
@@ -129,8 +97,8 @@ def test_damage_in_a_sealed_segment_is_an_error_on_read(tmp_path):
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
         seg = store.sealed[0]
         first = [w for w in store.query() if w.seq == seg.first_seq + 1][0]
-        path, off = seg.path, first._offset
-    flip(tmp_path / "s" / path.rsplit("/", 1)[1], off + first._length - 3)
+        path, off = first.segment_path, first.offset
+    flip(path, off + first.stored_bytes - 3)
     with cclogfs.open_store(tmp_path / "s") as store:
         assert store.recovery.clean  # sealed segments are trusted on open (no scan)
         windows = list(store.query())
@@ -170,8 +138,7 @@ def test_missing_sealed_segment_is_named(tmp_path):
 def test_reader_does_not_repair(tmp_path):
     recs = make_store(tmp_path / "s")
     seg = tmp_path / "s" / SEG
-    with open(seg, "r+b") as f:
-        f.truncate(recs[3][1] + 10)
+    cut(seg, recs[3][1] + 10)
     before = seg.read_bytes()
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
         assert seqs(store) == [0, 1, 2]
@@ -184,10 +151,9 @@ def test_sealed_segment_cut_at_a_record_boundary_is_not_a_silent_hole(tmp_path):
     make_store(tmp_path / "s", n=80, segment_bytes=4096, sync_every_bytes=1)
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
         first = store.sealed[0]
-        cut = [w for w in store.query() if w.seq == first.next_seq - 2][0]._offset
+        boundary = [w for w in store.query() if w.seq == first.next_seq - 2][0].offset
         expected_seqs = [w.seq for w in store.query()]
-    with open(tmp_path / "s" / SEG, "r+b") as f:
-        f.truncate(cut)
+    cut(tmp_path / "s" / SEG, boundary)
     for opts in ({"readonly": True}, {}):
         with cclogfs.open_store(tmp_path / "s", **opts) as store:
             with pytest.raises(CorruptionError, match="manifest says it was sealed at"):
@@ -236,7 +202,7 @@ def test_intact_records_with_impossible_fields(tmp_path, fields, reason):
 
 
 def test_damage_mid_active_segment_keeps_the_bytes_and_fsck_says_error(tmp_path):
-    from cclogfs.store.fsck import check_store
+    from cclogfs.store import check_store
 
     recs = make_store(tmp_path / "s", n=5, sync_every_ms=0)  # every put synced
     seq, off, length = recs[1]
@@ -253,20 +219,19 @@ def test_damage_mid_active_segment_keeps_the_bytes_and_fsck_says_error(tmp_path)
 
 def test_plain_torn_tail_keeps_no_side_file(tmp_path):
     recs = make_store(tmp_path / "s")
-    with open(tmp_path / "s" / SEG, "r+b") as f:
-        f.truncate(recs[3][1] + 30)
+    cut(tmp_path / "s" / SEG, recs[3][1] + 30)
     with cclogfs.open_store(tmp_path / "s") as store:
         assert store.recovery.problems[0].intact_after == 0 and not store.recovery.problems[0].kept_in
     assert sorted(p.name for p in (tmp_path / "s").iterdir()) == ["00000000000000000000.seg", "LOCK", "MANIFEST"]
 
 
 def test_fsck_deep_reports_damaged_sealed_segment_without_index(tmp_path):
-    from cclogfs.store.fsck import check_store
+    from cclogfs.store import check_store
 
     make_store(tmp_path / "s", n=80, segment_bytes=4096, sync_every_bytes=1)
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
         w = [w for w in store.query() if w.seq == 3][0]
-        off, length = w._offset, w._length
+        off, length = w.offset, w.stored_bytes
     flip(tmp_path / "s" / SEG, off + length - 3)
     (tmp_path / "s" / "00000000000000000000.idx").unlink()
     report = check_store(str(tmp_path / "s"), deep=True)
@@ -293,3 +258,114 @@ def test_windows_of_a_closed_store_refuse_to_read(tmp_path):
     store.close()
     with pytest.raises(StoreError, match="closed"):
         list(windows[0].messages())
+
+
+# -- one scenario per reject reason not covered above ----------------------------------------
+
+
+def test_bad_magic_ends_the_tail(tmp_path):
+    recs = make_store(tmp_path / "s")
+    flip(tmp_path / "s" / SEG, recs[2][1])  # first byte of the record's magic
+    with cclogfs.open_store(tmp_path / "s") as store:
+        assert seqs(store) == [0, 1]
+        (p,) = store.recovery.problems
+        assert (p.reason, p.offset) == (Reason.BAD_MAGIC, recs[2][1])
+
+
+def test_sequence_gap_inside_a_segment_ends_the_tail(tmp_path):
+    recs = make_store(tmp_path / "s")
+    patch_header(tmp_path / "s" / SEG, recs[2][1], seq=7)  # intact, but not the next seq
+    with cclogfs.open_store(tmp_path / "s") as store:
+        assert seqs(store) == [0, 1]
+        (p,) = store.recovery.problems
+        assert (p.reason, p.offset) == (Reason.SEQ_GAP, recs[2][1])
+        assert store.put_window("/a", [(999, "1")]).seq == 2
+
+
+def _three_segments(path):
+    """A store whose manifest names one sealed segment; two more segments form the tail."""
+    make_store(path, n=30, segment_records=10, sync_every_bytes=1)
+    files = segment_files(path)
+    assert len(files) == 4  # 0, 10, 20 sealed; 30 active (empty)
+    unseal(path, keep=1)
+    return files
+
+
+def test_tail_segment_that_does_not_start_where_the_log_ends_is_a_gap(tmp_path):
+    files = _three_segments(tmp_path / "s")
+    files[1].unlink()  # the tail's first segment is lost: the next one starts too late
+    with cclogfs.open_store(tmp_path / "s") as store:
+        reasons = [(p.path.rsplit("/", 1)[1], p.reason) for p in store.recovery.problems]
+        assert reasons[0] == (files[2].name, Reason.SEQ_GAP)
+        assert all(r == Reason.DROPPED_SEGMENT for _, r in reasons[1:])
+        assert store.sealed[-1].next_seq == max(seqs(store)) + 1  # nothing after the gap kept
+
+
+def test_bad_segment_header_drops_the_segment_and_all_after_it(tmp_path):
+    files = _three_segments(tmp_path / "s")
+    zero(files[1], 0, 8)  # the header of the tail's first segment never reached the disk
+    with cclogfs.open_store(tmp_path / "s") as store:
+        got = [(p.path.rsplit("/", 1)[1], p.reason) for p in store.recovery.problems]
+        assert got[0] == (files[1].name, Reason.BAD_SEGMENT_HEADER)
+        assert got[1:] == [(f.name, Reason.DROPPED_SEGMENT) for f in files[2:]]
+        assert seqs(store) == list(range(10)) and store.active_first_seq == 10  # a new, empty segment 10
+    assert not files[2].exists() and not files[3].exists()
+
+
+def test_segment_after_the_torn_tail_is_dropped(tmp_path):
+    files = _three_segments(tmp_path / "s")
+    cut(files[1], files[1].stat().st_size - 7)  # torn last record in the tail's first segment
+    with cclogfs.open_store(tmp_path / "s") as store:
+        got = [(p.path.rsplit("/", 1)[1], p.reason) for p in store.recovery.problems]
+        assert got[0] == (files[1].name, Reason.TORN)
+        assert got[1:] == [(f.name, Reason.DROPPED_SEGMENT) for f in files[2:]]
+        assert seqs(store) == list(range(len(seqs(store))))  # a prefix, no hole
+
+
+def test_stray_segment_before_the_end_of_the_log_is_ignored(tmp_path):
+    make_store(tmp_path / "s", n=30, segment_bytes=4096, sync_every_bytes=1)
+    stray = tmp_path / "s" / segment_name(1)  # inside the first sealed segment's seqs
+    stray.write_bytes((tmp_path / "s" / SEG).read_bytes())
+    with cclogfs.open_store(tmp_path / "s") as store:
+        (p,) = store.recovery.problems
+        assert (p.path, p.reason) == (str(stray), Reason.STRAY_SEGMENT)
+        assert seqs(store) == list(range(30))
+    assert stray.exists()  # not ours to touch
+
+
+def test_missing_segment_reason(tmp_path):
+    make_store(tmp_path / "s", n=30, segment_bytes=4096, sync_every_bytes=1)
+    (tmp_path / "s" / SEG).unlink()
+    with pytest.raises(CorruptionError) as err:
+        cclogfs.open_store(tmp_path / "s")
+    assert err.value.reason == Reason.MISSING_SEGMENT
+
+
+def test_sealed_segment_of_another_size_reason(tmp_path):
+    make_store(tmp_path / "s", n=30, segment_bytes=4096, sync_every_bytes=1)
+    append(tmp_path / "s" / SEG, b"\0" * 10)
+    (tmp_path / "s" / "00000000000000000000.idx").unlink()
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        with pytest.raises(CorruptionError, match="manifest says it was sealed at") as err:
+            list(store.query())
+        assert err.value.reason == Reason.SIZE_MISMATCH
+
+
+def test_record_of_another_length_than_its_index_entry(tmp_path):
+    # A sealed segment whose index points at a record with another length than it has.
+    import numpy as np
+
+    from cclogfs.store.index import SegmentIndex
+
+    make_store(tmp_path / "s", n=30, segment_bytes=4096, sync_every_bytes=1)
+    idx_path = tmp_path / "s" / "00000000000000000000.idx"
+    size = (tmp_path / "s" / SEG).stat().st_size
+    index = SegmentIndex.decode(idx_path.read_bytes(), 0, size)
+    entries = index.entries.copy()
+    entries["length"][1] += 1
+    idx_path.write_bytes(SegmentIndex(index.names, np.array(entries)).encode(0, size))
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        (w,) = [w for w in store.query() if w.seq == int(entries["seq"][1])]
+        with pytest.raises(CorruptionError) as err:
+            list(w.messages())
+        assert err.value.reason == Reason.INDEX_MISMATCH

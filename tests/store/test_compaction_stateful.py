@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, precondition, rule
 
 import cclogfs
-from cclogfs.store.fsck import check_store
+from cclogfs.store import check_store
 from _rewrite import leftovers, random_rewrite, state
 
 NAMES = st.sampled_from(["/odom", "/tf", "../x"])

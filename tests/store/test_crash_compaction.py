@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 import cclogfs
 from cclogfs.errors import CclogError
 from cclogfs.store.fs import RecordingFileSystem
-from cclogfs.store.fsck import check_store
+from cclogfs.store import check_store
 from crashsim import MODES, DiskModel
 from _rewrite import leftovers, random_rewrite, state
 

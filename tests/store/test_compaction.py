@@ -10,12 +10,13 @@ import cclogfs
 from cclogfs.errors import CorruptionError, InvalidInputError, StoreError, StoreFailedError
 from cclogfs.store.format import MANIFEST, RecordFlag, pack_manifest, unpack_manifest
 from cclogfs.store.fs import FileSystem, RecordingFileSystem
-from cclogfs.store.fsck import check_store
+from cclogfs.store import check_store
 from cclogfs.store import Replacement
 from _rewrite import leftovers, state
+from helpers import append, flip
 
 OPTS = dict(sync_every_ms=None, segment_records=3)
-GOLDEN = Path(__file__).parent / "golden"
+GOLDEN = Path(__file__).parent.parent / "golden"
 
 
 def make(path, n=10, **opts):
@@ -329,12 +330,10 @@ def test_a_record_of_unknown_flags_is_copied_by_a_rewrite(tmp_path):
 def test_a_damaged_segment_is_refused_not_copied(tmp_path, damage):
     make(tmp_path / "s").close()
     seg = tmp_path / "s" / "00000000000000000003.seg"
-    data = bytearray(seg.read_bytes())
     if damage == "flip":
-        data[-5] ^= 0x40  # in the last record's payload
+        flip(seg, -5)  # in the last record's payload
     else:
-        data += b"\0" * 10
-    seg.write_bytes(bytes(data))
+        append(seg, b"\0" * 10)
     with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
         before = files(tmp_path / "s")
         with pytest.raises(CorruptionError, match="00000000000000000003.seg.*cannot be rewritten"):
