@@ -382,7 +382,8 @@ def _finish_rewrite(store: Host, plans: list[_Plan], report: RewriteReport) -> N
                 path = _file(store, segment_name(old.first_seq, plan.gen))
                 new, _ok = open_segment(store.fs, path, write=False, lock=store.lock)
                 new.first_seq, new.next_seq, new.gen = old.first_seq, old.next_seq, plan.gen
-                new.sealed_size, new._index = plan.size, plan.index
+                new.sealed_size = plan.size
+                new.set_index(plan.index)
                 store.sealed[[s.first_seq for s in store.sealed].index(old.first_seq)] = new
                 store.fs.close(old.fd)
                 old.fd = -1

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import struct
 from collections.abc import Iterable
+from typing import Any
 from dataclasses import dataclass
 
 import numpy as np
@@ -129,3 +130,29 @@ def merge_stream_stats(total: dict[str, dict[str, int]], stats: dict[str, dict[s
             t[key] += st[key]
         t["start_ns"] = min(t["start_ns"], st["start_ns"])
         t["end_ns"] = max(t["end_ns"], st["end_ns"])
+
+
+class SegmentSpans:
+    """Across segments: which may hold windows of a stream within [t0, t1]. Built from each
+    segment's per-stream statistics (start_ns, end_ns), searched like a segment's entries."""
+
+    def __init__(self, items: Iterable[tuple[int, Any, dict[str, dict[str, int]]]]):
+        """`items`: (first_seq, segment, stream_stats()) of each segment."""
+        by_stream: dict[str, list[tuple[int, int, int, Any]]] = {}
+        for first_seq, seg, streams in items:
+            for stream, st in streams.items():
+                by_stream.setdefault(stream, []).append((st["start_ns"], st["end_ns"], first_seq, seg))
+        self._streams: dict[str, tuple[np.ndarray, np.ndarray, list[Any]]] = {}
+        for stream, spans in by_stream.items():
+            spans.sort(key=lambda x: (x[0], x[2]))
+            starts = np.array([x[0] for x in spans], dtype=np.int64)
+            run_max = np.maximum.accumulate(np.array([x[1] for x in spans], dtype=np.int64))
+            self._streams[stream] = (starts, run_max, [x[3] for x in spans])
+
+    def overlapping(self, name: str, t0: int, t1: int) -> list[Any]:
+        """Segments whose span of stream `name` may overlap [t0, t1] (a superset), by start."""
+        found = self._streams.get(name)
+        if found is None:
+            return []
+        starts, run_max, segs = found
+        return segs[overlap_slice(starts, run_max, t0, t1)]

@@ -95,6 +95,38 @@ class Segment:
             self._index = SegmentIndex.build(self.rows)
         return self._index
 
+    def set_index(self, index: SegmentIndex) -> None:
+        """Adopt an index built elsewhere (compaction has one for the generation it wrote)."""
+        self._index = index
+
+    def sealed_index(self, index_path: str, *, write_back: bool) -> SegmentIndex:
+        """A sealed segment's index from its .idx file at `index_path`, rebuilt by a scan when
+        missing or damaged (and then written back when `write_back`)."""
+        if self._index is not None:
+            return self._index
+        if self.size != self.sealed_size:
+            # Never answer from a sealed segment that lost or gained bytes: a shorter one
+            # would otherwise give a silent hole.
+            raise CorruptionError(f"{self.path} is {self.size} bytes but the manifest says it was sealed "
+                                  f"at {self.sealed_size}; its records cannot be trusted (run `cclog fsck`)",
+                                  path=self.path, offset=min(self.size, self.sealed_size),
+                                  reason=Reason.SIZE_MISMATCH)  # fmt: skip
+        try:
+            self._index = SegmentIndex.decode(self.fs.read_file(index_path), self.first_seq, self.size)
+        except (OSError, RecordError, ValueError, TypeError):
+            result = scan(self)
+            problem = result.problem
+            if problem is None and result.next_seq != self.next_seq:
+                problem = Problem(self.path, result.end, Reason.SEQ_GAP,
+                                  f"ends at seq {result.next_seq}, the manifest says {self.next_seq}")  # fmt: skip
+            if problem:
+                raise CorruptionError(f"{self.path}: cannot rebuild the time index: {problem}",
+                                      path=self.path, offset=problem.offset, reason=problem.reason)  # fmt: skip
+            self._index = SegmentIndex.build(result.rows)
+            if write_back:
+                self.fs.write_file_atomic(index_path, self._index.encode(self.first_seq, self.size))
+        return self._index
+
     def read_record(self, offset: int, length: int) -> tuple[RecordHeader, bytes]:
         """Header and payload of the record at `offset` that the index says is `length`
         bytes long, every check passed."""

@@ -15,8 +15,6 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import Any
 
-import numpy as np
-
 from .._signals import signals_deferred as _signals_deferred
 from ..codecs import codec_from_config
 from ..errors import (
@@ -39,17 +37,16 @@ from .format import (
     SEGMENT_HEADER_SIZE,
     TMP_SUFFIX,
     Reason,
-    RecordError,
     index_name,
     pack_segment_header,
     parse_seq_name,
     segment_name,
 )
 from .fs import FileSystem
-from .index import SegmentIndex, merge_stream_stats, overlap_slice
+from .index import SegmentIndex, SegmentSpans, merge_stream_stats
 from .manifest import Manifest, SealedSegment
 from .recovery import Recovery, SegmentOpener
-from .segment import Problem, Segment, scan
+from .segment import Segment
 from .window import Receipt, Window
 
 __all__ = ["Dropped", "Receipt", "Recovery", "Replacement", "RewriteReport", "SealedSegment", "Store", "Window",
@@ -89,7 +86,7 @@ class Store:
         self._unsynced_bytes = 0
         self._unsynced_since: float | None = None
         self._flusher: threading.Thread | None = None
-        self._sealed_by_stream: dict[str, tuple[np.ndarray, np.ndarray, list[Segment]]] | None = None
+        self._sealed_spans: SegmentSpans | None = None
 
     # -- context manager -------------------------------------------------------------------
 
@@ -368,7 +365,7 @@ class Store:
         caller holds the lock and updates `sealed` to match."""
         manifest.commit(self.fs, self.file_path(MANIFEST))
         self.manifest = manifest
-        self._sealed_by_stream = None
+        self._sealed_spans = None
 
     def fail(self, err: BaseException) -> None:
         """Refuse further writes: what reached the disk is unknown (package-internal)."""
@@ -425,31 +422,9 @@ class Store:
         return [*self.sealed, *tail]
 
     def _sealed_index(self, seg: Segment) -> SegmentIndex:
-        """The sealed segment's index from its .idx file, rebuilt when missing or damaged."""
-        if seg._index is None:
-            if seg.size != seg.sealed_size:
-                # Never answer from a sealed segment that lost or gained bytes: a shorter one
-                # would otherwise give a silent hole.
-                raise CorruptionError(f"{seg.path} is {seg.size} bytes but the manifest says it was sealed "
-                                      f"at {seg.sealed_size}; its records cannot be trusted (run `cclog fsck`)",
-                                      path=seg.path, offset=min(seg.size, seg.sealed_size),
-                                      reason=Reason.SIZE_MISMATCH)  # fmt: skip
-            path = self._index_path(seg)
-            try:
-                seg._index = SegmentIndex.decode(self.fs.read_file(path), seg.first_seq, seg.size)
-            except (OSError, RecordError, ValueError, TypeError):
-                result = scan(seg)
-                problem = result.problem
-                if problem is None and result.next_seq != seg.next_seq:
-                    problem = Problem(seg.path, result.end, Reason.SEQ_GAP,
-                                      f"ends at seq {result.next_seq}, the manifest says {seg.next_seq}")  # fmt: skip
-                if problem:
-                    raise CorruptionError(f"{seg.path}: cannot rebuild the time index: {problem}",
-                                          path=seg.path, offset=problem.offset, reason=problem.reason)  # fmt: skip
-                seg._index = SegmentIndex.build(result.rows)
-                if not self.readonly and not self._closed:
-                    self.fs.write_file_atomic(path, seg._index.encode(seg.first_seq, seg.size))
-        return seg._index
+        """The sealed segment's index from its .idx file, rebuilt when missing or damaged
+        (and written back by an open writer)."""
+        return seg.sealed_index(self._index_path(seg), write_back=not self.readonly and not self._closed)
 
     def segment_first_seqs(self) -> list[int]:
         """First seq of every segment in log order: the sealed ones, then the active one
@@ -472,22 +447,11 @@ class Store:
 
     def _sealed_candidates(self, name: str, t0: int, t1: int) -> list[Segment]:
         """Sealed segments whose stream `name` may overlap [t0, t1], by binary search."""
-        if self._sealed_by_stream is None:
-            by_stream: dict[str, list[tuple[int, int, Segment]]] = {}
-            for seg, info in zip(self.sealed, self.manifest.segments):
-                for stream, st in info["streams"].items():
-                    by_stream.setdefault(stream, []).append((st["start_ns"], st["end_ns"], seg))
-            self._sealed_by_stream = {}
-            for stream, items in by_stream.items():
-                items.sort(key=lambda x: (x[0], x[2].first_seq))
-                starts = np.array([i[0] for i in items], dtype=np.int64)
-                run_max = np.maximum.accumulate(np.array([i[1] for i in items], dtype=np.int64))
-                self._sealed_by_stream[stream] = (starts, run_max, [i[2] for i in items])
-        found = self._sealed_by_stream.get(name)
-        if found is None:
-            return []
-        starts, run_max, segs = found
-        return segs[overlap_slice(starts, run_max, t0, t1)]
+        if self._sealed_spans is None:
+            self._sealed_spans = SegmentSpans(
+                (seg.first_seq, seg, info["streams"]) for seg, info in zip(self.sealed, self.manifest.segments)
+            )
+        return self._sealed_spans.overlapping(name, t0, t1)
 
     def streams(self) -> dict[str, dict[str, int]]:
         """Per stream: windows, messages, start_ns, end_ns, raw_bytes, stored_bytes, json_bytes,
@@ -539,7 +503,7 @@ class Store:
             # Windows already handed out keep their segment objects; once closed here they
             # say so rather than read a generation compaction may have deleted.
             self._close_segments()
-            self.sealed, self.unsealed, self._sealed_by_stream = [], [], None
+            self.sealed, self.unsealed, self._sealed_spans = [], [], None
             self.recovery = Recovery()
             self._open_segments_retrying()
 

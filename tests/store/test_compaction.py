@@ -308,7 +308,7 @@ def test_a_missing_generation_is_corruption(tmp_path):
 
 
 def test_a_record_of_unknown_flags_is_copied_by_a_rewrite(tmp_path):
-    from test_store_corruption import patch_header
+    from helpers import patch_header
 
     opts = OPTS | {"segment_records": 100}
     with cclogfs.open_store(tmp_path / "s", create=True, **opts) as store:
