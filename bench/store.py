@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import cclogfs
+from cclogfs.store.format import segment_name
 
 from ._util import OUT, machine, median_time, odom_messages, save_json
 
@@ -77,8 +78,9 @@ def bench_growth(work: Path, sizes: list[int]) -> list[dict]:
             t = time.perf_counter()
             n = sum(1 for w in store.query("/odom", t0, t0 + 1_000_000_000) for _ in w.messages())
             lat.append(time.perf_counter() - t)
+        active = store.file_path(segment_name(store.active_first_seq))
         store.close()
-        with open(store.active.path, "ab") as f:  # a crash mid-write: a torn record at the end
+        with open(active, "ab") as f:  # a crash mid-write: a torn record at the end
             f.write(b"CCLR\x01\x01" + b"\x07" * 50)
         opens = []
         for _ in range(5):
@@ -87,10 +89,11 @@ def bench_growth(work: Path, sizes: list[int]) -> list[dict]:
                                        segment_bytes=16 << 20)  # fmt: skip
             opens.append(time.perf_counter() - t)
             if len(opens) < 5:
+                active = store.file_path(segment_name(store.active_first_seq))
                 store.close()
-                with open(store.active.path, "ab") as f:
+                with open(active, "ab") as f:
                     f.write(b"CCLR\x01\x01" + b"\x07" * 50)
-        rows.append({"windows": size, "segments": len(store.sealed) + 1, "windows_per_query": n,
+        rows.append({"windows": size, "segments": store.segment_count(), "windows_per_query": n,
                      "query_ms_median": 1e3 * statistics.median(lat),
                      "query_ms_p99": 1e3 * sorted(lat)[int(len(lat) * 0.99) - 1],
                      "open_after_crash_ms_median": 1e3 * statistics.median(opens)})  # fmt: skip
