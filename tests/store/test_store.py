@@ -197,3 +197,28 @@ def test_closed_store(tmp_path):
         store.put_window("/a", [(0, "1")])
     with pytest.raises(StoreError, match="closed"):
         list(store.query())
+
+
+def test_public_catalogue_api(tmp_path):
+    # What upkeep, fsck and the CLI read instead of the store's private members.
+    from cclogfs.store import SealedSegment
+
+    path = tmp_path / "s"
+    with cclogfs.open_store(path, create=True, segment_records=3, sync_every_ms=None) as store:
+        for i in range(7):
+            store.put_window("/a" if i % 2 else "/b", [(i * 10, "1"), (i * 10 + 1, "2")])
+        sealed = store.sealed_segments()
+        assert [(s.first_seq, s.end_seq, s.gen, s.aged) for s in sealed] == [(0, 3, 0, {}), (3, 6, 0, {})]
+        assert all(isinstance(s, SealedSegment) for s in sealed)
+        assert sealed[0].streams["/b"]["windows"] == 2 and sealed[0].streams["/a"]["messages"] == 2
+        assert sealed[0].size == (path / "00000000000000000000.seg").stat().st_size
+        assert store.active_first_seq == 6 and store.segment_count() == 3
+        assert store.segment_first_seqs() == [0, 3, 6]
+        assert [w.seq for w in store.segment_windows(6)] == [6]
+        assert sorted(w.seq for w in store.segment_windows(3)) == [3, 4, 5]
+        assert store.format_version == 1 and len(store.store_id) == 32
+        store_id = store.store_id
+    with cclogfs.open_store(path, readonly=True) as reader:
+        assert reader.active_first_seq is None and reader.segment_count() == 3
+        assert reader.store_id == store_id and reader.sealed_segments() == sealed
+        assert [w.offset for w in reader.segment_windows(6)] == [32]
