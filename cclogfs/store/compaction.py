@@ -123,7 +123,7 @@ def _records(seg: Segment, end_seq: int) -> Iterator[tuple[Record, bytes]]:
     seq = seg.first_seq
     try:
         for rec in records(source, SEGMENT_HEADER_SIZE, seg.size, seg.first_seq):
-            yield rec, bytes(source.read(rec.offset, rec.header.record_len))
+            yield rec, source.read(rec.offset, rec.header.record_len)
             seq = rec.header.seq + 1
     except RecordError as err:
         raise CorruptionError(f"{seg.path}: record at offset {err.offset} is damaged: {err}; the segment "
@@ -175,7 +175,7 @@ def _replay(codecs: Codecs, seg: Segment, end_seq: int, fn: Callable) -> _Replay
         header, rep = rec.header, None
         if rec.skip is None:
             rep = fn(Window(header.name, header.seq, header.start_ns, header.end_ns, header.count, seg,
-                            rec.offset, header.record_len, record=(header, bytes(rec.payload))))  # fmt: skip
+                            rec.offset, header.record_len, record=(header, rec.payload)))  # fmt: skip
         if rep is None:
             record, out.kept = data, out.kept + 1
             new_header = header

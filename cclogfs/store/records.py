@@ -57,9 +57,9 @@ class BytesAt:
     def __init__(self, data: bytes, base: int = 0):
         self.data, self.base = data, base
 
-    def read(self, offset: int, n: int) -> bytes | memoryview:
+    def read(self, offset: int, n: int) -> bytes:
         start = offset - self.base
-        return memoryview(self.data)[start : start + n]
+        return self.data[start : start + n]
 
 
 def read_record(source: Source, offset: int, available: int) -> tuple[RecordHeader, bytes]:
@@ -67,8 +67,8 @@ def read_record(source: Source, offset: int, available: int) -> tuple[RecordHead
     verified; `available` is how many bytes the file holds from `offset`. Raises
     RecordError (with `offset` set) naming the reason."""
     try:
-        header_len = check_fixed(bytes(source.read(offset, RECORD_FIXED_SIZE)), available)
-        header = parse_header(bytes(source.read(offset, header_len)))
+        header_len = check_fixed(source.read(offset, RECORD_FIXED_SIZE), available)
+        header = parse_header(source.read(offset, header_len))
         payload = source.read(offset + header_len, header.enc_len)
         check_payload(header, payload)
     except RecordError as err:
@@ -77,13 +77,13 @@ def read_record(source: Source, offset: int, available: int) -> tuple[RecordHead
     return header, payload
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Record:
     """One record of a segment in log order: where it is, what it says, whether to skip it."""
 
     offset: int
     header: RecordHeader
-    payload: bytes | memoryview
+    payload: bytes
     skip: str | None  # a Reason for an intact record of another kind, version or flags
 
     @property

@@ -140,7 +140,7 @@ class Segment:
                 f"{self.path}: record at offset {offset} is damaged: {err}",
                 path=self.path, offset=offset, reason=err.reason,
             ) from err  # fmt: skip
-        return header, bytes(payload)
+        return header, payload
 
 
 def open_segment(fs: FileSystem, path: str, *, write: bool,
