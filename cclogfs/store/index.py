@@ -86,8 +86,10 @@ class SegmentIndex:
         if len(data) < INDEX_HEADER.size + 8:
             raise RecordError(Reason.TORN, f"index of {len(data)} bytes")
         magic, version, _flags, seq, size, count, names_len = INDEX_HEADER.unpack_from(data)
-        if magic != INDEX_MAGIC or version != FILE_VERSION:
-            raise RecordError(Reason.BAD_MAGIC, "not a version 1 index")
+        if magic != INDEX_MAGIC:
+            raise RecordError(Reason.BAD_MAGIC, f"not an index: {magic!r}")
+        if version != FILE_VERSION:
+            raise RecordError(Reason.UNSUPPORTED_VERSION, f"index version {version}")
         expect = INDEX_HEADER.size + names_len + count * ENTRY.itemsize + 8
         if len(data) != expect or names_len > count * (MAX_NAME * 6 + 4) + 2:
             raise RecordError(Reason.BAD_LENGTH, f"index is {len(data)} bytes, expected {expect}")

@@ -314,7 +314,7 @@ def test_a_record_of_unknown_flags_is_copied_by_a_rewrite(tmp_path):
     with cclogfs.open_store(tmp_path / "s", create=True, **opts) as store:
         for i in range(3):
             store.put_window("/a", [(i, "1"), (i, "2")])
-        offsets = {w.seq: w._offset for w in store.query()}
+        offsets = {w.seq: w.offset for w in store.query()}
     patch_header(tmp_path / "s" / "00000000000000000000.seg", offsets[1], flags=4)  # a newer writer's flag
     with cclogfs.open_store(tmp_path / "s", **opts) as store:
         assert [w.seq for w in store.query()] == [0, 2] and store.recovery.skipped

@@ -63,6 +63,7 @@ def test_decode_refuses_damage_with_its_reason():
     data = SegmentIndex.build(rows(20)).encode(10, 12345)
     assert _decode_error(data[:10]) == Reason.TORN
     assert _decode_error(b"XXXX" + data[4:]) == Reason.BAD_MAGIC
+    assert _decode_error(data[:4] + b"\x02" + data[5:]) == Reason.UNSUPPORTED_VERSION
     assert _decode_error(data + b"\0") == Reason.BAD_LENGTH
     flipped = bytearray(data)
     flipped[INDEX_HEADER.size + 3] ^= 1
