@@ -110,12 +110,11 @@ def records(source: Source, start: int, size: int, first_seq: int) -> Iterator[R
         seq += 1
 
 
-def count_intact(data: bytes, skip_first: bool = True) -> int:
-    """How many intact records (framing and checksums hold) lie in `data`, found by their
-    magic. The first byte is not a candidate when `skip_first`: it is the damaged record
-    a scan stopped at."""
+def count_intact(data: bytes) -> int:
+    """How many intact records (framing and checksums hold) lie in `data` past its first
+    byte, found by their magic: `data` starts at the record a scan stopped at."""
     source = BytesAt(data)
-    found, pos = 0, data.find(RECORD_MAGIC, 1 if skip_first else 0)
+    found, pos = 0, data.find(RECORD_MAGIC, 1)
     while pos >= 0:
         try:
             header, _payload = read_record(source, pos, len(data) - pos)
