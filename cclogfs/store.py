@@ -22,7 +22,7 @@ import numpy as np
 from . import compaction
 from ._signals import signals_deferred as _signals_deferred
 from .compaction import Dropped, Replacement, RewriteReport
-from .codecs import Codec, codec_from_config, codec_numeric_id, raw_size
+from .codecs import Codec, codec_for_record, codec_from_config, codec_numeric_id, raw_size
 from .errors import (
     CorruptionError,
     InvalidInputError,
@@ -139,7 +139,7 @@ class Window:
     def messages(self) -> Iterator[tuple[int, str]]:
         """(stamp_ns, JSON text) of each message, exactly as put."""
         header, payload = self._read()
-        codec = codec_from_config(json.loads(header.config))
+        codec = codec_for_record(header.config)
         if codec_numeric_id(codec) != header.codec:
             raise CorruptionError(
                 f"{self._segment.path}: record at offset {self._offset} names codec "
@@ -147,7 +147,7 @@ class Window:
                 path=self._segment.path, offset=self._offset, reason=Reason.BAD_LENGTH,
             )  # fmt: skip
         stamps, texts = codec.decode(payload, count=header.count, raw_len=header.raw_len)
-        return zip(stamps, (t.decode("utf-8") for t in texts))
+        return zip(stamps, texts)
 
     def __repr__(self) -> str:
         return f"Window({self.name!r}, seq={self.seq}, {self.start_ns}..{self.end_ns}, count={self.count})"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import operator
+import re
 import unicodedata
 from collections.abc import Sequence
 
@@ -10,6 +11,8 @@ from .errors import InvalidInputError
 from .format import MAX_COUNT, MAX_NAME, MAX_NS, MIN_NS
 from .jsoncheck import json_error
 
+# A lone surrogate: a str can hold one, UTF-8 cannot encode it.
+_SURROGATE = re.compile("[\ud800-\udfff]")
 
 
 def check_stream_name(name: object) -> bytes:
@@ -30,8 +33,12 @@ def check_stream_name(name: object) -> bytes:
     return data
 
 
-def encode_messages(messages: Sequence[tuple[int, str]], *, check_json: bool = True) -> tuple[list[int], list[bytes]]:
-    """Stamps and UTF-8 texts of a window, every message checked (JSON, time order)."""
+def encode_messages(messages: Sequence[tuple[int, str]], *, check_json: bool = True) -> tuple[list[int], list[str]]:
+    """Stamps and texts of a window, every message checked (JSON, UTF-8, time order).
+
+    The texts stay `str` (the codecs take text); each is checked to be encodable as UTF-8
+    without being encoded: ASCII at once, any other by a search for lone surrogates.
+    """
     try:
         count = len(messages)
     except TypeError as err:
@@ -41,7 +48,7 @@ def encode_messages(messages: Sequence[tuple[int, str]], *, check_json: bool = T
     if count > MAX_COUNT:
         raise InvalidInputError(f"a window holds at most {MAX_COUNT} messages, got {count}")
     stamps: list[int] = []
-    texts: list[bytes] = []
+    texts: list[str] = []
     prev = MIN_NS
     for i, item in enumerate(messages):
         try:
@@ -64,9 +71,8 @@ def encode_messages(messages: Sequence[tuple[int, str]], *, check_json: bool = T
             raise InvalidInputError(f"message {i}: the JSON text must be a str, got {type(text).__name__}")
         if check_json and (why := json_error(text)) is not None:
             raise InvalidInputError(f"message {i} is not well-formed JSON: {why}")
-        try:
-            texts.append(text.encode("utf-8"))
-        except UnicodeEncodeError as err:
-            raise InvalidInputError(f"message {i} is not valid UTF-8 text: {err.reason}") from err
+        if not text.isascii() and _SURROGATE.search(text):
+            raise InvalidInputError(f"message {i} is not valid UTF-8 text: surrogates not allowed")
+        texts.append(text)
         stamps.append(stamp)
     return stamps, texts
