@@ -17,7 +17,7 @@ from typing import Any, NamedTuple, Protocol
 
 from ._signals import signals_deferred as _signals_deferred
 from .errors import InvalidInputError, StoreError
-from .jsoncheck import json_error
+from .jsontext.check import json_error
 from .compact import Upkeep
 from .store import Store, open_store
 

@@ -9,7 +9,7 @@ from collections.abc import Sequence
 
 from .errors import InvalidInputError
 from .format import MAX_COUNT, MAX_NAME, MAX_NS, MIN_NS
-from .jsoncheck import json_error
+from .jsontext.check import json_error
 
 # A lone surrogate: a str can hold one, UTF-8 cannot encode it.
 _SURROGATE = re.compile("[\ud800-\udfff]")

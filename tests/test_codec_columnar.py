@@ -311,7 +311,7 @@ def test_golden_payloads_decode():
 def _topics(path: Path) -> dict[str, list[tuple[int, bytes]]]:
     from rosbags.highlevel import AnyReader
 
-    from cclogfs.rosjson import message_to_json
+    from cclogfs.jsontext.ros import message_to_json
 
     by_topic: dict[str, list[tuple[int, bytes]]] = {}
     with AnyReader([path]) as reader:

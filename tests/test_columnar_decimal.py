@@ -334,7 +334,7 @@ def test_unrounded_real_data_is_written_as_version_3_wrote_it(shared_data):
     10^15 limit keeps equal-length float reprs, as on /tf, out of DECIMAL)."""
     from rosbags.highlevel import AnyReader
 
-    from cclogfs.rosjson import message_to_json
+    from cclogfs.jsontext.ros import message_to_json
 
     by_topic: dict[str, list[tuple[int, bytes]]] = {}
     with AnyReader([shared_data("nav2_turtlebot.mcap")]) as reader:

@@ -6,7 +6,7 @@ import heapq
 from collections.abc import Iterable, Iterator
 from typing import TextIO
 
-from ..ingest.jsonl import format_line
+from ..jsontext.lines import format_line
 from .base import Progress, Window
 
 
