@@ -17,7 +17,7 @@ from typing import Any, NamedTuple, Protocol
 
 from ._signals import signals_deferred as _signals_deferred
 from .errors import InvalidInputError, StoreError
-from .jsontext.check import json_error
+from .jsontext.check import text_error
 from .compact import Upkeep
 from .store import Store, open_store
 
@@ -107,13 +107,12 @@ class RecordStats:
         self.topics_in[topic] = self.topics_in.get(topic, 0) + 1
 
 
-def check_message(topic: str, stamp_ns: Any, text: Any) -> None:
+def check_message(topic: str, stamp_ns: Any, text: Any, *, check_json: bool = True) -> None:
     """InvalidInputError for a message the store would refuse, before any policy holds it
-    (a window refused later would lose the good messages it holds too)."""
-    if not isinstance(text, str):
-        raise InvalidInputError(f"message on {topic!r} at {stamp_ns}: the JSON text must be a str")
-    if (why := json_error(text)) is not None:
-        raise InvalidInputError(f"message on {topic!r} at {stamp_ns} is not well-formed JSON: {why}")
+    (a window refused later would lose the good messages it holds too). The store's own
+    check (`text_error`); `check_json=False` skips only the JSON parse."""
+    if (why := text_error(text, check_json=check_json)) is not None:
+        raise InvalidInputError(f"message on {topic!r} at {stamp_ns} {why}")
 
 
 def store_window(store: Store, window: Any, stats: RecordStats) -> None:
@@ -132,23 +131,23 @@ def store_window(store: Store, window: Any, stats: RecordStats) -> None:
 
 
 def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
-           trusted_json: bool = False, progress: Callable[[RecordStats], None] | None = None,
+           check_json: bool = True, progress: Callable[[RecordStats], None] | None = None,
            stats: RecordStats | None = None, upkeep: Upkeep | None = None) -> RecordStats:  # fmt: skip
     """Feed messages (objects with .topic, .stamp_ns, .text) through `policy` into `store`.
 
     On any exit, Ctrl-C included, the policy's open windows are flushed into the store, so
     nothing already seen is lost; the caller closes (and so syncs) the store.
-    `trusted_json`: the source already parsed every text (JSONL, bags), skip the re-check.
+    `check_json=False`: the source already parsed every text (JSONL, bags), skip the
+    JSON re-parse (the cheap checks still run: a window the store refused would lose the
+    good messages it holds).
     `upkeep`: retention and aging as segments are sealed (`compact.Upkeep`); the caller
     closes it before the store.
     """
     stats = stats or RecordStats()
     started = time.perf_counter()
-    check = not trusted_json
     try:
         for m in messages:
-            if check:
-                check_message(m.topic, m.stamp_ns, m.text)
+            check_message(m.topic, m.stamp_ns, m.text, check_json=check_json)
             stats.saw(m.topic, m.text)
             # A window taken from the policy must reach the store: with interrupt_handler
             # installed, Ctrl-C waits for the end of this section.

@@ -3,16 +3,12 @@
 from __future__ import annotations
 
 import operator
-import re
 import unicodedata
 from collections.abc import Sequence
 
 from .errors import InvalidInputError
 from .format import MAX_COUNT, MAX_NAME, MAX_NS, MIN_NS
-from .jsontext.check import json_error
-
-# A lone surrogate: a str can hold one, UTF-8 cannot encode it.
-_SURROGATE = re.compile("[\ud800-\udfff]")
+from .jsontext.check import text_error
 
 
 def check_stream_name(name: object) -> bytes:
@@ -36,8 +32,8 @@ def check_stream_name(name: object) -> bytes:
 def encode_messages(messages: Sequence[tuple[int, str]], *, check_json: bool = True) -> tuple[list[int], list[str]]:
     """Stamps and texts of a window, every message checked (JSON, UTF-8, time order).
 
-    The texts stay `str` (the codecs take text); each is checked to be encodable as UTF-8
-    without being encoded: ASCII at once, any other by a search for lone surrogates.
+    The texts stay `str` (the codecs take text); `text_error` checks each, without
+    encoding it, and `check_json=False` skips only the JSON parse.
     """
     try:
         count = len(messages)
@@ -67,12 +63,8 @@ def encode_messages(messages: Sequence[tuple[int, str]], *, check_json: bool = T
             raise InvalidInputError(f"message {i}: stamp_ns {stamp} is before the previous message's {prev}; "
                                     "times in a window must not decrease")  # fmt: skip
         prev = stamp
-        if not isinstance(text, str):
-            raise InvalidInputError(f"message {i}: the JSON text must be a str, got {type(text).__name__}")
-        if check_json and (why := json_error(text)) is not None:
-            raise InvalidInputError(f"message {i} is not well-formed JSON: {why}")
-        if not text.isascii() and _SURROGATE.search(text):
-            raise InvalidInputError(f"message {i} is not valid UTF-8 text: surrogates not allowed")
+        if (why := text_error(text, check_json=check_json)) is not None:
+            raise InvalidInputError(f"message {i} {why}")
         texts.append(text)
         stamps.append(stamp)
     return stamps, texts
