@@ -2,7 +2,7 @@
 
 With the CLI, this is the only place that knows both the classifier and the store. A
 *window policy* is any object with `push(topic, stamp_ns, text) -> [window]` and
-`flush() -> [window]`, where a window has `.topic`, `.messages` and `.meta`:
+`flush() -> [window]`, each a `PendingWindow` (topic, messages, meta):
 `KeepAll` keeps every message (the paper's collect mode), the classifier's `SmartLogger`
 keeps only logging windows around anomalies (smart mode).
 """
@@ -13,9 +13,10 @@ import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple, Protocol
+from typing import Any, Protocol
 
 from ._signals import signals_deferred as _signals_deferred
+from .classifier.windows import PendingWindow
 from .errors import InvalidInputError, StoreError
 from .jsontext.check import text_error
 from .compact import Upkeep
@@ -32,18 +33,10 @@ WINDOW_BEFORE = "8s"
 WINDOW_AFTER = "8s"
 
 
-class Chunk(NamedTuple):
-    """A window to store: messages of one topic and the window's metadata."""
-
-    topic: str
-    messages: list[tuple[int, str]]
-    meta: dict
-
-
 class WindowPolicy(Protocol):
-    def push(self, topic: str, stamp_ns: int, text: str) -> list[Any]: ...
+    def push(self, topic: str, stamp_ns: int, text: str) -> list[PendingWindow]: ...
 
-    def flush(self) -> list[Any]: ...
+    def flush(self) -> list[PendingWindow]: ...
 
 
 class KeepAll:
@@ -56,7 +49,7 @@ class KeepAll:
         self.chunk_ns = None if chunk_s is None else int(chunk_s * 1e9)
         self.open: dict[str, list[tuple[int, str]]] = {}
 
-    def push(self, topic: str, stamp_ns: int, text: str) -> list[Chunk]:
+    def push(self, topic: str, stamp_ns: int, text: str) -> list[PendingWindow]:
         buf = self.open.setdefault(topic, [])
         out = []
         if buf and self.chunk_ns is not None and stamp_ns - buf[0][0] >= self.chunk_ns:
@@ -67,10 +60,10 @@ class KeepAll:
             out.append(self._close(topic))
         return out
 
-    def _close(self, topic: str) -> Chunk:
-        return Chunk(topic, self.open.pop(topic), {"kind": "all"})
+    def _close(self, topic: str) -> PendingWindow:
+        return PendingWindow(topic, self.open.pop(topic), {"kind": "all"})
 
-    def flush(self) -> list[Chunk]:
+    def flush(self) -> list[PendingWindow]:
         return [self._close(t) for t in list(self.open) if self.open[t]]
 
 
@@ -115,7 +108,7 @@ def check_message(topic: str, stamp_ns: Any, text: Any, *, check_json: bool = Tr
         raise InvalidInputError(f"message on {topic!r} at {stamp_ns} {why}")
 
 
-def store_window(store: Store, window: Any, stats: RecordStats) -> None:
+def store_window(store: Store, window: PendingWindow, stats: RecordStats) -> None:
     """Put one window (several records when its stamps go backwards). Its messages were
     checked when they came in (`check_message`), so the store does not parse them again."""
     runs = list(monotonic_runs(window.messages))

@@ -185,7 +185,7 @@ def test_logger_embedded_in_a_live_program(tmp_path, shared_data):
 def test_interrupt_while_storing_a_window_loses_nothing(tmp_path):
     # The signal arrives in the middle of put_window: the window taken from the policy
     # is still stored, then the run stops and the rest is flushed.
-    from cclogfs.pipeline import Chunk, interrupt_handler
+    from cclogfs.pipeline import interrupt_handler
 
     class Msg:
         def __init__(self, i):
