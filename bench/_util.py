@@ -41,7 +41,7 @@ def topic_messages(path: Path, topic: str, *, stamp: str = "header") -> list[tup
     stamp is header.stamp (the log time when there is none), or the log time (stamp="log")."""
     from rosbags.highlevel import AnyReader
 
-    from cclogfs.rosjson import MessageConverter, message_stamp_ns
+    from cclogfs.jsontext.ros import MessageConverter, message_stamp_ns
 
     to_json = MessageConverter().to_json
     out = []

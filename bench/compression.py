@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from bench._util import DATA, median_time  # noqa: E402
 from cclogfs.codecs import codec_from_config, raw_size  # noqa: E402
-from cclogfs.rosjson import message_to_json  # noqa: E402
+from cclogfs.jsontext.ros import message_to_json  # noqa: E402
 
 try:
     import liblzfse  # pyliblzfse, the reference LZFSE implementation

@@ -5,7 +5,7 @@
 
 Measured on ../shared/data/nav2_turtlebot.mcap (8,197 messages, all topics). Each figure
 is printed beside a baseline measured in the same run, so the ratio holds on any machine:
-  bag:   rosbags read+deserialize only; rosjson.message_to_json (uncached) conversion
+  bag:   rosbags read+deserialize only; jsontext.ros.message_to_json (uncached) conversion
   jsonl: a bare `json.loads` per line; json.loads + re-dumping msg (what slicing avoids)
 "pipeline" adds the ingest side of recording: JSONL written out (convert), or windows of
 100 messages put into a store and synced (the classifier is not included).
@@ -28,7 +28,7 @@ sys.path.insert(0, str(ROOT))
 from rosbags.highlevel import AnyReader  # noqa: E402
 
 from cclogfs.ingest import format_line, open_source  # noqa: E402
-from cclogfs.rosjson import message_stamp_ns, message_to_json  # noqa: E402
+from cclogfs.jsontext.ros import message_stamp_ns, message_to_json  # noqa: E402
 
 BAG = ROOT.parent / "shared" / "data" / "nav2_turtlebot.mcap"
 
@@ -142,7 +142,7 @@ def main() -> int:
         r = args.runs
         rows = [
             ("bag", "rosbags read + deserialize only (baseline)", rate(bag_deserialize_only, r)),
-            ("bag", "read + rosjson.message_to_json uncached", rate(bag_rosjson_uncached, r)),
+            ("bag", "read + jsontext.ros.message_to_json uncached", rate(bag_rosjson_uncached, r)),
             ("bag", "RosbagSource (read + JSON text)", rate(lambda: read_all(BAG), r)),
             ("bag", "pipeline: convert to JSONL file", rate(lambda: convert(BAG, tmpdir / "o.jsonl"), r)),
             ("bag", "pipeline: into a store, 100-msg windows", rate(lambda: to_store(BAG, tmpdir / "s1"), r)),

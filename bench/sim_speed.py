@@ -21,7 +21,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from cclogfs.rosjson import message_to_json  # noqa: E402
+from cclogfs.jsontext.ros import message_to_json  # noqa: E402
 from cclogfs.sim import simulate  # noqa: E402
 
 

@@ -20,7 +20,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from cclogfs.rosjson import message_stamp_ns  # noqa: E402
+from cclogfs.jsontext.ros import message_stamp_ns  # noqa: E402
 from cclogfs.sim import simulate  # noqa: E402
 
 PCTS = (1, 5, 25, 50, 75, 95, 99)

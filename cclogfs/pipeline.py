@@ -2,7 +2,7 @@
 
 With the CLI, this is the only place that knows both the classifier and the store. A
 *window policy* is any object with `push(topic, stamp_ns, text) -> [window]` and
-`flush() -> [window]`, where a window has `.topic`, `.messages` and `.meta`:
+`flush() -> [window]`, each a `PendingWindow` (topic, messages, meta):
 `KeepAll` keeps every message (the paper's collect mode), the classifier's `SmartLogger`
 keeps only logging windows around anomalies (smart mode).
 """
@@ -13,11 +13,12 @@ import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple, Protocol
+from typing import Any, Protocol
 
 from ._signals import signals_deferred as _signals_deferred
+from .classifier.windows import PendingWindow
 from .errors import InvalidInputError, StoreError
-from .jsoncheck import json_error
+from .jsontext.check import text_error
 from .compact import Upkeep
 from .store import Store, open_store
 
@@ -32,18 +33,10 @@ WINDOW_BEFORE = "8s"
 WINDOW_AFTER = "8s"
 
 
-class Chunk(NamedTuple):
-    """A window to store: messages of one topic and the window's metadata."""
-
-    topic: str
-    messages: list[tuple[int, str]]
-    meta: dict
-
-
 class WindowPolicy(Protocol):
-    def push(self, topic: str, stamp_ns: int, text: str) -> list[Any]: ...
+    def push(self, topic: str, stamp_ns: int, text: str) -> list[PendingWindow]: ...
 
-    def flush(self) -> list[Any]: ...
+    def flush(self) -> list[PendingWindow]: ...
 
 
 class KeepAll:
@@ -56,7 +49,7 @@ class KeepAll:
         self.chunk_ns = None if chunk_s is None else int(chunk_s * 1e9)
         self.open: dict[str, list[tuple[int, str]]] = {}
 
-    def push(self, topic: str, stamp_ns: int, text: str) -> list[Chunk]:
+    def push(self, topic: str, stamp_ns: int, text: str) -> list[PendingWindow]:
         buf = self.open.setdefault(topic, [])
         out = []
         if buf and self.chunk_ns is not None and stamp_ns - buf[0][0] >= self.chunk_ns:
@@ -67,10 +60,10 @@ class KeepAll:
             out.append(self._close(topic))
         return out
 
-    def _close(self, topic: str) -> Chunk:
-        return Chunk(topic, self.open.pop(topic), {"kind": "all"})
+    def _close(self, topic: str) -> PendingWindow:
+        return PendingWindow(topic, self.open.pop(topic), {"kind": "all"})
 
-    def flush(self) -> list[Chunk]:
+    def flush(self) -> list[PendingWindow]:
         return [self._close(t) for t in list(self.open) if self.open[t]]
 
 
@@ -107,16 +100,15 @@ class RecordStats:
         self.topics_in[topic] = self.topics_in.get(topic, 0) + 1
 
 
-def check_message(topic: str, stamp_ns: Any, text: Any) -> None:
+def check_message(topic: str, stamp_ns: Any, text: Any, *, check_json: bool = True) -> None:
     """InvalidInputError for a message the store would refuse, before any policy holds it
-    (a window refused later would lose the good messages it holds too)."""
-    if not isinstance(text, str):
-        raise InvalidInputError(f"message on {topic!r} at {stamp_ns}: the JSON text must be a str")
-    if (why := json_error(text)) is not None:
-        raise InvalidInputError(f"message on {topic!r} at {stamp_ns} is not well-formed JSON: {why}")
+    (a window refused later would lose the good messages it holds too). The store's own
+    check (`text_error`); `check_json=False` skips only the JSON parse."""
+    if (why := text_error(text, check_json=check_json)) is not None:
+        raise InvalidInputError(f"message on {topic!r} at {stamp_ns} {why}")
 
 
-def store_window(store: Store, window: Any, stats: RecordStats) -> None:
+def store_window(store: Store, window: PendingWindow, stats: RecordStats) -> None:
     """Put one window (several records when its stamps go backwards). Its messages were
     checked when they came in (`check_message`), so the store does not parse them again."""
     runs = list(monotonic_runs(window.messages))
@@ -132,23 +124,23 @@ def store_window(store: Store, window: Any, stats: RecordStats) -> None:
 
 
 def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
-           trusted_json: bool = False, progress: Callable[[RecordStats], None] | None = None,
+           check_json: bool = True, progress: Callable[[RecordStats], None] | None = None,
            stats: RecordStats | None = None, upkeep: Upkeep | None = None) -> RecordStats:  # fmt: skip
     """Feed messages (objects with .topic, .stamp_ns, .text) through `policy` into `store`.
 
     On any exit, Ctrl-C included, the policy's open windows are flushed into the store, so
     nothing already seen is lost; the caller closes (and so syncs) the store.
-    `trusted_json`: the source already parsed every text (JSONL, bags), skip the re-check.
+    `check_json=False`: the source already parsed every text (JSONL, bags), skip the
+    JSON re-parse (the cheap checks still run: a window the store refused would lose the
+    good messages it holds).
     `upkeep`: retention and aging as segments are sealed (`compact.Upkeep`); the caller
     closes it before the store.
     """
     stats = stats or RecordStats()
     started = time.perf_counter()
-    check = not trusted_json
     try:
         for m in messages:
-            if check:
-                check_message(m.topic, m.stamp_ns, m.text)
+            check_message(m.topic, m.stamp_ns, m.text, check_json=check_json)
             stats.saw(m.topic, m.text)
             # A window taken from the policy must reach the store: with interrupt_handler
             # installed, Ctrl-C waits for the end of this section.

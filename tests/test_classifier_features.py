@@ -30,10 +30,10 @@ def synthetic(n=600, rate=20.0, seed=0):
 
 @pytest.mark.parametrize("fid", ["default", "paper"])
 def test_batch_equals_incremental(fid):
-    fs = make_features({"id": fid, "params": {"window": 40, "stride": 2}} if fid == "paper" else fid)
+    feature_set = make_features({"id": fid, "params": {"window": 40, "stride": 2}} if fid == "paper" else fid)
     odom = synthetic()
-    X, valid = fs.batch(odom)
-    stream = fs.stream()
+    X, valid = feature_set.batch(odom)
+    stream = feature_set.stream()
     for i, (stamp, row) in enumerate(zip(odom.stamp_ns.tolist(), odom.raw)):
         got = stream.push(stamp, row)
         if got is None:
@@ -47,9 +47,9 @@ def test_batch_equals_incremental(fid):
 
 
 def test_default_features_restart_after_gap_and_hold_on_bad_messages():
-    fs = make_features("default")
+    feature_set = make_features("default")
     odom = synthetic()
-    X, valid = fs.batch(odom)
+    X, valid = feature_set.batch(odom)
     assert not valid[300:315].any()  # 1 s warm-up after the 3 s gap (20 Hz)
     assert valid[330]
     np.testing.assert_array_equal(X[200], X[199])  # NaN message repeats the vector
@@ -58,34 +58,34 @@ def test_default_features_restart_after_gap_and_hold_on_bad_messages():
 
 def test_default_features_invariant_to_position_and_heading():
     odom = synthetic()
-    fs = make_features("default")
-    X, valid = fs.batch(odom)
+    feature_set = make_features("default")
+    X, valid = feature_set.batch(odom)
     moved = odom.raw.copy()
     a = 2.0  # rotate the world by 2 rad and shift it
     c, s = np.cos(a), np.sin(a)
     moved[:, 0], moved[:, 1] = c * odom.raw[:, 0] - s * odom.raw[:, 1] + 50, s * odom.raw[:, 0] + c * odom.raw[:, 1] - 7
     yaw = 2 * np.arctan2(odom.raw[:, 5], odom.raw[:, 6]) + a
     moved[:, 5], moved[:, 6] = np.sin(yaw / 2), np.cos(yaw / 2)
-    X2, _ = fs.batch(OdomArrays(odom.stamp_ns, moved))
+    X2, _ = feature_set.batch(OdomArrays(odom.stamp_ns, moved))
     np.testing.assert_allclose(X2[valid], X[valid], atol=1e-6)
 
 
 def test_default_features_similar_across_rates(shared_data):
     odom = parse_odometry(read_odometry(shared_data("nav2_turtlebot.mcap")))
-    fs = make_features("default")
+    feature_set = make_features("default")
     med = []
     for rate in (10, 100):
-        X, valid = fs.batch(resample(odom, rate, jitter_s=0.1 / rate))
+        X, valid = feature_set.batch(resample(odom, rate, jitter_s=0.1 / rate))
         med.append(np.median(X[valid], axis=0))
     # turning in place is an integral: the same at any rate
     np.testing.assert_allclose(med[0][8], med[1][8], rtol=0.05, atol=0.01)
 
 
 def test_paper_features_have_paper_size():
-    fs = make_features("paper")
-    assert fs.dim == 3250
+    feature_set = make_features("paper")
+    assert feature_set.dim == 3250
     odom = synthetic(n=520)
-    X, valid = fs.batch(odom)
+    X, valid = feature_set.batch(odom)
     assert valid.sum() == 520 - 498
     np.testing.assert_array_equal(X[-1][-13:], odom.raw[-1])  # newest message last
 

@@ -31,7 +31,7 @@ def fixed(m: int, d: int) -> str:
     return format(Decimal(m).scaleb(-d), "f")
 
 
-def round_trip(texts: list[bytes], codec=V4) -> bytes:
+def round_trip(texts: list[str], codec=V4) -> bytes:
     stamps = [1_000_000 * i for i in range(len(texts))]
     data = codec.encode(stamps, texts)
     assert codec.decode(data, count=len(texts), raw_len=raw_size(stamps, texts)) == (stamps, texts)
@@ -68,10 +68,10 @@ def first_group_rows(data: bytes, count: int) -> int:
     return rows
 
 
-def window(columns_of_tokens: list[list[str]]) -> list[bytes]:
+def window(columns_of_tokens: list[list[str]]) -> list[str]:
     """One JSON text per row, key c<j> holding token j of that row verbatim."""
     rows = zip(*columns_of_tokens)
-    return [("{" + ", ".join(f'"c{j}": {t}' for j, t in enumerate(row)) + "}").encode()
+    return [("{" + ", ".join(f'"c{j}": {t}' for j, t in enumerate(row)) + "}")
             for row in rows]
 
 
@@ -233,7 +233,7 @@ def test_order_follows_the_column():
 def test_golden_windows_hold_decimal_columns(case):
     """The v4 goldens with fixed-point values pin DECIMAL's layout, not only FLOAT's."""
     rows = [json.loads(line) for line in (GOLDEN / case / "inputs.jsonl").read_text().splitlines()]
-    texts = [base64.b64decode(r["text_b64"]) for r in rows]
+    texts = [base64.b64decode(r["text_b64"]).decode() for r in rows]
     stamps = [r["stamp_ns"] for r in rows]
     data = (GOLDEN / case / "encoded.bin").read_bytes()
     assert V4.decode(data, count=len(texts), raw_len=raw_size(stamps, texts)) == (stamps, texts)
@@ -334,12 +334,12 @@ def test_unrounded_real_data_is_written_as_version_3_wrote_it(shared_data):
     10^15 limit keeps equal-length float reprs, as on /tf, out of DECIMAL)."""
     from rosbags.highlevel import AnyReader
 
-    from cclogfs.rosjson import message_to_json
+    from cclogfs.jsontext.ros import message_to_json
 
     by_topic: dict[str, list[tuple[int, bytes]]] = {}
     with AnyReader([shared_data("nav2_turtlebot.mcap")]) as reader:
         for con, stamp, raw in reader.messages():
-            text = message_to_json(reader.deserialize(raw, con.msgtype)).encode()
+            text = message_to_json(reader.deserialize(raw, con.msgtype))
             by_topic.setdefault(con.topic, []).append((stamp, text))
     v3 = ColumnarCodec(version=3)
     for topic, messages in by_topic.items():

@@ -137,7 +137,7 @@ def test_cli_refuses_bad_arguments_and_leaves_the_store_alone(tmp_path, capsys, 
 def test_real_log_ages_within_bound_and_shrinks(tmp_path, shared_data):
     from rosbags.highlevel import AnyReader
 
-    from cclogfs.rosjson import MessageConverter, message_stamp_ns
+    from cclogfs.jsontext.ros import MessageConverter, message_stamp_ns
 
     to_json = MessageConverter().to_json
     with AnyReader([shared_data("nav2_turtlebot.mcap")]) as reader, \

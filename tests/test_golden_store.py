@@ -5,7 +5,8 @@ import shutil
 from pathlib import Path
 
 import cclogfs
-from cclogfs.store.format import pack_record, CodecId
+from cclogfs.codecs import CodecId
+from cclogfs.store.format import pack_record
 
 GOLDEN = Path(__file__).parent / "golden"
 
@@ -30,7 +31,7 @@ def test_record_bytes_are_pinned():
 
     data = (GOLDEN / "store_v1" / "00000000000000000001.seg").read_bytes()
     texts = [b'{"a" :1.0, "b":[ ]}', b' "\\u00e9" ']
-    raw = frame([1_000_000_000, 1_000_000_001], texts)
+    raw = frame([1_000_000_000, 1_000_000_001], [t.decode() for t in texts])
     record = pack_record(seq=2, start_ns=1_000_000_000, end_ns=1_000_000_001, count=2, codec=CodecId.NONE,
                          name=b"/tf", config=b'{"id":"none"}', meta=b"{}", raw_len=len(raw), payload=raw)  # fmt: skip
     assert record in data
@@ -71,7 +72,7 @@ def test_aged_record_bytes_are_pinned():
     data = (GOLDEN / "store_v2" / "00000000000000000002-1.seg").read_bytes()
     (w,) = [w for w in json.loads((GOLDEN / "store_v2.expected.json").read_text())["windows"] if w["seq"] == 2]
     stamps = [m[0] for m in w["messages"]]
-    raw = frame(stamps, [m[1].encode() for m in w["messages"]])
+    raw = frame(stamps, [m[1] for m in w["messages"]])
     meta = json.dumps(w["meta"], separators=(",", ":")).encode()
     record = pack_record(seq=2, start_ns=stamps[0], end_ns=stamps[-1], count=len(stamps), codec=CodecId.NONE,
                          name=b"/tf", config=b'{"id":"none"}', meta=meta, raw_len=len(raw), payload=raw,

@@ -1,4 +1,4 @@
-"""rosjson's cached converter gives the rosbridge spelling, checked against a plain
+"""jsontext.ros's cached converter gives the rosbridge spelling, checked against a plain
 recursive reference on every message of the shared data."""
 
 import base64
@@ -8,7 +8,7 @@ import json
 import numpy as np
 from rosbags.highlevel import AnyReader
 
-from cclogfs.rosjson import MessageConverter, message_to_json
+from cclogfs.jsontext.ros import MessageConverter, message_to_json
 
 
 def reference(value):

@@ -18,7 +18,7 @@ from cclogfs.ingest import (
     detect_format,
     open_source,
 )
-from cclogfs.rosjson import message_stamp_ns, message_to_json
+from cclogfs.jsontext.ros import message_stamp_ns, message_to_json
 
 BAGS = {
     "nav2_turtlebot.mcap": ("rosbag2", {"/odom": 2639, "/tf": 5422, "/tf_static": 1, "/amcl_pose": 135}),
@@ -36,7 +36,7 @@ def test_every_message_of_every_bag(shared_data, name):
         assert isinstance(src, Source)
         msgs = list(src)
     assert Counter(m.topic for m in msgs) == counts
-    # The same texts and stamps as converting each message with rosjson directly.
+    # The same texts and stamps as converting each message with jsontext.ros directly.
     with AnyReader([path]) as reader:
         expect = []
         for con, logtime, raw in reader.messages():

@@ -55,7 +55,7 @@ def test_record_everything_from_a_bag_is_exact(tmp_path, shared_data):
         for m in source:
             want.setdefault(m.topic, []).append((m.stamp_ns, m.text))
     with cclogfs.open_store(tmp_path / "s", create=True) as store, open_source(bag) as source:
-        stats = record(source, store, KeepAll(chunk=150), trusted_json=True)
+        stats = record(source, store, KeepAll(chunk=150), check_json=False)
         assert stats.messages_in == stats.messages_kept == sum(map(len, want.values()))
         for topic, messages in want.items():
             got = sorted(store.query(topic), key=lambda w: w.seq)
@@ -185,7 +185,7 @@ def test_logger_embedded_in_a_live_program(tmp_path, shared_data):
 def test_interrupt_while_storing_a_window_loses_nothing(tmp_path):
     # The signal arrives in the middle of put_window: the window taken from the policy
     # is still stored, then the run stops and the rest is flushed.
-    from cclogfs.pipeline import Chunk, interrupt_handler
+    from cclogfs.pipeline import interrupt_handler
 
     class Msg:
         def __init__(self, i):
@@ -250,3 +250,16 @@ def test_a_bad_message_is_refused_at_the_door_and_takes_no_window_with_it(tmp_pa
         assert [t for w in store.query() for t, _ in w.messages()] == [1, 2, 4]
     with pytest.raises(cclogfs.StoreError, match="closed"):
         log("/a", 5, "{}")
+
+
+def test_unchecked_json_still_gets_the_stores_other_checks_at_the_door(tmp_path):
+    """check_json=False skips only the parse: a text the store would refuse (a lone
+    surrogate) stops the run at that message, and the window it would have joined is kept."""
+    from types import SimpleNamespace as M
+
+    messages = [M(topic="/a", stamp_ns=1, text='{"v":1}'), M(topic="/a", stamp_ns=2, text='"\ud800"')]
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        with pytest.raises(cclogfs.InvalidInputError, match="'/a' at 2 is not valid UTF-8"):
+            record(messages, store, KeepAll(chunk=3), check_json=False)
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        assert [t for w in store.query() for t, _ in w.messages()] == [1]

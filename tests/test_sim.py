@@ -11,7 +11,7 @@ from rosbags.highlevel import AnyReader
 
 from cclogfs.cli import main
 from cclogfs.errors import InvalidInputError
-from cclogfs.rosjson import message_stamp_ns, message_to_json
+from cclogfs.jsontext.ros import message_stamp_ns, message_to_json
 from cclogfs.sim import KIND_GROUPS, KINDS, simulate
 
 

@@ -8,13 +8,13 @@ from .evaluate import event_table, format_event_table, format_message_table, mes
 from .features import DefaultFeatures, OdomArrays, PaperFeatures, make_features, parse_odometry
 from .model import OneClassModel
 from .summary import SUMMARY_TOPIC, SummaryBuilder
-from .windows import LoggedWindow, WindowBuilder
+from .windows import PendingWindow, WindowBuilder
 
 __all__ = [
     "SUMMARY_TOPIC",
     "DefaultFeatures",
     "Detector",
-    "LoggedWindow",
+    "PendingWindow",
     "OdomArrays",
     "OneClassModel",
     "PaperFeatures",

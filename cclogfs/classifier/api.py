@@ -13,7 +13,7 @@ from ..errors import InvalidInputError, ModelError
 from .features import OdomArrays, make_features, odom_row, parse_odometry
 from .model import OneClassModel
 from .summary import SUMMARY_TOPIC, SummaryBuilder
-from .windows import LoggedWindow, WindowBuilder
+from .windows import PendingWindow, WindowBuilder
 
 __all__ = ["Detector", "SmartLogger", "collect", "event_masks", "load_dataset", "parse_labels", "train"]
 
@@ -68,21 +68,21 @@ def train(
     with one per run. Vectors that depend on an event are left out of the nominal set; the
     ones inside events select nu/gamma. `params` go to OneClassModel.
     """
-    fs = make_features(features)
+    feature_set = make_features(features)
     sources = [_as_odom(s) for s in sources]
     per_run = labels if isinstance(labels, list) else [labels] * len(sources)
     if len(per_run) != len(sources):
         raise InvalidInputError(f"Got {len(per_run)} label sets for {len(sources)} runs.")
     nominal, anomalous = [], []
     for odom, lab in zip(sources, per_run):
-        X, valid = fs.batch(odom)
-        inside, touched = event_masks(fs, odom.stamp_ns, lab)
+        X, valid = feature_set.batch(odom)
+        inside, touched = event_masks(feature_set, odom.stamp_ns, lab)
         nominal.append(X[valid & ~touched])
         anomalous.append(X[valid & inside])
-    if fs.id == "default":
+    if feature_set.id == "default":
         params.setdefault("min_scale", DEFAULT_FLOORS)
         params.setdefault("one_sided", True)
-    model = OneClassModel(feature_config=fs.get_config(), **params)
+    model = OneClassModel(feature_config=feature_set.get_config(), **params)
     Xa = np.concatenate(anomalous)
     return model.fit(np.concatenate(nominal), Xa if len(Xa) else None)
 
@@ -131,7 +131,7 @@ class Detector:
 
 
 class SmartLogger:
-    """Turns a stream of (topic, stamp_ns, json_text) into LoggedWindows to store.
+    """Turns a stream of (topic, stamp_ns, json_text) into PendingWindows to store.
 
     Odometry on `odom_topic` is scored; windows come from WindowBuilder (same keyword
     arguments); per-minute summaries come out as windows on `/cclog/summary`. With
@@ -154,7 +154,7 @@ class SmartLogger:
         self.scored = 0
         self.anomalies = 0
 
-    def push(self, topic: str, stamp_ns: int, text: str) -> list[LoggedWindow]:
+    def push(self, topic: str, stamp_ns: int, text: str) -> list[PendingWindow]:
         """One message; returns the windows (and summaries) that closed."""
         if topic != self.odom_topic:
             if self._pending:
@@ -171,10 +171,10 @@ class SmartLogger:
         self._pending.append((topic, stamp_ns, text, row, vec is not None))
         return self._drain() if len(self._pending) >= self.batch else []
 
-    def _drain(self) -> list[LoggedWindow]:
+    def _drain(self) -> list[PendingWindow]:
         """Score the held odometry vectors at once, then run the windows over the held messages."""
         scores = iter(self.detector.model.score(np.array(self._vectors)).tolist() if self._vectors else ())
-        out: list[LoggedWindow] = []
+        out: list[PendingWindow] = []
         for topic, stamp_ns, text, row, scored in self._pending:
             if row is None:
                 out += self.windows.push(topic, stamp_ns, text)
@@ -185,7 +185,7 @@ class SmartLogger:
         self._vectors.clear()
         return out
 
-    def _odom(self, stamp_ns, text, row, score, flag) -> list[LoggedWindow]:
+    def _odom(self, stamp_ns, text, row, score, flag) -> list[PendingWindow]:
         self.scored += 1
         self.anomalies += flag
         out = self.windows.push(self.odom_topic, stamp_ns, text, anomalous=flag, score=score)
@@ -194,7 +194,7 @@ class SmartLogger:
             out += [self._summary_window(r) for r in recs]
         return out
 
-    def flush(self) -> list[LoggedWindow]:
+    def flush(self) -> list[PendingWindow]:
         """End of input: close the open window and the current summary period."""
         out = self._drain() + self.windows.flush()
         if self.summary is not None:
@@ -202,22 +202,22 @@ class SmartLogger:
         return out
 
     @staticmethod
-    def _summary_window(rec: tuple[int, str]) -> LoggedWindow:
-        return LoggedWindow(SUMMARY_TOPIC, [rec], {"kind": "summary"})
+    def _summary_window(rec: tuple[int, str]) -> PendingWindow:
+        return PendingWindow(SUMMARY_TOPIC, [rec], {"kind": "summary"})
 
-    def run(self, stream: Iterable[tuple[str, int, str]]) -> Iterator[LoggedWindow]:
+    def run(self, stream: Iterable[tuple[str, int, str]]) -> Iterator[PendingWindow]:
         """Live mode over an iterable: yields windows as they close, then the flush."""
         for topic, stamp_ns, text in stream:
             yield from self.push(topic, stamp_ns, text)
         yield from self.flush()
 
-    def replay(self, messages: list[tuple[str, int, str]]) -> list[LoggedWindow]:
+    def replay(self, messages: list[tuple[str, int, str]]) -> list[PendingWindow]:
         """A recorded run at once: odometry parsed and scored in batch (same results as
         `run`, from a fresh detector), then the window logic in one pass."""
         odom_at = [i for i, m in enumerate(messages) if m[0] == self.odom_topic]
         odom = parse_odometry(messages[i][2] for i in odom_at)
         scores, flags = self.detector.score_batch(odom)
-        out: list[LoggedWindow] = []
+        out: list[PendingWindow] = []
         j = 0
         raw = odom.raw.tolist()
         for i, (topic, stamp_ns, text) in enumerate(messages):
@@ -234,18 +234,18 @@ def collect(source, out_dir: str | Path, *, features: dict | str | None = "defau
     """Write a run's feature vectors as a labelled dataset (as in the paper): one `.npy`
     per vector under `nominal/` or `anomalous/`, and `dataset.json` with the feature
     config. Vectors that depend on an event but are not inside it are skipped."""
-    fs = make_features(features)
+    feature_set = make_features(features)
     odom = _as_odom(source)
-    X, valid = fs.batch(odom)
-    inside, touched = event_masks(fs, odom.stamp_ns, labels)
+    X, valid = feature_set.batch(odom)
+    inside, touched = event_masks(feature_set, odom.stamp_ns, labels)
     out = Path(out_dir)
     meta_path = out / "dataset.json"
     if meta_path.exists():
         meta = json.loads(meta_path.read_text())
-        if meta.get("feature_config") != fs.get_config():
+        if meta.get("feature_config") != feature_set.get_config():
             raise InvalidInputError(f"{meta_path} holds vectors of other features: {meta}.")
     else:
-        meta = {"feature_config": fs.get_config(), "nominal": 0, "anomalous": 0}
+        meta = {"feature_config": feature_set.get_config(), "nominal": 0, "anomalous": 0}
     for kind, mask in (("nominal", valid & ~touched), ("anomalous", valid & inside)):
         (out / kind).mkdir(parents=True, exist_ok=True)
         for i in np.nonzero(mask)[0]:

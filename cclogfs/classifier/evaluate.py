@@ -7,7 +7,7 @@ from typing import Iterable
 import numpy as np
 
 from .api import parse_labels
-from .windows import LoggedWindow
+from .windows import PendingWindow
 
 __all__ = ["event_table", "format_event_table", "format_message_table", "message_table",
            "window_spans"]  # fmt: skip
@@ -35,7 +35,7 @@ def message_table(stamp_ns: np.ndarray, flags: np.ndarray, labels) -> dict:
             "precision": _ratio(tp, tp + fp), "recall": _ratio(tp, tp + fn)}  # fmt: skip
 
 
-def window_spans(windows: Iterable[LoggedWindow], topic: str = "/odom") -> list[tuple[int, int]]:
+def window_spans(windows: Iterable[PendingWindow], topic: str = "/odom") -> list[tuple[int, int]]:
     """(start_ns, end_ns) of each stored window of `topic`, parts joined by window_id."""
     spans: dict[str, list[int]] = {}
     for w in windows:

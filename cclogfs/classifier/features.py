@@ -188,9 +188,9 @@ class PaperFeatures:
 
 
 class _PaperStream:
-    def __init__(self, fs: PaperFeatures):
-        self.stride = fs.params["stride"]
-        self.rows: deque = deque(maxlen=fs.span)
+    def __init__(self, feature_set: PaperFeatures):
+        self.stride = feature_set.params["stride"]
+        self.rows: deque = deque(maxlen=feature_set.span)
 
     def push(self, stamp_ns: int, row: Any) -> tuple[np.ndarray, bool] | None:
         """(vector, True) once the window is full, else None."""
@@ -411,10 +411,11 @@ class _DefaultStream:
     here than the arithmetic).
     """
 
-    def __init__(self, fs: DefaultFeatures):
-        self.fs = fs
-        self.deriv_ns, self.match_ns, self.short_ns = fs._deriv, fs._match, fs._short
-        self.long_ns, self.flip_ns, self.gap_ns, self.warmup_ns = fs._long, fs._flip, fs._gap, fs._warmup
+    def __init__(self, feature_set: DefaultFeatures):
+        self.feature_set = feature_set
+        f = feature_set
+        self.deriv_ns, self.match_ns, self.short_ns = f._deriv, f._match, f._short
+        self.long_ns, self.flip_ns, self.gap_ns, self.warmup_ns = f._long, f._flip, f._gap, f._warmup
         self.last: tuple[np.ndarray, bool] | None = None
         self.prev: tuple | None = None  # (t, yaw, vx, vy, wz) of the last accepted message
         self._reset()
@@ -463,7 +464,7 @@ class _DefaultStream:
             c1 += (s * mvx + c * mvy) * dt
             c2 += mw * dt
             c3 += dyaw
-            if hypot(mvx, mvy) < self.fs.creep:
+            if hypot(mvx, mvy) < self.feature_set.creep:
                 c4 += mw * dt
             self.cum = (c0, c1, c2, c3, c4)
         self.prev = (t, yaw, vx, vy, wz)
@@ -514,7 +515,7 @@ class _DefaultStream:
         # The two reversal counters below are written out rather than shared: on this path a
         # call per message costs more than the counting (the inlining took push from 4.41 to
         # 3.64 us a message).
-        h = self.fs.yaw_flip
+        h = self.feature_set.yaw_flip
         if wz > h or wz < -h:
             sign = 1 if wz > 0 else -1
             if self.yaw_state and sign != self.yaw_state:
@@ -525,7 +526,7 @@ class _DefaultStream:
         while q and q[0] < bound:
             q.popleft()
         vec.append(len(q))
-        h = self.fs.dir_flip
+        h = self.feature_set.dir_flip
         if vx > h or vx < -h:
             sign = 1 if vx > 0 else -1
             if self.dir_state and sign != self.dir_state:

@@ -23,7 +23,7 @@ def read_odometry(path: str | Path, topic: str = "/odom") -> list[str]:
     """Rosbridge JSON texts of one topic of a bag or MCAP file, in log order."""
     from rosbags.highlevel import AnyReader
 
-    from ..rosjson import message_to_json
+    from ..jsontext.ros import message_to_json
 
     with AnyReader([Path(path)]) as reader:
         conns = [c for c in reader.connections if c.topic == topic]

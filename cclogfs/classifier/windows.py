@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 from ..errors import InvalidInputError
 
-__all__ = ["LoggedWindow", "WindowBuilder"]
+__all__ = ["PendingWindow", "WindowBuilder"]
 
 MAX_TRIGGERS_IN_META = 100
 MAX_LATCHED = 64  # distinct texts kept per latched topic
@@ -35,8 +35,10 @@ CLOCK_RESET_NS = 1_000_000_000  # small backward jitter is not a reset
 
 
 @dataclass
-class LoggedWindow:
-    """Messages of one topic to store as one unit, with the window's metadata."""
+class PendingWindow:
+    """A window to store: messages of one topic, in arrival order, with the window's
+    metadata. What a window policy emits (WindowBuilder here, the pipeline's KeepAll) and
+    the pipeline hands to the store, which keeps it as a record."""
 
     topic: str
     messages: list[tuple[int, str]]
@@ -68,7 +70,7 @@ class _Open:
 
 
 class WindowBuilder:
-    """Feed (topic, stamp_ns, text) in arrival order; get LoggedWindows as they close."""
+    """Feed (topic, stamp_ns, text) in arrival order; get PendingWindows as they close."""
 
     def __init__(
         self,
@@ -112,7 +114,7 @@ class WindowBuilder:
     def push(
         self, topic: str, stamp_ns: int, text: str, *, anomalous: bool = False,
         score: float = math.nan,
-    ) -> list[LoggedWindow]:  # fmt: skip
+    ) -> list[PendingWindow]:  # fmt: skip
         """One message; `anomalous`/`score` matter only on the trigger topic."""
         if topic in self.latched_topics:
             kept = self.latched.setdefault(topic, {})
@@ -126,7 +128,7 @@ class WindowBuilder:
             return []
         if topic != self.trigger_topic:
             return self._push_other(topic, stamp_ns, text)
-        out: list[LoggedWindow] = []
+        out: list[PendingWindow] = []
         last, self.last_trigger_ns = self.last_trigger_ns, stamp_ns
         if last is not None and stamp_ns < last - CLOCK_RESET_NS:
             self._reset(out)
@@ -165,18 +167,18 @@ class WindowBuilder:
                 self._trim_ring(stamp_ns)
         return out
 
-    def flush(self) -> list[LoggedWindow]:
+    def flush(self) -> list[PendingWindow]:
         """End of input: emit the open window, if any."""
-        out: list[LoggedWindow] = []
+        out: list[PendingWindow] = []
         if self.window is not None:
             self._close(out)
         return out
 
     # -- internals --------------------------------------------------------------------
 
-    def _push_other(self, topic: str, stamp_ns: int, text: str) -> list[LoggedWindow]:
+    def _push_other(self, topic: str, stamp_ns: int, text: str) -> list[PendingWindow]:
         w = self.window
-        out: list[LoggedWindow] = []
+        out: list[PendingWindow] = []
         if w is not None and not w.closing and w.start_ns <= stamp_ns <= w.last_ns:
             self._add(topic, [(stamp_ns, text)], out)
             return out
@@ -204,7 +206,7 @@ class WindowBuilder:
         for topic in self.pending:
             self._trim_pending(topic)
 
-    def _reset(self, out: list[LoggedWindow]) -> None:
+    def _reset(self, out: list[PendingWindow]) -> None:
         """Clock reset: close the open window; nothing before the gap joins a later one."""
         if self.window is not None:
             self._close(out)
@@ -219,7 +221,7 @@ class WindowBuilder:
         while q and q[0][0] < oldest:
             q.popleft()
 
-    def _open(self, stamp_ns: int, out: list[LoggedWindow]) -> None:
+    def _open(self, stamp_ns: int, out: list[PendingWindow]) -> None:
         start = self.ring[0][0]
         self.window = _Open(window_id=f"w{start}", start_ns=start, last_ns=stamp_ns)
         self._add(self.trigger_topic, list(self.ring), out)
@@ -242,7 +244,7 @@ class WindowBuilder:
         if (self.after if self.after_ns is None else self.after_ns) == 0:
             w.closing = True  # nothing to log after the anomaly
 
-    def _take_pending(self, upto_ns: int, out: list[LoggedWindow]) -> None:
+    def _take_pending(self, upto_ns: int, out: list[PendingWindow]) -> None:
         for topic, q in self.pending.items():
             batch = []
             while q and q[0][0] <= upto_ns:
@@ -250,7 +252,7 @@ class WindowBuilder:
             if batch:
                 self._add(topic, batch, out)
 
-    def _add(self, topic: str, msgs: list[tuple[int, str]], out: list[LoggedWindow]) -> None:
+    def _add(self, topic: str, msgs: list[tuple[int, str]], out: list[PendingWindow]) -> None:
         # A part goes out only when a message beyond it exists, so the final part is never empty.
         part = self.window.parts.setdefault(topic, [])
         part.extend(msgs)
@@ -269,15 +271,15 @@ class WindowBuilder:
             "peak_ns": w.peak_ns, "model_id": self.model_id,
         }  # fmt: skip
 
-    def _emit(self, topic: str, *, final: bool) -> LoggedWindow:
+    def _emit(self, topic: str, *, final: bool) -> PendingWindow:
         w = self.window
         msgs = sorted(w.parts[topic][: self.max_part], key=lambda m: m[0])
         w.parts[topic] = w.parts[topic][self.max_part :]
         part = w.part_no.get(topic, 0)
         w.part_no[topic] = part + 1
-        return LoggedWindow(topic, msgs, self._meta(final) | {"part": part})
+        return PendingWindow(topic, msgs, self._meta(final) | {"part": part})
 
-    def _close(self, out: list[LoggedWindow]) -> None:
+    def _close(self, out: list[PendingWindow]) -> None:
         w = self.window
         self._take_pending(w.last_ns, out)
         for topic in list(w.parts):
@@ -287,6 +289,6 @@ class WindowBuilder:
             msgs = sorted(((s, t) for t, s in kept.items()), key=lambda m: m[0])
             dropped = self.latched_dropped.get(topic, 0)
             meta = {"part": 0, "latched": True, "latched_dropped": dropped}
-            out.append(LoggedWindow(topic, msgs, self._meta(True) | meta))
+            out.append(PendingWindow(topic, msgs, self._meta(True) | meta))
         self.window = None
         self.windows_emitted += 1

@@ -152,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
             messages = _tee_odometry(source, args.odom_topic, rows) if args.features_out else source
             ended = False  # the input ran out, with no error or interrupt
             try:
-                record(messages, store, policy, trusted_json=True, progress=tick, stats=stats, upkeep=upkeep)
+                record(messages, store, policy, check_json=False, progress=tick, stats=stats, upkeep=upkeep)
                 ended = not stats.interrupted
             except KeyboardInterrupt:  # arrived once the input had ended: all was stored
                 stats.interrupted = True

@@ -1,19 +1,25 @@
-"""Codec registry: maps codec ids (the string in a config, and the number in a record
-header) to codec classes. New codecs register here; an unknown id is a clear error."""
+"""Codecs: turn one window's messages into bytes and back. The registry (registry.py)
+owns the string ids and the numeric ids stored in record headers."""
 
 from __future__ import annotations
 
-from typing import Any
-
-from ..errors import CodecError, UnknownCodecError
-from ..store.format import CodecId
-from .base import ByteCodec, Codec, frame, raw_size, unframe
+from .base import ByteCodec, Codec, frame, raw_size, unframe, utf8_size
 from .columnar import ColumnarCodec
+from .registry import (
+    CodecId,
+    codec_for_record,
+    codec_from_config,
+    codec_numeric_id,
+    register,
+    registered_ids,
+)
 from .simple import LzmaCodec, NoneCodec, ZstdCodec
 
 __all__ = [
     "ByteCodec",
     "Codec",
+    "CodecId",
+    "codec_for_record",
     "codec_from_config",
     "codec_numeric_id",
     "frame",
@@ -21,40 +27,8 @@ __all__ = [
     "register",
     "registered_ids",
     "unframe",
+    "utf8_size",
 ]
-
-_BY_NAME: dict[str, type[Codec]] = {}
-_NUMERIC: dict[str, CodecId] = {}
-
-
-def register(cls: type[Codec], numeric_id: CodecId) -> type[Codec]:
-    """Add a codec class under its string id and its on-disk numeric id."""
-    _BY_NAME[cls.codec_id] = cls
-    _NUMERIC[cls.codec_id] = numeric_id
-    return cls
-
-
-def registered_ids() -> list[str]:
-    return sorted(_BY_NAME)
-
-
-def codec_numeric_id(codec: Codec) -> CodecId:
-    return _NUMERIC[codec.codec_id]
-
-
-def codec_from_config(config: dict[str, Any] | str) -> Codec:
-    """A codec instance from a config dict (or a bare id such as "zstd")."""
-    if isinstance(config, str):
-        config = {"id": config}
-    if not isinstance(config, dict) or not isinstance(config.get("id"), str):
-        raise CodecError(f"a codec config must be a dict with a string 'id', got {config!r}")
-    cls = _BY_NAME.get(config["id"])
-    if cls is None:
-        raise UnknownCodecError(
-            f"unknown codec {config['id']!r}; known codecs: {', '.join(registered_ids())}"
-        )
-    return cls.from_config(config)
-
 
 register(NoneCodec, CodecId.NONE)
 register(ZstdCodec, CodecId.ZSTD)

@@ -4,11 +4,17 @@ Modelled on numcodecs: a codec has a string id, `encode`, `decode`, `get_config(
 (a JSON-able dict that includes the id) and `from_config()`. The store writes the config
 into every record, so a record always says how to decode itself.
 
-A window is two parallel sequences: `stamps` (int nanoseconds) and `texts` (the UTF-8
-bytes of each message's JSON text, exactly as put). `raw_len` is the size of the
-canonical framing of the window (see `raw_size`); it comes from the record's checksummed
-header, and a decoder must never allocate more than that (plus a constant), whatever the
-encoded bytes claim.
+A window is two parallel sequences: `stamps` (int nanoseconds) and `texts` (each
+message's JSON text as a `str`, exactly as put). Texts cross the boundary as `str`
+because the columnar codec works on text: the store hands over what it was given and
+gets back what it returns, with no UTF-8 round trip in between. Byte codecs frame the
+UTF-8 themselves. Stored bytes that are not UTF-8 (the store never writes them, but a
+payload can hold them) come back as surrogate escapes (PEP 383), so every payload
+decodes to exactly the bytes it holds.
+
+`raw_len` is the size of the canonical framing of the window in UTF-8 (see `raw_size`);
+it comes from the record's checksummed header, and a decoder must never allocate more
+than that (plus a constant), whatever the encoded bytes claim.
 """
 
 from __future__ import annotations
@@ -21,21 +27,39 @@ from typing import Any, ClassVar
 from ..errors import CodecError
 
 _COUNT = struct.Struct("<I")
+# How texts become bytes and back at the codec's edge: UTF-8, any stray byte escaped.
+UTF8_ERRORS = "surrogateescape"
 
 
-def raw_size(stamps: Sequence[int], texts: Sequence[bytes]) -> int:
+def utf8_size(texts: Sequence[str]) -> int:
+    """The UTF-8 byte length of the texts together. JSON is mostly ASCII, and an ASCII
+    text's length is its byte length: only other texts are encoded to be measured."""
+    joined = "".join(texts)
+    return len(joined) if joined.isascii() else len(joined.encode("utf-8", UTF8_ERRORS))
+
+
+def encode_texts(texts: Sequence[str]) -> list[bytes]:
+    """The UTF-8 bytes of each text; a lone surrogate (not an escaped byte) is a CodecError."""
+    try:
+        return [t.encode("utf-8", UTF8_ERRORS) for t in texts]
+    except UnicodeEncodeError as err:
+        raise CodecError(f"a text holds {err.object[err.start:err.end]!r}, which UTF-8 cannot encode") from err
+
+
+def raw_size(stamps: Sequence[int], texts: Sequence[str]) -> int:
     """Size of the canonical framing: u32 count, count*i64 stamps, count*u32 lengths, texts."""
-    return 4 + 12 * len(stamps) + sum(len(t) for t in texts)
+    return 4 + 12 * len(stamps) + utf8_size(texts)
 
 
-def frame(stamps: Sequence[int], texts: Sequence[bytes]) -> bytes:
+def frame(stamps: Sequence[int], texts: Sequence[str]) -> bytes:
     """The canonical framing of a window (what byte-oriented codecs compress)."""
     n = len(stamps)
-    head = struct.pack(f"<I{n}q{n}I", n, *stamps, *(len(t) for t in texts))
-    return head + b"".join(texts)
+    data = encode_texts(texts)
+    head = struct.pack(f"<I{n}q{n}I", n, *stamps, *map(len, data))
+    return head + b"".join(data)
 
 
-def unframe(raw: bytes | memoryview, count: int) -> tuple[list[int], list[bytes]]:
+def unframe(raw: bytes | memoryview, count: int) -> tuple[list[int], list[str]]:
     """Inverse of `frame`, checking every length against the buffer."""
     raw = memoryview(raw)
     if len(raw) < 4 + 12 * count or _COUNT.unpack_from(raw, 0)[0] != count:
@@ -47,7 +71,7 @@ def unframe(raw: bytes | memoryview, count: int) -> tuple[list[int], list[bytes]
         raise CodecError("decoded window framing lengths do not add up to the payload size")
     texts = []
     for n in lengths:
-        texts.append(bytes(raw[pos : pos + n]))
+        texts.append(str(raw[pos : pos + n], "utf-8", UTF8_ERRORS))
         pos += n
     return stamps, texts
 
@@ -58,11 +82,11 @@ class Codec(ABC):
     codec_id: ClassVar[str]
 
     @abstractmethod
-    def encode(self, stamps: Sequence[int], texts: Sequence[bytes]) -> bytes:
+    def encode(self, stamps: Sequence[int], texts: Sequence[str]) -> bytes:
         """Encode one window. Must be exactly reversible by `decode`."""
 
     @abstractmethod
-    def decode(self, data: bytes, *, count: int, raw_len: int) -> tuple[list[int], list[bytes]]:
+    def decode(self, data: bytes, *, count: int, raw_len: int) -> tuple[list[int], list[str]]:
         """Decode one window of `count` messages whose framing is `raw_len` bytes."""
 
     def get_config(self) -> dict[str, Any]:
@@ -88,10 +112,10 @@ class ByteCodec(Codec):
     def decompress(self, data: bytes, raw_len: int) -> bytes:
         """Must fail (CodecError) rather than produce more than raw_len bytes."""
 
-    def encode(self, stamps: Sequence[int], texts: Sequence[bytes]) -> bytes:
+    def encode(self, stamps: Sequence[int], texts: Sequence[str]) -> bytes:
         return self.compress(frame(stamps, texts))
 
-    def decode(self, data: bytes, *, count: int, raw_len: int) -> tuple[list[int], list[bytes]]:
+    def decode(self, data: bytes, *, count: int, raw_len: int) -> tuple[list[int], list[str]]:
         raw = self.decompress(data, raw_len)
         if len(raw) != raw_len:
             raise CodecError(

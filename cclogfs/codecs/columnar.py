@@ -11,6 +11,7 @@ The payload layout is specified in docs/CODEC_COLUMNAR.md.
 
 from __future__ import annotations
 
+import re
 import threading
 from collections.abc import Sequence
 from typing import Any
@@ -20,7 +21,7 @@ import xxhash
 import zstandard
 
 from ..errors import CodecError
-from .base import Codec
+from .base import UTF8_ERRORS, Codec, encode_texts, utf8_size
 from .columnar_format import (
     BODY_FACTOR,
     BODY_SLACK,
@@ -187,11 +188,15 @@ def _decode_group(reader: Reader, n: int, budget: int, version: int) -> list[str
     return [fmt % row for row in zip(*varying)]
 
 
-def _utf8_or_none(data: bytes) -> str | None:
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError:
-        return None
+# A surrogate code point: an escaped byte that is not UTF-8 (see base), or a stray one.
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+def _shapeable(texts: Sequence[str]) -> list[str | None]:
+    """The texts the shape matcher may see: those with a surrogate are stored verbatim."""
+    if "".join(texts).isascii():
+        return list(texts)
+    return [None if _SURROGATE.search(t) else t for t in texts]
 
 
 class ColumnarCodec(Codec):
@@ -224,7 +229,7 @@ class ColumnarCodec(Codec):
             self._local.state = state
         return state
 
-    def encode(self, stamps: Sequence[int], texts: Sequence[bytes]) -> bytes:
+    def encode(self, stamps: Sequence[int], texts: Sequence[str]) -> bytes:
         count = len(stamps)
         if len(texts) != count:
             raise CodecError(f"a window needs one stamp per text, got {count} and {len(texts)}")
@@ -233,11 +238,7 @@ class ColumnarCodec(Codec):
         except OverflowError as err:
             raise CodecError("a window stamp does not fit in a signed 64-bit integer") from err
         compressor, _, matcher = self._state()
-        try:
-            strs: list[str | None] = [t.decode("utf-8") for t in texts]
-        except UnicodeDecodeError:
-            strs = [_utf8_or_none(t) for t in texts]
-        groups, _ = matcher.group_window(strs)
+        groups, _ = matcher.group_window(_shapeable(texts))
         ids = np.full(count, RAW_GROUP, dtype="<u2")
         bodies = []
         parts = [part for literals, indices, rows in groups for part in _split_by_label(literals, indices, rows)]
@@ -258,14 +259,15 @@ class ColumnarCodec(Codec):
             write_packed(stamp_words, body, offset=self.version >= 3)
         for data in bodies:
             body += data
-        _write_blob([texts[i] for i in raw_indices], [len(texts[i]) for i in raw_indices], body)
-        raw_len = 4 + 12 * count + sum(map(len, texts))
+        raw_texts = encode_texts([texts[i] for i in raw_indices])
+        _write_blob(raw_texts, [len(t) for t in raw_texts], body)
+        raw_len = 4 + 12 * count + utf8_size(texts)
         if len(body) > BODY_FACTOR * raw_len + BODY_SLACK:  # pragma: no cover - cannot happen
             raise CodecError("columnar body would exceed its decoding bound")
         frame = compressor.compress(bytes(body))
         return HEADER.pack(self.version, len(body), xxhash.xxh32_intdigest(frame)) + frame
 
-    def decode(self, data: bytes, *, count: int, raw_len: int) -> tuple[list[int], list[bytes]]:
+    def decode(self, data: bytes, *, count: int, raw_len: int) -> tuple[list[int], list[str]]:
         text_budget = raw_len - 4 - 12 * count
         if count < 0 or text_budget < 0:
             raise CodecError(f"a window of {count} messages cannot have a raw size of {raw_len}")
@@ -295,18 +297,18 @@ class ColumnarCodec(Codec):
             stamps = read_packed(reader, count, "stamps", offset=version >= 3).tolist()
         order = np.argsort(ids, kind="stable")
         sizes = np.bincount(ids[ids != RAW_GROUP], minlength=n_groups).tolist()
-        out: list[bytes] = [b""] * count
+        out: list[str] = [""] * count
         pos, total = 0, 0
         for g in range(n_groups):
             if sizes[g] == 0:
                 raise CodecError(f"columnar payload is corrupt: group {g} has no messages")
-            encoded = [t.encode("utf-8") for t in _decode_group(reader, sizes[g], text_budget, version)]
-            total += sum(map(len, encoded))
+            texts = _decode_group(reader, sizes[g], text_budget, version)
+            total += utf8_size(texts)
             if sizes[g] == count:  # one group holds the whole window, in order
-                out = encoded
+                out = texts
             else:
-                for i, data in zip(order[pos : pos + sizes[g]].tolist(), encoded):
-                    out[i] = data
+                for i, text in zip(order[pos : pos + sizes[g]].tolist(), texts):
+                    out[i] = text
             if total > text_budget:
                 raise CodecError("columnar payload renders more text than the window holds")
             pos += sizes[g]
@@ -316,7 +318,7 @@ class ColumnarCodec(Codec):
             raise CodecError("columnar payload is corrupt: raw text lengths do not add up")
         start = 0
         for i, length in zip(raw_positions, lengths.tolist()):
-            out[i] = bytes(blob[start : start + length])
+            out[i] = str(blob[start : start + length], "utf-8", UTF8_ERRORS)
             start += length
         total += len(blob)
         if reader.pos != len(body):

@@ -10,8 +10,13 @@ from typing import Any, Protocol
 Progress = Callable[[int], None]
 
 
-class Window(Protocol):
-    """One stored logging window of one stream."""
+class StoredWindow(Protocol):
+    """One stored window of one stream: the read shape of the store's `Window`.
+
+    A Protocol, not the store's class: an exporter needs only this shape, so export does
+    not depend on the storage engine and any iterable of such windows (a query, a test's
+    fake, a filter over a query) can be exported.
+    """
 
     name: str
     seq: int

@@ -6,12 +6,12 @@ import heapq
 from collections.abc import Iterable, Iterator
 from typing import TextIO
 
-from ..ingest.jsonl import format_line
-from .base import Progress, Window
+from ..jsontext.lines import format_line
+from .base import Progress, StoredWindow
 
 
 def merged_messages(
-    windows: Iterable[Window], start_ns: int | None = None, end_ns: int | None = None
+    windows: Iterable[StoredWindow], start_ns: int | None = None, end_ns: int | None = None
 ) -> Iterator[tuple[str, int, str]]:
     """(stream, stamp_ns, text) in stamp order, from windows sorted by start_ns.
 
@@ -47,7 +47,7 @@ def merged_messages(
 
 
 def write_jsonl(
-    windows: Iterable[Window],
+    windows: Iterable[StoredWindow],
     out: TextIO,
     *,
     start_ns: int | None = None,

@@ -16,7 +16,7 @@ from pathlib import Path
 from mcap.writer import CompressionType, Writer
 
 from ..errors import InvalidInputError
-from .base import ExportStats, Progress, Window
+from .base import ExportStats, Progress, StoredWindow
 from .jsonschema import message_schema
 
 WINDOW_METADATA = "cclogfs.window"
@@ -28,7 +28,7 @@ _COMPRESSION = {
 
 
 def export_mcap(
-    windows: Iterable[Window],
+    windows: Iterable[StoredWindow],
     path: str | Path,
     *,
     compression: str = "zstd",
@@ -54,7 +54,7 @@ def export_mcap(
 
 
 def _write(
-    windows: Iterable[Window], tmp: Path, comp: CompressionType, stats: ExportStats,
+    windows: Iterable[StoredWindow], tmp: Path, comp: CompressionType, stats: ExportStats,
     progress: Progress | None,
 ) -> None:
     channels: dict[str, int] = {}
@@ -93,14 +93,14 @@ def _write(
         os.fsync(f.fileno())
 
 
-def _register(writer: Writer, w: Window, first_text: str) -> int:
+def _register(writer: Writer, w: StoredWindow, first_text: str) -> int:
     # The ROS type names the schema when the recorder kept it; else the stream does.
     title = str(w.meta.get("msgtype") or w.name)
     schema = writer.register_schema(title, "jsonschema", message_schema(first_text, title))
     return writer.register_channel(w.name, "json", schema)
 
 
-def window_metadata(w: Window, count: int) -> dict[str, str]:
+def window_metadata(w: StoredWindow, count: int) -> dict[str, str]:
     """The Metadata record fields of one window."""
     return {
         "stream": w.name,

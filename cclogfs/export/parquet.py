@@ -22,7 +22,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from ..errors import InvalidInputError
-from .base import ExportStats, Progress, Window
+from .base import ExportStats, Progress, StoredWindow
 
 # Names the export itself uses; a top-level message field with one of them is "msg.NAME".
 RESERVED = frozenset({"stamp_ns", "window_seq", "json", "robot", "stream", "date"})
@@ -65,7 +65,7 @@ class _Stream:
 
 
 def export_parquet(
-    windows: Iterable[Window],
+    windows: Iterable[StoredWindow],
     out_dir: str | Path,
     *,
     robot: str,

@@ -12,7 +12,8 @@ from pathlib import Path
 
 from ..errors import SourceError
 from .base import Source, SourceMessage
-from .jsonl import JsonlSource, OnError, format_line, parse_line
+from ..jsontext.lines import format_line, parse_line
+from .jsonl import JsonlSource, OnError
 from .mcapjson import McapJsonSource, mcap_encodings
 from .rosbag import RosbagSource
 

@@ -19,10 +19,10 @@ from typing import Any, TextIO
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from ..errors import InvalidInputError, SourceError
-from ..rosjson import message_stamp_ns
+from ..jsontext.ros import message_stamp_ns
 from .base import SourceMessage
-from ..rosjson import MessageConverter
-from .jsonl import format_line
+from ..jsontext.ros import MessageConverter
+from ..jsontext.lines import format_line
 
 Sink = Callable[[SourceMessage], None]
 

@@ -12,9 +12,9 @@ from pathlib import Path
 from rosbags.highlevel import AnyReader
 
 from ..errors import SourceError
-from ..rosjson import message_stamp_ns
+from ..jsontext.ros import message_stamp_ns
 from .base import SourceMessage, topic_filter
-from ..rosjson import MessageConverter
+from ..jsontext.ros import MessageConverter
 
 
 class RosbagSource:

@@ -16,7 +16,7 @@ from typing import Any, Callable
 import numpy as np
 from rosbags.typesys import Stores, get_typestore
 
-from ..rosjson import message_to_json
+from ..jsontext.ros import message_to_json
 
 __all__ = ["TYPESTORE", "Columns", "ODOM", "IMU", "TF", "TopicSpec"]
 

@@ -8,8 +8,7 @@ from collections.abc import Sequence
 
 from ..errors import InvalidInputError
 from .format import MAX_COUNT, MAX_NAME, MAX_NS, MIN_NS
-from ..jsoncheck import json_error
-
+from ..jsontext.check import text_error
 
 
 def check_stream_name(name: object) -> bytes:
@@ -30,8 +29,12 @@ def check_stream_name(name: object) -> bytes:
     return data
 
 
-def encode_messages(messages: Sequence[tuple[int, str]], *, check_json: bool = True) -> tuple[list[int], list[bytes]]:
-    """Stamps and UTF-8 texts of a window, every message checked (JSON, time order)."""
+def encode_messages(messages: Sequence[tuple[int, str]], *, check_json: bool = True) -> tuple[list[int], list[str]]:
+    """Stamps and texts of a window, every message checked (JSON, UTF-8, time order).
+
+    The texts stay `str` (the codecs take text); `text_error` checks each, without
+    encoding it, and `check_json=False` skips only the JSON parse.
+    """
     try:
         count = len(messages)
     except TypeError as err:
@@ -41,7 +44,7 @@ def encode_messages(messages: Sequence[tuple[int, str]], *, check_json: bool = T
     if count > MAX_COUNT:
         raise InvalidInputError(f"a window holds at most {MAX_COUNT} messages, got {count}")
     stamps: list[int] = []
-    texts: list[bytes] = []
+    texts: list[str] = []
     prev = MIN_NS
     for i, item in enumerate(messages):
         try:
@@ -60,13 +63,8 @@ def encode_messages(messages: Sequence[tuple[int, str]], *, check_json: bool = T
             raise InvalidInputError(f"message {i}: stamp_ns {stamp} is before the previous message's {prev}; "
                                     "times in a window must not decrease")  # fmt: skip
         prev = stamp
-        if not isinstance(text, str):
-            raise InvalidInputError(f"message {i}: the JSON text must be a str, got {type(text).__name__}")
-        if check_json and (why := json_error(text)) is not None:
-            raise InvalidInputError(f"message {i} is not well-formed JSON: {why}")
-        try:
-            texts.append(text.encode("utf-8"))
-        except UnicodeEncodeError as err:
-            raise InvalidInputError(f"message {i} is not valid UTF-8 text: {err.reason}") from err
+        if (why := text_error(text, check_json=check_json)) is not None:
+            raise InvalidInputError(f"message {i} {why}")
+        texts.append(text)
         stamps.append(stamp)
     return stamps, texts

@@ -60,15 +60,6 @@ KNOWN_FLAGS = int(RecordFlag.AGED)
 AGED_META_KEY = "aged"
 
 
-class CodecId(IntEnum):
-    """Codec numbers stored in record headers. 0 is invalid; values never change."""
-
-    NONE = 1
-    ZSTD = 2
-    LZMA = 3
-    COLUMNAR = 4
-
-
 class Reason:
     """The fixed set of reasons a record or file is rejected (LevelDB-style reporting).
 

@@ -7,7 +7,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from ..codecs import codec_from_config, codec_numeric_id
+from ..codecs import codec_for_record, codec_numeric_id
 from ..errors import CorruptionError, StoreError
 from .format import AGED_META_KEY, Reason, RecordFlag, RecordHeader
 from .segment import Segment
@@ -85,7 +85,7 @@ class Window:
     def messages(self) -> Iterator[tuple[int, str]]:
         """(stamp_ns, JSON text) of each message, exactly as put."""
         header, payload = self._read()
-        codec = codec_from_config(json.loads(header.config))
+        codec = codec_for_record(header.config)
         if codec_numeric_id(codec) != header.codec:
             raise CorruptionError(
                 f"{self._segment.path}: record at offset {self._offset} names codec "
@@ -93,7 +93,7 @@ class Window:
                 path=self._segment.path, offset=self._offset, reason=Reason.CODEC_MISMATCH,
             )  # fmt: skip
         stamps, texts = codec.decode(payload, count=header.count, raw_len=header.raw_len)
-        return zip(stamps, (t.decode("utf-8") for t in texts))
+        return zip(stamps, texts)
 
     def __repr__(self) -> str:
         return f"Window({self.name!r}, seq={self.seq}, {self.start_ns}..{self.end_ns}, count={self.count})"

@@ -42,7 +42,7 @@ def main() -> None:
         if config.get("version") != args.version:
             sys.exit(f"{case}/config.json names version {config.get('version')}, not {args.version}")
         rows = [json.loads(line) for line in (case / "inputs.jsonl").read_text().splitlines()]
-        texts = [base64.b64decode(r["text_b64"]) for r in rows]
+        texts = [base64.b64decode(r["text_b64"]).decode("utf-8", "surrogateescape") for r in rows]
         out.write_bytes(codec_from_config(config).encode([r["stamp_ns"] for r in rows], texts))
         print(f"{out}: {len(rows)} messages, {out.stat().st_size} bytes")
 

@@ -10,6 +10,7 @@ decided by `json` itself, so the fast path never changes the answer. It accepts 
 from __future__ import annotations
 
 import json
+import re
 import threading
 
 try:
@@ -17,7 +18,7 @@ try:
 except ImportError:  # the fast path is optional: `json` alone gives the same answers
     simdjson = None
 
-__all__ = ["json_error"]
+__all__ = ["json_error", "text_error"]
 
 _decoder = json.JSONDecoder()
 _local = threading.local()  # a simdjson parser is not thread-safe
@@ -44,4 +45,25 @@ def json_error(text: str) -> str | None:
         return str(err)
     except RecursionError:
         return "nested too deeply"
+    return None
+
+
+# A lone surrogate: a str can hold one, UTF-8 cannot encode it.
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+def text_error(text: object, *, check_json: bool = True) -> str | None:
+    """None when `text` can be stored as a message's JSON text, else why not, phrased to
+    follow the message's name ("message 3 is not well-formed JSON: ...").
+
+    The one message check of the store and the pipeline. `check_json=False` skips only the
+    JSON parse, for texts a parser has just checked (a JSONL or bag source). A text must be
+    encodable as UTF-8: ASCII is at once, any other unless it holds a lone surrogate.
+    """
+    if not isinstance(text, str):
+        return f"has a {type(text).__name__} where the JSON text must be a str"
+    if check_json and (why := json_error(text)) is not None:
+        return f"is not well-formed JSON: {why}"
+    if not text.isascii() and _SURROGATE.search(text):
+        return "is not valid UTF-8 text: surrogates not allowed"
     return None

@@ -2,7 +2,7 @@ import json
 
 from rosbags.highlevel import AnyReader
 
-from cclogfs.rosjson import message_stamp_ns, message_to_json
+from cclogfs.jsontext.ros import message_stamp_ns, message_to_json
 
 
 def test_odometry_json_shape(shared_data):

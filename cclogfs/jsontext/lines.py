@@ -1,0 +1,144 @@
+"""The JSON Lines line format that ingest reads and export writes:
+`{"topic": .., "stamp_ns": .., "msg": {..}}` (and an optional "msgtype"), one per line.
+
+The `msg` text is kept byte for byte as it appears in the line (its exact slice), so
+what goes into the store is what the producer wrote, and `convert` then `cat` gives the
+same file back.
+
+Speed: lines in the layout `format_line` writes take a fast path (one regular
+expression for the head, one `raw_decode` over the message to validate it and find its
+end); any other layout (other key order, spacing, escapes in the topic) goes through a
+small scanner over the top-level object that uses the json module for every value.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import re
+from json.decoder import scanstring
+
+from ..errors import InvalidInputError
+from .check import json_error
+
+__all__ = ["JsonlLineError", "format_line", "parse_general", "parse_line", "split_canonical"]
+
+# The layout format_line() writes; anything else takes the general path.
+_FAST_HEAD = re.compile(
+    r'\{"topic": "([^"\\\x00-\x1f]+)", "stamp_ns": (0|-?[1-9][0-9]{0,18}), "msg": (?=\{)'
+)
+_WS = re.compile(r"[ \t\n\r]*")
+_DECODER = json.JSONDecoder()
+_REQUIRED = ("topic", "stamp_ns", "msg")
+_OPTIONAL = ("msgtype",)
+_MIN_STAMP, _MAX_STAMP = -(1 << 63), (1 << 63) - 1  # int64 nanoseconds, as the store keeps them
+
+
+# A log has few topics; json.dumps of the name was a tenth of the time to write a line.
+_topic_json = functools.lru_cache(maxsize=4096)(json.dumps)
+
+
+def format_line(topic: str, stamp_ns: int, text: str, msgtype: str = "") -> str:
+    """One JSONL line (with its newline) holding `text` unchanged as the `msg` value."""
+    if "\n" in text or "\r" in text:
+        raise InvalidInputError(
+            f"The message on {topic} at {stamp_ns} ns contains a line break, so it cannot "
+            "stay byte-exact on one JSON Lines line."
+        )
+    head = f'{{"topic": {_topic_json(topic)}, "stamp_ns": {int(stamp_ns)}, "msg": '
+    if msgtype:
+        return f'{head}{text}, "msgtype": {json.dumps(msgtype)}}}\n'
+    return f"{head}{text}}}\n"
+
+
+class JsonlLineError(ValueError):
+    """Why one line is not a message; JsonlSource adds the file name and line number."""
+
+
+def split_canonical(line: str) -> tuple[str, int, str] | None:
+    """(topic, stamp_ns, msg text) of a line in the layout `format_line` writes, the msg
+    text not yet checked to be JSON; None for any other layout (see `parse_general`)."""
+    m = _FAST_HEAD.match(line)
+    if m is None or line[-1] != "}" or line[-2] in " \t\r\n":
+        return None
+    # msg starts with "{" (the regex looks ahead), so line[start:-1] is exactly the msg
+    # value when it is one valid value with no whitespace before the final "}".
+    stamp = int(m.group(2))
+    if not _MIN_STAMP <= stamp <= _MAX_STAMP:
+        return None
+    return m.group(1), stamp, line[m.end() : -1]
+
+
+def parse_line(line: str) -> tuple[str, int, str, str]:
+    """(topic, stamp_ns, msg text, msgtype) of one line without its line ending."""
+    parts = split_canonical(line)
+    if parts is not None and json_error(parts[2]) is None:
+        return (*parts, "")
+    return parse_general(line)
+
+
+def parse_general(line: str) -> tuple[str, int, str, str]:
+    """Any layout of the object: scan its top level, let the json module read each value."""
+    try:
+        fields = _scan_object(line)
+    except ValueError as err:
+        # The json module's own message (with column) is the clearest for broken JSON.
+        try:
+            json.loads(line)
+        except ValueError as json_err:
+            raise JsonlLineError(f"invalid JSON: {json_err}") from None
+        raise JsonlLineError(str(err)) from None
+    missing = [k for k in _REQUIRED if k not in fields]
+    if missing:
+        raise JsonlLineError(f"the object has no {', '.join(repr(k) for k in missing)} key")
+    extra = [k for k in fields if k not in _REQUIRED and k not in _OPTIONAL]
+    if extra:
+        raise JsonlLineError(f"unknown key {extra[0]!r} (expected topic, stamp_ns, msg, msgtype)")
+    topic, _, _ = fields["topic"]
+    stamp, _, _ = fields["stamp_ns"]
+    msg, start, end = fields["msg"]
+    msgtype = fields.get("msgtype", ("", 0, 0))[0]
+    if not isinstance(topic, str) or not topic:
+        raise JsonlLineError("'topic' must be a non-empty string")
+    if type(stamp) is not int or not _MIN_STAMP <= stamp <= _MAX_STAMP:
+        raise JsonlLineError(f"'stamp_ns' must be a 64-bit integer, not {stamp!r}")
+    if not isinstance(msg, dict):
+        raise JsonlLineError(f"'msg' must be a JSON object, not {type(msg).__name__}")
+    if not isinstance(msgtype, str):
+        raise JsonlLineError("'msgtype' must be a string")
+    return topic, stamp, line[start:end], msgtype
+
+
+def _scan_object(line: str) -> dict[str, tuple[object, int, int]]:
+    """Top-level keys of a one-object line -> (value, start, end) of each value's text."""
+    i = _WS.match(line, 0).end()
+    if line[i : i + 1] != "{":
+        raise ValueError("a line must hold one JSON object")
+    i = _WS.match(line, i + 1).end()
+    fields: dict[str, tuple[object, int, int]] = {}
+    if line[i : i + 1] == "}":
+        i += 1
+    else:
+        while True:
+            if line[i : i + 1] != '"':
+                raise ValueError("expected a key")
+            key, i = scanstring(line, i + 1)
+            i = _WS.match(line, i).end()
+            if line[i : i + 1] != ":":
+                raise ValueError("expected ':'")
+            start = _WS.match(line, i + 1).end()
+            value, i = _DECODER.raw_decode(line, start)
+            if key in fields:
+                raise ValueError(f"duplicate key {key!r}")
+            fields[key] = (value, start, i)
+            i = _WS.match(line, i).end()
+            sep = line[i : i + 1]
+            i += 1
+            if sep == "}":
+                break
+            if sep != ",":
+                raise ValueError("expected ',' or '}'")
+            i = _WS.match(line, i).end()
+    if _WS.match(line, i).end() != len(line):
+        raise ValueError("text after the object")
+    return fields

@@ -1,0 +1,43 @@
+"""The JSON Lines line format: what export renders, ingest parses back exactly."""
+
+import json
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cclogfs.jsontext.lines import format_line, parse_line, split_canonical
+
+topics = st.text(min_size=1, max_size=12)  # any name: quotes, escapes, non-ASCII
+stamps = st.integers(min_value=-(1 << 63), max_value=(1 << 63) - 1)
+leaves = st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=8)
+values = st.recursive(leaves, lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=4), inner, max_size=3), max_leaves=10)  # fmt: skip
+# A msg is any JSON object in any spelling json.dumps writes on one line.
+msgs = st.builds(json.dumps, st.dictionaries(st.text(max_size=5), values, max_size=4),
+                 ensure_ascii=st.booleans(), separators=st.sampled_from([None, (",", ":"), (" , ", " :  ")]))  # fmt: skip
+msgtypes = st.sampled_from(["", "nav_msgs/msg/Odometry", 'odd "type"'])
+
+
+@settings(max_examples=200)
+@given(topics, stamps, msgs, msgtypes)
+def test_parse_of_render_gives_the_message_back(topic, stamp, msg, msgtype):
+    line = format_line(topic, stamp, msg, msgtype)
+    assert line.endswith("\n") and line.count("\n") == 1
+    assert parse_line(line[:-1]) == (topic, stamp, msg, msgtype)
+
+
+@given(topics, stamps, msgs)
+def test_render_of_parse_gives_the_line_back_byte_for_byte(topic, stamp, msg):
+    line = format_line(topic, stamp, msg)
+    assert format_line(*parse_line(line[:-1])).encode("utf-8") == line.encode("utf-8")
+
+
+def test_the_rendered_layout_is_pinned():
+    assert format_line("/odom", 5, '{"x": 1}') == '{"topic": "/odom", "stamp_ns": 5, "msg": {"x": 1}}\n'
+    assert format_line("/é", -1, "{}", "T") == '{"topic": "/\\u00e9", "stamp_ns": -1, "msg": {}, "msgtype": "T"}\n'
+
+
+def test_the_fast_split_takes_only_the_rendered_layout():
+    assert split_canonical('{"topic": "/a", "stamp_ns": 7, "msg": {"k": 1}}') == ("/a", 7, '{"k": 1}')
+    for other in ('{"stamp_ns": 7, "topic": "/a", "msg": {}}', '{"topic": "/a", "stamp_ns": 7, "msg": {} }',
+                  '{"topic": "/a", "stamp_ns": 9223372036854775808, "msg": {}}'):  # fmt: skip
+        assert split_canonical(other) is None
