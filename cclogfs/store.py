@@ -59,7 +59,8 @@ from .index import SegmentIndex, merge_stream_stats, overlap_slice
 from .segment import Problem, Segment, intact_after, open_segment, scan
 from .validate import check_stream_name, encode_messages
 
-__all__ = ["Dropped", "Receipt", "Recovery", "Replacement", "RewriteReport", "Store", "Window", "open_store"]
+__all__ = ["Dropped", "Receipt", "Recovery", "Replacement", "RewriteReport", "SealedSegment", "Store", "Window",
+           "open_store"]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -73,6 +74,18 @@ class Receipt:
     count: int
     raw_bytes: int
     stored_bytes: int
+
+
+@dataclass(frozen=True)
+class SealedSegment:
+    """A sealed segment as the manifest names it: what upkeep and fsck may know of it."""
+
+    first_seq: int
+    end_seq: int
+    size: int  # bytes of the segment file
+    gen: int  # rewrite generation (0 until compaction rewrites it)
+    streams: dict[str, dict[str, int]]  # per-stream statistics, as `streams()` sums them
+    aged: dict[str, int]  # per stream: windows flagged AGED
 
 
 @dataclass
@@ -233,6 +246,19 @@ class Store:
     def first_seq(self) -> int:
         """Sequence number of the store's first record (> 0 once retention dropped segments)."""
         return self.manifest.get("first_seq", 0)
+
+    def sealed_segments(self) -> list[SealedSegment]:
+        """The sealed segments, oldest first, as the manifest names them."""
+        with self._lock:
+            infos = list(self.manifest.get("segments", ()))
+        return [SealedSegment(i["first_seq"], i["end_seq"], i["size"], i.get("gen", 0), i["streams"],
+                              i.get("aged", {})) for i in infos]  # fmt: skip
+
+    @property
+    def active_first_seq(self) -> int | None:
+        """First seq of the segment being written (None for a reader)."""
+        active = self.active
+        return None if active is None else active.first_seq
 
     def dropped(self) -> dict[str, Any]:
         """What retention dropped so far: {"segments": n, "streams": {name: stats}} (stats as
