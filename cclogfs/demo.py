@@ -20,13 +20,12 @@ from typing import Any
 
 import numpy as np
 
-from .aging import Policy, parse_rule
 from .classifier import Detector, event_table, format_message_table, message_table, train
-from .compact import compact
 from .ingest import open_source
 from .pipeline import WINDOW_AFTER, WINDOW_BEFORE, KeepAll, record, smart_policy
 from .sim import simulate
 from .store import open_store
+from .upkeep import Policy, compact, parse_rule
 
 TOPICS = ["/odom", "/imu"]
 # The error bound the demo ages a copy of its store to: 1 mm, 1 mrad, 1 mm/s.

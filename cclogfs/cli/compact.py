@@ -6,11 +6,10 @@ import argparse
 import json
 import re
 
-from ..aging import Policy, parse_rule
-from ..compact import DEFAULT_EXCLUDE, compact, preview
 from ..errors import InvalidInputError, StoreLockedError
 from ..store import open_store
 from ..times import parse_duration, parse_time
+from ..upkeep import DEFAULT_EXCLUDE, Policy, compact, parse_rule, preview
 from ._fmt import human_bytes, iso_ns, table
 
 EXAMPLES = """examples:

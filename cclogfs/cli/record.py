@@ -6,13 +6,12 @@ import argparse
 import signal
 import sys
 
-from ..aging import Policy, parse_rule
-from ..compact import Upkeep, compact
 from ..errors import InvalidInputError
 from ..ingest import open_source
 from ..pipeline import WINDOW_AFTER, WINDOW_BEFORE, KeepAll, RecordStats, interrupt_handler, record, smart_policy
 from ..store import open_store
 from ..times import parse_duration
+from ..upkeep import Policy, Upkeep, compact, parse_rule
 from ._fmt import human_bytes
 from .compact import parse_size
 from .progress import Progress
