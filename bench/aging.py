@@ -5,7 +5,7 @@ Usage: python bench/aging.py [--runs 3] [--copies 1]
 Builds a keep-all store of nav2_turtlebot.mcap (every topic, 200-message windows, small
 segments so retention has something to drop; `--copies` back-to-back copies of the 97 s
 run, each shifted by its length: more copies flatter LZMA-6, which finds the repeats), then, for each policy, ages a fresh copy of that store
-with `cclogfs.compact` and reports: the store's size against the exact store and against
+with `cclogfs.upkeep.compact` and reports: the store's size against the exact store and against
 LZMA-6 over the same JSON (both measured in this run), the worst error found by comparing
 every float of every kept message with the original (as a fraction of its bound: must be
 <= 1), and messages aged per second (median of --runs). Then a budget of half the exact
@@ -28,9 +28,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from bench._util import SHARED, machine, save_json, topic_messages  # noqa: E402
 from cclogfs import open_store  # noqa: E402
-from cclogfs.aging import Policy, parse_rule  # noqa: E402
-from cclogfs.compact import compact  # noqa: E402
-from cclogfs.store.fsck import check_store  # noqa: E402
+from cclogfs.store import check_store  # noqa: E402
+from cclogfs.upkeep import Policy, compact, parse_rule  # noqa: E402
 
 NS = 1_000_000_000
 TOPICS = ("/odom", "/tf", "/amcl_pose", "/tf_static")

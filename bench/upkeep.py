@@ -19,9 +19,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from cclogfs.aging import Policy, parse_rule
-from cclogfs.compact import Upkeep
 from cclogfs.pipeline import Logger
+from cclogfs.upkeep import Policy, Upkeep, parse_rule
 
 from ._util import machine, save_json
 

@@ -19,8 +19,8 @@ from ._signals import signals_deferred as _signals_deferred
 from .classifier.windows import PendingWindow
 from .errors import InvalidInputError, StoreError
 from .jsontext.check import text_error
-from .compact import Upkeep
 from .store import Store, open_store
+from .upkeep import Upkeep
 
 # Default logging-window extents, in seconds so they mean the same at any odometry rate.
 # 8 s before: the slow anomalies are recognised only seconds after they start (a stuck

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cclogfs.aging import Grid, Policy, Rule, grid_step, parse_rule
+from cclogfs.upkeep.policy import Grid, Policy, Rule, grid_step, parse_rule
 from cclogfs.errors import InvalidInputError
 
 TOKEN = re.compile(r'"(?:[^"\\]|\\.)*"|-?[0-9][-+.eE0-9]*')

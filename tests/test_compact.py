@@ -1,4 +1,4 @@
-"""Compaction and aging end to end: `cclogfs.compact` and `cclog compact`."""
+"""Compaction and aging end to end: `cclogfs.upkeep` and `cclog compact`."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import time
 import pytest
 
 import cclogfs
-from cclogfs.aging import Policy, parse_rule
+from cclogfs.upkeep import Policy, parse_rule
 from cclogfs.cli import main
-from cclogfs.compact import compact
+from cclogfs.upkeep import compact
 from cclogfs.store import check_store
 from helpers import flip
 
@@ -212,7 +212,7 @@ def test_recorder_ages_in_the_background_within_bounds(tmp_path, capsys):
 
 
 def test_logger_sizes_its_segments_for_its_budget(tmp_path):
-    from cclogfs.compact import Upkeep
+    from cclogfs.upkeep import Upkeep
     from cclogfs.pipeline import Logger
 
     with Logger(str(tmp_path / "s"), chunk=100, upkeep=Upkeep(budget=256 << 10)) as log:
@@ -235,7 +235,7 @@ def test_recorder_refuses_incomplete_upkeep_flags(tmp_path, capsys, args, match)
 
 
 def test_logger_with_background_aging_stops_cleanly_and_keeps_every_window(tmp_path):
-    from cclogfs.compact import Upkeep
+    from cclogfs.upkeep import Upkeep
     from cclogfs.pipeline import Logger
 
     upkeep = Upkeep(budget=1 << 20, policy=Policy([parse_rule("1e-3")]), older_than_ns=60 * NS)
@@ -350,7 +350,7 @@ def _sealed_store(path, windows=16):
 
 
 def test_background_aging_goes_past_a_segment_holding_a_stream_that_stopped(tmp_path):
-    from cclogfs.compact import Upkeep
+    from cclogfs.upkeep import Upkeep
 
     store = _sealed_store(tmp_path / "s")
     upkeep = Upkeep(policy=Policy([parse_rule("1e-3")]), older_than_ns=20 * NS, streams=["/odom"])
@@ -363,7 +363,7 @@ def test_background_aging_goes_past_a_segment_holding_a_stream_that_stopped(tmp_
 
 
 def test_finishing_after_an_error_returns_and_later_segments_still_age(tmp_path):
-    from cclogfs.compact import Upkeep
+    from cclogfs.upkeep import Upkeep
 
     store = _sealed_store(tmp_path / "s")
     store.close()
@@ -405,7 +405,7 @@ def test_overlapping_rewrites_of_one_segment_never_lose_it(tmp_path):
 
 
 def test_dry_run_changes_nothing_and_foretells_the_real_run(tmp_path, capsys):
-    from cclogfs.compact import preview
+    from cclogfs.upkeep import preview
 
     build(tmp_path / "s", segment_records=4)
     before = {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir()}

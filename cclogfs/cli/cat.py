@@ -5,11 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..errors import InvalidInputError
 from ..export import write_jsonl
 from ..store import open_store
-from ..times import parse_time
-from .progress import Progress
+from .common import Progress, add_selection, selected_windows
 
 EXAMPLES = """\
 examples:
@@ -30,31 +28,6 @@ DESCRIPTION = "Print the messages of a store as JSON Lines, in time order."
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_selection(p)
-
-
-def add_selection(p: argparse.ArgumentParser) -> None:
-    """STORE, --topic, --start, --end: the arguments cat and export share."""
-    p.add_argument("store", help="store directory")
-    p.add_argument("--topic", action="append", metavar="T", help="only stream T (repeatable)")
-    p.add_argument("--start", type=time_arg, metavar="TIME", help="from this time on")
-    p.add_argument("--end", type=time_arg, metavar="TIME", help="up to this time (inclusive)")
-
-
-def time_arg(text: str) -> int:
-    """parse_time for argparse, so a bad time is reported with its own explanation."""
-    try:
-        return parse_time(text)
-    except InvalidInputError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
-
-
-def selected_windows(store, args: argparse.Namespace):
-    """The store's windows for the chosen topics and times, in start order."""
-    topics = set(args.topic or ())
-    name = next(iter(topics)) if len(topics) == 1 else None
-    for w in store.query(name, start_ns=args.start, end_ns=args.end):
-        if not topics or w.name in topics:
-            yield w
 
 
 def run(args: argparse.Namespace) -> int:

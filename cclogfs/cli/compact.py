@@ -4,14 +4,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 
-from ..aging import Policy, parse_rule
-from ..compact import DEFAULT_EXCLUDE, compact, preview
 from ..errors import InvalidInputError, StoreLockedError
 from ..store import open_store
 from ..times import parse_duration, parse_time
-from ._fmt import human_bytes, iso_ns, table
+from ..upkeep import DEFAULT_EXCLUDE, Policy, compact, parse_rule, preview
+from .common import human_bytes, iso_ns, parse_size, table
 
 EXAMPLES = """examples:
   cclog compact robot.store --older-than 30d --error 1e-3
@@ -42,19 +40,6 @@ DESCRIPTION = (
     "optionally fewer messages per second), then drop the oldest segments while the store "
     "is over its budget. Each aged window records how it was aged in its metadata."
 )
-
-_SIZE = re.compile(r"(\d+(?:\.\d*)?)\s*(B|KB|MB|GB|TB|KiB|MiB|GiB|TiB)?", re.IGNORECASE)
-_SIZE_UNIT = {"b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12,
-              "kib": 2**10, "mib": 2**20, "gib": 2**30, "tib": 2**40}  # fmt: skip
-
-
-def parse_size(text: str) -> int:
-    """Bytes for "500MB", "20GiB", "1048576" (no unit: bytes)."""
-    m = _SIZE.fullmatch(text.strip())
-    if m is None:
-        raise InvalidInputError(f"Size {text!r} is not understood; give e.g. 500MB, 20GiB or a byte count.")
-    return int(float(m.group(1)) * _SIZE_UNIT[(m.group(2) or "b").lower()])
-
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("store", help="store directory (opened as its writer: stop the recorder first)")

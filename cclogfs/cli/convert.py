@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from ..ingest import format_line, open_source
-from .progress import Progress
+from .common import Progress
 
 EXAMPLES = """\
 examples:

@@ -7,8 +7,7 @@ import argparse
 from ..classifier import format_event_table, format_message_table
 from ..ingest import open_source
 from ..pipeline import WINDOW_AFTER, WINDOW_BEFORE, evaluate_run
-from ._fmt import human_bytes
-from .train import load_labels
+from .common import human_bytes, load_labels
 
 EXAMPLES = """\
 examples:

@@ -8,8 +8,7 @@ import sys
 
 from ..export import export_mcap, export_parquet
 from ..store import open_store
-from .cat import add_selection, selected_windows
-from .progress import Progress
+from .common import Progress, add_selection, selected_windows
 
 EXAMPLES = """\
 examples:

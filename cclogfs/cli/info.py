@@ -7,7 +7,7 @@ import json
 
 from ..classifier.summary import SUMMARY_TOPIC
 from ..store import open_store
-from ._fmt import human_bytes, iso_ns, table
+from .common import human_bytes, iso_ns, table
 
 EXAMPLES = """examples:
   cclog info out/demo/store

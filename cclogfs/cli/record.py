@@ -6,16 +6,13 @@ import argparse
 import signal
 import sys
 
-from ..aging import Policy, parse_rule
-from ..compact import Upkeep, compact
 from ..errors import InvalidInputError
 from ..ingest import open_source
 from ..pipeline import WINDOW_AFTER, WINDOW_BEFORE, KeepAll, RecordStats, interrupt_handler, record, smart_policy
 from ..store import open_store
 from ..times import parse_duration
-from ._fmt import human_bytes
-from .compact import parse_size
-from .progress import Progress
+from ..upkeep import Policy, Upkeep, compact, parse_rule
+from .common import Progress, human_bytes, load_labels, parse_size
 
 EXAMPLES = """\
 examples:
@@ -89,7 +86,6 @@ def _write_dataset(args: argparse.Namespace, rows: list) -> None:
     import numpy as np
 
     from ..classifier import OdomArrays, collect
-    from .train import load_labels
 
     if not rows:
         print(f"cclog: no {args.odom_topic} messages, so no feature vectors were written", file=sys.stderr)
@@ -120,21 +116,26 @@ def _skipped(err: Exception) -> None:
     print(f"cclog: skipped: {err}", file=sys.stderr)
 
 
-def run(args: argparse.Namespace) -> int:
+def _logging_policy(args: argparse.Namespace):
+    """The logging policy the flags ask for, and the topics to read for it (None: all)."""
     topics = args.topic
     if args.labels and not args.features_out:
         raise InvalidInputError("--labels goes with --features-out")
     if args.features_out and topics is not None and args.odom_topic not in topics:
         topics = [*topics, args.odom_topic]
-    if args.model:
-        policy = smart_policy(args.model, topics=topics, before=args.before, after=args.after,
-                              summary=not args.no_summary)  # fmt: skip
-        # The scored odometry must be read even when --topic does not name it.
-        read_topics = None if topics is None else sorted({*topics, policy.odom_topic})
-    else:
-        policy, read_topics = KeepAll(chunk=args.chunk), topics
+    if not args.model:
+        return KeepAll(chunk=args.chunk), topics
+    policy = smart_policy(args.model, topics=topics, before=args.before, after=args.after,
+                          summary=not args.no_summary)  # fmt: skip
+    # The scored odometry must be read even when --topic does not name it.
+    return policy, None if topics is None else sorted({*topics, policy.odom_topic})
+
+
+def run(args: argparse.Namespace) -> int:
+    policy, read_topics = _logging_policy(args)
     upkeep = _upkeep(args)
     store_options = upkeep.store_options() if upkeep is not None else {}
+    final_bytes = None  # the store's size once upkeep is done
     previous = {sig: signal.signal(sig, interrupt_handler) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         with open_store(args.store, create=True, codec=args.codec, sync_every_ms=args.sync_ms,
@@ -174,6 +175,11 @@ def run(args: argparse.Namespace) -> int:
             signal.signal(sig, handler)
     if args.features_out:
         _write_dataset(args, rows)
+    _print_summary(args, stats, upkeep, final_bytes)
+    return 130 if stats.interrupted else 0
+
+
+def _print_summary(args: argparse.Namespace, stats: RecordStats, upkeep: Upkeep | None, final_bytes: int | None) -> None:
     mode = "smart logging" if args.model else "every message"
     kept = stats.json_bytes_kept / stats.json_bytes_in if stats.json_bytes_in else 0.0
     print(f"{'interrupted: ' if stats.interrupted else ''}recorded {args.source} into {args.store} ({mode}): "
@@ -189,4 +195,3 @@ def run(args: argparse.Namespace) -> int:
               f"{human_bytes(final_bytes)}{state}", file=sys.stderr)  # fmt: skip
         for error in upkeep.errors:
             print(f"cclog: upkeep failed (recording went on): {error}", file=sys.stderr)
-    return 130 if stats.interrupted else 0

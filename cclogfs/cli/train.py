@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
 from ..classifier import OneClassModel, format_message_table, load_dataset, message_table, train
 from ..errors import InvalidInputError
 from ..pipeline import read_topic
+from .common import load_labels
 
 EXAMPLES = """\
 examples:
@@ -38,15 +38,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="threshold: this fraction of held-out nominal vectors may score anomalous")
     p.add_argument("--validate", metavar="SOURCE", help="a disjoint labelled run to validate on")
     p.add_argument("--validate-labels", metavar="JSON", help="labels of --validate")
-
-
-def load_labels(path: str | None):
-    if path is None:
-        return None
-    try:
-        return json.loads(Path(path).read_text())
-    except (OSError, ValueError) as err:
-        raise InvalidInputError(f"cannot read labels {path}: {err}") from err
 
 
 def run(args: argparse.Namespace) -> int:

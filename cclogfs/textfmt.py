@@ -1,4 +1,4 @@
-"""Small formatting helpers shared by the CLI commands."""
+"""Plain-text report helpers shared by the CLI and the demo: sizes, ISO times, tables."""
 
 from __future__ import annotations
 

@@ -18,15 +18,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from .aging import Policy, parse_rule
-from .classifier import Detector, event_table, format_message_table, message_table, train
-from .compact import compact
-from .ingest import open_source
-from .pipeline import WINDOW_AFTER, WINDOW_BEFORE, KeepAll, record, smart_policy
-from .sim import simulate
-from .store import open_store
+from ..classifier import Detector, event_table, format_message_table, message_table, parse_odometry, train
+from ..ingest import open_source
+from ..pipeline import WINDOW_AFTER, WINDOW_BEFORE, KeepAll, record, smart_policy
+from ..sim import simulate
+from ..store import open_store
+from ..textfmt import human_bytes, table
+from ..upkeep import Policy, compact, parse_rule
 
 TOPICS = ["/odom", "/imu"]
 # The error bound the demo ages a copy of its store to: 1 mm, 1 mrad, 1 mm/s.
@@ -98,15 +96,7 @@ def run_demo(cfg: DemoConfig) -> DemoResult:
                             "model": out / "model",
                             "bag": out / "test" / "run", "labels": out / "test" / "labels.json"})  # fmt: skip
     step = Steps(7 if cfg.plots else 6)
-
-    step(f"simulating {cfg.train_minutes:g} min of nominal driving at {cfg.rate_hz:g} Hz for training")
-    per_run = cfg.train_minutes * 60 / len(cfg.train_seeds)
-    nominal = [simulate(seed=s, duration_s=per_run, rate_hz=cfg.rate_hz, robot_seed=cfg.robot_seed,
-                        heading=cfg.heading) for s in cfg.train_seeds]  # fmt: skip
-
-    step(f"training the one-class SVM on {sum(len(r) for r in nominal):,} odometry messages")
-    model = train([[t for _, t in r.messages] for r in nominal], topic="/odom")
-    model.save(res.paths["model"])
+    model = _train(cfg, res, step)
 
     step(f"simulating a different {cfg.test_minutes:g} min run with {cfg.anomalies} anomalies, as a ROS 2 bag")
     run = simulate(seed=cfg.test_seed, duration_s=cfg.test_minutes * 60, rate_hz=cfg.rate_hz,
@@ -123,28 +113,12 @@ def run_demo(cfg: DemoConfig) -> DemoResult:
     lzma_size: list[int] = []
     lzma_thread = threading.Thread(target=lambda: lzma_size.append(len(lzma.compress(json_all, preset=6))))
     lzma_thread.start()  # the paper's best compressor, on the other core (lzma releases the GIL)
-    with open_store(res.paths["store"], create=True) as store:
-        record(all_messages, store, smart_policy(model, topics=TOPICS, before=cfg.before, after=cfg.after),
-               check_json=False)  # fmt: skip
-    with open_store(res.paths["store_all"], create=True) as store:
-        record(all_messages, store, KeepAll(chunk=200), check_json=False)
-    # What the windows cost once they are old: a copy aged as `cclog compact --error 1e-3`.
-    shutil.copytree(res.paths["store"], res.paths["store_aged"], ignore=shutil.ignore_patterns("LOCK"))
-    with open_store(res.paths["store_aged"]) as store:
-        compact(store, policy=Policy([parse_rule(AGED_ERROR)]))
+    _log(cfg, res, model, all_messages)
 
     step("scoring: the paper's Table 1 and per-event figures, from what the store holds")
-    odom_texts = [m.text for m in all_messages if m.topic == "/odom"]
-    from .classifier import parse_odometry
-
-    odom = parse_odometry(odom_texts)
+    odom = parse_odometry([m.text for m in all_messages if m.topic == "/odom"])
     scores, flags = Detector(model).score_batch(odom)
-    with open_store(res.paths["store"], readonly=True) as store:
-        spans: dict[Any, list[int]] = {}
-        for w in store.query("/odom"):
-            s = spans.setdefault(w.meta.get("window_id", w.seq), [w.start_ns, w.end_ns])
-            s[0], s[1] = min(s[0], w.start_ns), max(s[1], w.end_ns)
-        res.stored_windows = sorted((a, b) for a, b in spans.values())
+    res.stored_windows = _stored_windows(res.paths["store"])
     res.messages = message_table(odom.stamp_ns, flags, labels)
     res.events = event_table(odom.stamp_ns, res.stored_windows, labels)
     step(f"waiting for LZMA-6 (the paper's best) to finish compressing all {res.json_bytes / 2**20:.0f} MiB of JSON")
@@ -158,7 +132,7 @@ def run_demo(cfg: DemoConfig) -> DemoResult:
     ]
     if cfg.plots:
         step("drawing the trajectory and the anomaly score")
-        from .plots import plot_scores, plot_trajectory
+        from .plots import plot_scores, plot_trajectory  # matplotlib only when plotting
 
         res.paths["trajectory"] = plot_trajectory(out / "trajectory.png", run, res.stored_windows)
         res.paths["scores"] = plot_scores(out / "scores.png", odom.stamp_ns, scores, res.stored_windows,
@@ -168,13 +142,47 @@ def run_demo(cfg: DemoConfig) -> DemoResult:
     return res
 
 
+def _train(cfg: DemoConfig, res: DemoResult, step: Steps):
+    """Simulate nominal driving, train the model on it and save it; the model."""
+    step(f"simulating {cfg.train_minutes:g} min of nominal driving at {cfg.rate_hz:g} Hz for training")
+    per_run = cfg.train_minutes * 60 / len(cfg.train_seeds)
+    nominal = [simulate(seed=s, duration_s=per_run, rate_hz=cfg.rate_hz, robot_seed=cfg.robot_seed,
+                        heading=cfg.heading) for s in cfg.train_seeds]  # fmt: skip
+
+    step(f"training the one-class SVM on {sum(len(r) for r in nominal):,} odometry messages")
+    model = train([[t for _, t in r.messages] for r in nominal], topic="/odom")
+    model.save(res.paths["model"])
+    return model
+
+
+def _log(cfg: DemoConfig, res: DemoResult, model, messages: list) -> None:
+    """The three stores: smart logging, every message, and an aged copy of the first."""
+    with open_store(res.paths["store"], create=True) as store:
+        record(messages, store, smart_policy(model, topics=TOPICS, before=cfg.before, after=cfg.after),
+               check_json=False)  # fmt: skip
+    with open_store(res.paths["store_all"], create=True) as store:
+        record(messages, store, KeepAll(chunk=200), check_json=False)
+    # What the windows cost once they are old: a copy aged as `cclog compact --error 1e-3`.
+    shutil.copytree(res.paths["store"], res.paths["store_aged"], ignore=shutil.ignore_patterns("LOCK"))
+    with open_store(res.paths["store_aged"]) as store:
+        compact(store, policy=Policy([parse_rule(AGED_ERROR)]))
+
+
+def _stored_windows(path: Path) -> list[tuple[int, int]]:
+    """The logging windows the store holds (one per window id, over its streams), in time order."""
+    with open_store(path, readonly=True) as store:
+        spans: dict[Any, list[int]] = {}
+        for w in store.query("/odom"):
+            s = spans.setdefault(w.meta.get("window_id", w.seq), [w.start_ns, w.end_ns])
+            s[0], s[1] = min(s[0], w.start_ns), max(s[1], w.end_ns)
+    return sorted((a, b) for a, b in spans.values())
+
+
 def _disk(path: Path) -> int:
     return sum(p.stat().st_size for p in path.iterdir() if p.name != "LOCK")
 
 
 def _report(cfg: DemoConfig, res: DemoResult, run: Any, n_messages: int) -> None:
-    from .cli._fmt import human_bytes, table
-
     m, e = res.messages, res.events
     print(f"\ncclogfs demo: a {cfg.test_minutes:g}-minute simulated run at {cfg.rate_hz:g} Hz "
           f"({n_messages:,} messages on {', '.join(TOPICS)}), {len(run.events)} labelled anomalies "

@@ -18,8 +18,8 @@ pattern `*` matches one part and `**` any number of parts (also none). When seve
 match, the last one wins, so a general bound comes first and exceptions after it; a bound
 of 0 keeps the field exact.
 
-This module knows nothing of storage or of the classifier: `cclogfs.compact` wires it to
-the store.
+This module knows nothing of storage or of the classifier: `upkeep.job` wires it to the
+store.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from decimal import ROUND_HALF_EVEN, Decimal, localcontext
 from fnmatch import fnmatchcase
 from typing import Any, Sequence
 
-from .errors import InvalidInputError
+from ..errors import InvalidInputError
 
 __all__ = ["Policy", "Rule", "grid_step", "parse_rule"]
 

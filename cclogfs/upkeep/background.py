@@ -1,0 +1,186 @@
+"""Upkeep while recording: retention right after a segment is sealed, aging in a
+background thread (see `Upkeep`)."""
+
+from __future__ import annotations
+
+import signal
+import threading
+from typing import Sequence
+
+from .._signals import signals_deferred
+from ..errors import CorruptionError, InvalidInputError, StoreFailedError
+from ..store import SealedSegment, Store
+from .job import CompactReport, Stopped, age_segments, candidate_segments, compact, selected
+from .policy import Policy
+
+__all__ = ["Upkeep"]
+
+MAX_ERRORS = 20  # background errors kept for the report
+
+
+def _cutoffs_sealed(store: Store, older_than_ns: int) -> dict[str, int]:
+    """Per stream, `older_than_ns` before the end of its newest sealed segment's windows
+    (from the manifest: nothing is read)."""
+    out: dict[str, int] = {}
+    for seg in reversed(store.sealed_segments()):
+        for name, st in seg.streams.items():
+            out.setdefault(name, st["end_ns"] - older_than_ns)
+    return out
+
+
+def _by_first_seq(store: Store) -> dict[int, SealedSegment]:
+    return {seg.first_seq: seg for seg in store.sealed_segments()}
+
+
+class Upkeep:
+    """Compaction run by the recorder, which holds the store's only writer lock.
+
+    `after_put(store)` is one comparison until a segment is sealed. Then:
+    - with only a `budget`, the oldest sealed segments are dropped while the store's files
+      are over it, right there (each drop is a manifest rename and an unlink);
+    - with an aging `policy` (and `older_than_ns`), a background thread does the work:
+      retention, then aging one sealed segment per commit, oldest first. The rewrite plans
+      without the store's lock, so recording goes on (sharing the interpreter); only the
+      commit waits for it. The thread alone drops or rewrites, so the two never race.
+    Segments are at most 1/8 of the budget (`store_options`), so the store stays within
+    about that much over it, plus what seals while a segment is being aged. `close()` stops
+    the thread (an unfinished rewrite commits nothing) and must come before the store's.
+    """
+
+    def __init__(self, *, budget: int | None = None, policy: Policy | None = None,
+                 older_than_ns: int | None = None, streams: Sequence[str] | None = None):  # fmt: skip
+        if budget is not None and budget <= 0:
+            raise InvalidInputError(f"A storage budget must be a positive number of bytes, got {budget}.")
+        if policy is not None and (older_than_ns is None or older_than_ns < 0):
+            raise InvalidInputError("Aging while recording needs an age (older_than_ns >= 0): else every "
+                                    "window would age as soon as its segment is sealed.")  # fmt: skip
+        if budget is None and policy is None:
+            raise InvalidInputError("An Upkeep needs a budget, an aging policy, or both.")
+        self.budget, self.policy, self.older_than_ns, self.streams = budget, policy, older_than_ns, streams
+        self.sealed_upto = -1  # end seq of the newest sealed segment at the last run
+        self.active_seen: int | None = None  # the active segment's first seq at the last put
+        self.runs = self.dropped_segments = self.aged_windows = 0
+        self.errors: list[str] = []  # what failed in the background (the first MAX_ERRORS)
+        self.done: set[int] = set()  # first seqs of segments with nothing left to age
+        self.seen: dict[int, dict] = {}  # first seq -> the cutoffs it was last aged at
+        self.broken: set[int] = set()  # segments that failed their checks: not retried
+        self._wake, self._stop, self._exited = threading.Event(), threading.Event(), threading.Event()
+        self._finish = False
+        self._thread: threading.Thread | None = None
+
+    def store_options(self) -> dict:
+        """Options for open_store: retention drops whole segments, so small ones keep the
+        store close to its budget."""
+        if self.budget is None:
+            return {}
+        return {"segment_bytes": max(64 << 10, min(64 << 20, self.budget // 8))}
+
+    def after_put(self, store: Store) -> None:
+        # Sealing starts a new active segment: until then, one comparison per put.
+        active = store.active_first_seq
+        if active == self.active_seen:
+            return
+        self.active_seen = active
+        # A new sealed segment moves this (the count may not change: drops remove others).
+        sealed = store.sealed_segments()
+        upto = sealed[-1].end_seq if sealed else -1
+        if upto == self.sealed_upto:
+            return
+        self.sealed_upto = upto
+        if self.policy is None:
+            self._retain(store)
+            return
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._work, args=(store,), name="cclogfs-upkeep", daemon=True)
+            self._thread.start()
+        self._wake.set()
+
+    def close(self, *, finish: bool = False) -> None:
+        """Stop the background thread, if any: at once (an unfinished rewrite commits
+        nothing), or with `finish` once it has aged what is due. Call it before closing the
+        store; an interrupt while waiting for it stops the thread at once, then goes on."""
+        if finish:
+            self._finish = True
+        else:
+            self._stop.set()
+        self._wake.set()
+        if self._thread is None:
+            return
+        try:
+            self._exited.wait()
+        except BaseException:
+            # Not Thread.join: once interrupted, a second join may return while the thread
+            # still runs (CPython 3.11), and the store would be closed under it.
+            self._stop.set()
+            with signals_deferred():
+                self._exited.wait()
+            raise
+
+    def _retain(self, store: Store) -> int:
+        """Drop the oldest segments while over the budget; how many were dropped."""
+        self.runs += 1
+        if self.budget is None:
+            return 0
+        dropped = compact(store, budget=self.budget).segments_dropped
+        self.dropped_segments += dropped
+        return dropped
+
+    def _work(self, store: Store) -> None:
+        try:
+            self._loop(store)
+        finally:
+            self._exited.set()
+
+    def _loop(self, store: Store) -> None:
+        # Process signals belong to the main thread (see Store._flush_loop).
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+        while True:
+            self._wake.wait()
+            self._wake.clear()
+            if self._stop.is_set():
+                return
+            try:
+                self._retain(store)
+                self._age_all(store)
+            except Stopped:
+                return
+            except StoreFailedError as err:  # the recorder sees it at its next put
+                self._error(err)
+                return
+            except Exception as err:  # noqa: BLE001 - recording must go on; say what failed
+                self._error(err)
+            if self._finish and not self._wake.is_set():  # nothing sealed meanwhile: done
+                return
+
+    def _error(self, err: BaseException) -> None:
+        if len(self.errors) < MAX_ERRORS:
+            self.errors.append(f"{type(err).__name__}: {err}")
+
+    def _age_all(self, store: Store) -> None:
+        """Age every sealed segment with windows due, oldest first, one commit each. A
+        segment is read again only once the cutoffs of its streams have moved."""
+        cutoff = _cutoffs_sealed(store, self.older_than_ns)
+        segs = _by_first_seq(store)  # again after each drop
+        for first_seq in candidate_segments(store, cutoff, self.streams, None):
+            if self._stop.is_set():
+                return
+            seg = segs.get(first_seq)
+            if seg is None or first_seq in self.done or first_seq in self.broken:
+                continue
+            mine = {name: cutoff.get(name) for name in seg.streams if selected(name, self.streams)}
+            if self.seen.get(first_seq) == mine:
+                continue  # aged at these cutoffs already: nothing new is due
+            report = CompactReport()
+            try:
+                age_segments(store, self.policy, cutoff, self.streams, report, segments=[first_seq], seal=False,
+                             stop=self._stop)  # fmt: skip
+            except CorruptionError as err:
+                self.broken.add(first_seq)  # reported once; `cclog fsck` says more
+                self._error(err)
+                continue
+            self.aged_windows += sum(a["windows"] for a in report.aged.values())
+            self.seen[first_seq] = mine
+            if all(seg.streams[name]["end_ns"] < limit for name, limit in mine.items() if limit is not None):
+                self.done.add(first_seq)  # every selected window was old enough
+            if self._retain(store):
+                segs = _by_first_seq(store)
