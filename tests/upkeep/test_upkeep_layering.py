@@ -7,7 +7,7 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-UPKEEP = Path(__file__).resolve().parent.parent / "cclogfs" / "upkeep"
+UPKEEP = Path(__file__).resolve().parents[2] / "cclogfs" / "upkeep"
 # The store's internal state that upkeep used to read directly.
 INTERNAL = {"manifest", "sealed", "active", "unsealed"}
 

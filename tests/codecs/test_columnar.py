@@ -21,7 +21,7 @@ from cclogfs.codecs.columnar import ColumnarCodec
 from cclogfs.codecs.columnar_format import FORMAT_VERSIONS, HEADER, LATEST_VERSION, ColumnKind
 from cclogfs.errors import CodecError
 
-GOLDEN = Path(__file__).parent / "golden" / "columnar"
+GOLDEN = Path(__file__).parent.parent / "golden" / "columnar"
 CODEC = ColumnarCodec()
 
 

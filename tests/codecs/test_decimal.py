@@ -22,7 +22,7 @@ from cclogfs.codecs.columnar_format import FORMAT_VERSIONS, GROUP_HEADER, HEADER
 from cclogfs.errors import CodecError
 
 V4 = ColumnarCodec(version=4)
-GOLDEN = Path(__file__).parent / "golden" / "columnar"
+GOLDEN = Path(__file__).parent.parent / "golden" / "columnar"
 I64_MIN, I64_MAX = -(1 << 63), (1 << 63) - 1
 
 

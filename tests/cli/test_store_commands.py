@@ -69,7 +69,7 @@ def test_info_totals_the_summary_stream(tmp_path, capsys):
 
 def test_info_and_fsck_on_a_compacted_store(tmp_path, capsys):
     # The golden v2 store: the log starts at seq 2, one segment dropped, one AGED window.
-    shutil.copytree(Path(__file__).parent / "golden" / "store_v2", tmp_path / "s")
+    shutil.copytree(Path(__file__).parent.parent / "golden" / "store_v2", tmp_path / "s")
     assert main(["info", str(tmp_path / "s"), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert (info["format_version"], info["first_seq"], info["dropped"]["segments"]) == (2, 2, 1)

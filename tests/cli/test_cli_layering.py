@@ -8,7 +8,7 @@ from pathlib import Path
 
 from cclogfs.cli import COMMANDS
 
-CLI = Path(__file__).resolve().parent.parent / "cclogfs" / "cli"
+CLI = Path(__file__).resolve().parents[2] / "cclogfs" / "cli"
 
 
 def _sibling_imports(path: Path) -> set[str]:
