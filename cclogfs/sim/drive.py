@@ -164,7 +164,12 @@ def drive(
     dt: float,
     ov: Overrides,
 ) -> Truth:
-    """Run the loop for n internal steps of dt seconds."""
+    """Run the loop for n internal steps of dt seconds.
+
+    One long function on purpose: the step loop runs 360,000 times for an hour at 100 Hz,
+    with its state in locals; a call per step (controller, limits, integration) would
+    double the simulator's time (`python3 dev.py bench sim_speed`).
+    """
     p = params
     a_max = p.a_max
     ctrl_every = max(1, round(1.0 / (CONTROL_HZ * dt)))

@@ -227,6 +227,49 @@ def _check(
     return chosen
 
 
+def _check_robot(robot_seed: object, heading: str, start_ns: object, duration_s: float) -> None:
+    """The arguments that pick the robot and the clock; see `simulate`."""
+    if robot_seed is not None and (isinstance(robot_seed, bool) or not isinstance(
+            robot_seed, numbers.Integral) or robot_seed < 0):
+        raise InvalidInputError(
+            f"robot_seed must be a non-negative integer or None, not {robot_seed!r}."
+        )
+    if heading not in HEADINGS:
+        raise InvalidInputError(
+            f"heading must be one of {', '.join(map(repr, HEADINGS))}, not {heading!r}."
+        )
+    if isinstance(start_ns, bool) or not isinstance(start_ns, numbers.Integral) or not (
+        0 <= start_ns and start_ns + duration_s * 1e9 + 1e9 < 2**31 * 1e9
+    ):
+        raise InvalidInputError(
+            f"start_ns must be a non-negative integer such that the run ends before 2**31 s "
+            f"(header stamps hold seconds as int32), not {start_ns!r}."
+        )
+
+
+def _robot(r_params: np.random.Generator, robot_seed: int | None) -> tuple[RobotParams, Calibration | None]:
+    """The robot's limits and odometry calibration: drawn from the run's stream, or fixed
+    by `robot_seed` (the same robot on different days). The run's draw happens either way,
+    so a run's other random streams do not depend on robot_seed."""
+    a_max = float(r_params.uniform(0.55, 1.0))
+    calibration = None
+    if robot_seed is not None:
+        r_robot = np.random.default_rng([int(robot_seed), _ROBOT_STREAM])
+        a_max = float(r_robot.uniform(0.55, 1.0))
+        calibration = Calibration(*(1.0 + r_robot.normal(0.0, 0.002, 2)),
+                                  1.0 + float(r_robot.normal(0.0, 0.003)))
+    return RobotParams(a_max=a_max), calibration
+
+
+def _labels(events, stamp_ns: np.ndarray) -> np.ndarray:
+    """Per message: 0 nominal, else 1 + the index in KINDS of the event it falls in."""
+    labels = np.zeros(len(stamp_ns), np.int8)
+    for e in events:
+        i0, i1 = np.searchsorted(stamp_ns, [e.start_ns, e.end_ns])
+        labels[i0:i1] = KINDS.index(e.kind) + 1
+    return labels
+
+
 def simulate(
     *,
     seed: int = 0,
@@ -255,22 +298,7 @@ def simulate(
     shows as a yaw rate that the pose does not follow. The defaults give today's runs.
     """
     chosen = _check(seed, duration_s, rate_hz, anomalies, anomaly_rate_per_min, kinds, severity)
-    if robot_seed is not None and (isinstance(robot_seed, bool) or not isinstance(
-            robot_seed, numbers.Integral) or robot_seed < 0):
-        raise InvalidInputError(
-            f"robot_seed must be a non-negative integer or None, not {robot_seed!r}."
-        )
-    if heading not in HEADINGS:
-        raise InvalidInputError(
-            f"heading must be one of {', '.join(map(repr, HEADINGS))}, not {heading!r}."
-        )
-    if isinstance(start_ns, bool) or not isinstance(start_ns, numbers.Integral) or not (
-        0 <= start_ns and start_ns + duration_s * 1e9 + 1e9 < 2**31 * 1e9
-    ):
-        raise InvalidInputError(
-            f"start_ns must be a non-negative integer such that the run ends before 2**31 s "
-            f"(header stamps hold seconds as int32), not {start_ns!r}."
-        )
+    _check_robot(robot_seed, heading, start_ns, duration_s)
     streams = [np.random.default_rng(s) for s in np.random.SeedSequence(int(seed)).spawn(6)]
     r_sched, r_drive, r_time, r_odom, r_imu, r_params = streams
     lo, hi = float(severity[0]), float(severity[1])
@@ -282,14 +310,7 @@ def simulate(
     events = schedule_events(r_sched, duration_s=float(duration_s), start_ns=int(start_ns),
                              count=count, kinds=chosen, severity=(lo, hi), strict=strict)
 
-    a_max = float(r_params.uniform(0.55, 1.0))
-    calibration = None
-    if robot_seed is not None:
-        r_robot = np.random.default_rng([int(robot_seed), _ROBOT_STREAM])
-        a_max = float(r_robot.uniform(0.55, 1.0))
-        calibration = Calibration(*(1.0 + r_robot.normal(0.0, 0.002, 2)),
-                                  1.0 + float(r_robot.normal(0.0, 0.003)))
-    params = RobotParams(a_max=a_max)
+    params, calibration = _robot(r_params, robot_seed)
     n_out = int(round(duration_s * rate_hz))
     t = sample_times(r_time, n_out, float(rate_hz))
     dt = 1.0 / max(100.0, float(rate_hz))
@@ -306,10 +327,7 @@ def simulate(
                    heading=np.unwrap(imu_data.yaw) if heading == "imu" else None)
     stamp_ns = int(start_ns) + np.round(t * 1e9).astype(np.int64)
 
-    labels = np.zeros(n_out, np.int8)
-    for e in events:
-        i0, i1 = np.searchsorted(stamp_ns, [e.start_ns, e.end_ns])
-        labels[i0:i1] = KINDS.index(e.kind) + 1
+    labels = _labels(events, stamp_ns)
     config = {
         "seed": int(seed), "duration_s": float(duration_s), "rate_hz": float(rate_hz),
         "start_ns": int(start_ns), "severity": [lo, hi], "kinds": list(chosen),
