@@ -167,8 +167,9 @@ def drive(
     """Run the loop for n internal steps of dt seconds.
 
     One long function on purpose: the step loop runs 360,000 times for an hour at 100 Hz,
-    with its state in locals; a call per step (controller, limits, integration) would
-    double the simulator's time (`python3 dev.py bench sim_speed`).
+    with its state in locals; splitting it into calls per step (controller, limits,
+    integration) would add their call overhead to every step (`python3 dev.py bench sim_speed`
+    times it).
     """
     p = params
     a_max = p.a_max
