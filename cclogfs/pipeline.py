@@ -19,6 +19,7 @@ from ._signals import signals_deferred as _signals_deferred
 from .errors import InvalidInputError, StoreError
 from .jsoncheck import json_error
 from .compact import Upkeep
+from .msgtypes import StreamTypes
 from .store import Store, open_store
 
 # Default logging-window extents, in seconds so they mean the same at any odometry rate.
@@ -116,12 +117,14 @@ def check_message(topic: str, stamp_ns: Any, text: Any) -> None:
         raise InvalidInputError(f"message on {topic!r} at {stamp_ns} is not well-formed JSON: {why}")
 
 
-def store_window(store: Store, window: Any, stats: RecordStats) -> None:
+def store_window(store: Store, window: Any, stats: RecordStats, types: StreamTypes | None = None) -> None:
     """Put one window (several records when its stamps go backwards). Its messages were
-    checked when they came in (`check_message`), so the store does not parse them again."""
+    checked when they came in (`check_message`), so the store does not parse them again.
+    `types`: the streams' message types, added to the window's metadata."""
     runs = list(monotonic_runs(window.messages))
+    base = window.meta if types is None else types.meta(window.topic, window.meta)
     for k, part in enumerate(runs):
-        meta = window.meta if len(runs) == 1 else {**window.meta, "split": [k, len(runs)]}
+        meta = base if len(runs) == 1 else {**base, "split": [k, len(runs)]}
         store.put_window(window.topic, part, meta, check_json=False)
         stats.records += 1
     stats.windows += 1
@@ -133,14 +136,16 @@ def store_window(store: Store, window: Any, stats: RecordStats) -> None:
 
 def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
            trusted_json: bool = False, progress: Callable[[RecordStats], None] | None = None,
-           stats: RecordStats | None = None, upkeep: Upkeep | None = None) -> RecordStats:  # fmt: skip
+           stats: RecordStats | None = None, upkeep: Upkeep | None = None,
+           types: StreamTypes | None = None) -> RecordStats:  # fmt: skip
     """Feed messages (objects with .topic, .stamp_ns, .text) through `policy` into `store`.
 
     On any exit, Ctrl-C included, the policy's open windows are flushed into the store, so
     nothing already seen is lost; the caller closes (and so syncs) the store.
     `trusted_json`: the source already parsed every text (JSONL, bags), skip the re-check.
     `upkeep`: retention and aging as segments are sealed (`compact.Upkeep`); the caller
-    closes it before the store.
+    closes it before the store. `types`: keep each stream's message type (`m.msgtype`) in
+    its windows' metadata (`msgtypes.StreamTypes`).
     """
     stats = stats or RecordStats()
     started = time.perf_counter()
@@ -150,12 +155,14 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
             if check:
                 check_message(m.topic, m.stamp_ns, m.text)
             stats.saw(m.topic, m.text)
+            if types is not None:
+                types.saw(m.topic, m.msgtype)
             # A window taken from the policy must reach the store: with interrupt_handler
             # installed, Ctrl-C waits for the end of this section.
             INTERRUPTS.critical = True
             try:
                 for window in policy.push(m.topic, m.stamp_ns, m.text):
-                    store_window(store, window, stats)
+                    store_window(store, window, stats, types)
             finally:
                 INTERRUPTS.critical = False
             if upkeep is not None:  # after the critical section: windows taken are stored
@@ -170,7 +177,7 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
     finally:
         with _signals_deferred():  # a second Ctrl-C must not cut the flush short
             for window in policy.flush():
-                store_window(store, window, stats)
+                store_window(store, window, stats, types)
         stats.seconds = time.perf_counter() - started
     return stats
 
@@ -219,13 +226,16 @@ class Logger:
         self.store: Store | None = open_store(store_path, create=True, codec=codec, sync_every_ms=sync_every_ms,
                                               **options)  # fmt: skip
         self.stats = RecordStats()
+        self.types = StreamTypes()  # filled when called with messages that carry .msgtype
         self.upkeep = upkeep
         self._lock = threading.Lock()
 
     def __call__(self, topic_or_message: Any, stamp_ns: int | None = None, text: str | None = None) -> None:
+        msgtype = ""
         if stamp_ns is None:
             m = topic_or_message
             topic_or_message, stamp_ns, text = m.topic, m.stamp_ns, m.text
+            msgtype = getattr(m, "msgtype", "")
         topic = topic_or_message
         if self.topics is not None and topic not in self.topics and topic != getattr(self.policy, "odom_topic", None):
             return
@@ -234,8 +244,9 @@ class Logger:
             if self.store is None:
                 raise StoreError("this Logger is closed")
             self.stats.saw(topic, text)
+            self.types.saw(topic, msgtype)
             for window in self.policy.push(topic, stamp_ns, text):
-                store_window(self.store, window, self.stats)
+                store_window(self.store, window, self.stats, self.types)
             if self.upkeep is not None:
                 self.upkeep.after_put(self.store)
 
@@ -246,7 +257,7 @@ class Logger:
             try:
                 with _signals_deferred():
                     for window in self.policy.flush():
-                        store_window(self.store, window, self.stats)
+                        store_window(self.store, window, self.stats, self.types)
             finally:
                 try:
                     if self.upkeep is not None:

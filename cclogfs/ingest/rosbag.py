@@ -10,8 +10,10 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from rosbags.highlevel import AnyReader
+from rosbags.interfaces import ConnectionExtRosbag1, MessageDefinitionFormat
 
 from ..errors import SourceError
+from ..msgtypes import ros1_description
 from ..rosjson import message_stamp_ns
 from .base import SourceMessage, topic_filter
 from ..rosjson import MessageConverter
@@ -50,6 +52,15 @@ class RosbagSource:
 
     def topics(self) -> dict[str, str]:
         return {c.topic: c.msgtype for c in self._connections}
+
+    def describe(self, topic: str) -> dict:
+        """The ROS 1 definition of `topic`'s type, for window metadata (`msgtypes`)."""
+        for c in self._connections:
+            if c.topic == topic:
+                ros1 = c.msgdef.format == MessageDefinitionFormat.MSG and isinstance(c.ext, ConnectionExtRosbag1)
+                return ros1_description(self._reader.typestore, c.msgtype, msgdef=c.msgdef.data if ros1 else "",
+                                        md5sum=c.digest if ros1 else "", latching=ros1 and bool(c.ext.latching))
+        return {}
 
     def __iter__(self) -> Iterator[SourceMessage]:
         if not self._connections:
