@@ -7,6 +7,7 @@ Skips without ROS 1 (roscore, rosbag, rospy); under CI=true it fails instead, si
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -191,3 +192,25 @@ def test_topic_matcher_names_patterns_and_exclusions():
     assert TopicMatcher(None, exclude=["/rosout.*"])("/scan") and not TopicMatcher(None, ["/rosout.*"])("/rosout_agg")
     with pytest.raises(InvalidInputError, match="--exclude"):
         TopicMatcher(None, exclude=["("])
+
+
+def test_play_to_ros1_publishes_every_message_with_its_type_and_clock(master, shared_data, tmp_path):
+    bag = shared_data("tf_example.bag")
+    subprocess.run([*CCLOG, "record", str(bag), "--store", str(tmp_path / "orig")], check=True, capture_output=True)
+    rec = recorder(master, tmp_path / "back", "--exclude", "/rosout.*")
+    try:
+        player = start([*CCLOG, "play", str(tmp_path / "orig"), "--to", "ros1://", "--rate", "10", "--clock",
+                        "--wait-for-subscribers"], master, stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+        played(player)
+        finish(rec)
+    finally:
+        stop(rec)
+    back = store_messages(tmp_path / "back")
+    clock = back.pop("/clock")
+    assert back == store_messages(tmp_path / "orig") == bag_messages(bag)
+    stamps = sorted(int(json.loads(t)["clock"]["sec"]) * 10**9 + json.loads(t)["clock"]["nanosec"] for t in clock)
+    with open_store(tmp_path / "orig", readonly=True) as store:
+        want = sorted(s for w in store.query() for s, _ in w.messages())
+    assert stamps == want  # one /clock per message, at its stamp
+    with open_store(tmp_path / "back", readonly=True) as store:
+        assert {w.meta["msgtype"] for w in store.query("/tf")} == {"tf2_msgs/msg/TFMessage"}
