@@ -17,6 +17,7 @@ examples:
   cclog play robot.store --rate 10 --topic /odom | jq .msg.twist
   cclog play robot.store --to ros1:// --clock              # ROS 1 topics (ROS_MASTER_URI), and /clock
   cclog play robot.store --to ros1://localhost:11311 --loop --skip-gaps 2
+  cclog play robot.store --foxglove                        # Foxglove app: open ws://localhost:8765
 
 Messages of all chosen streams are merged by stamp and each is sent when its time has come
 (stamp differences divided by --rate). With --to ros1:// every stream is published with the
@@ -40,13 +41,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--to", default="-", metavar="-|ros1://[HOST:PORT]",
                    help="- for JSONL on stdout (default), or ros1:// to publish on a ROS 1 master")
     p.add_argument("--clock", action="store_true", help="with --to ros1://: publish /clock with each stamp")
+    p.add_argument("--foxglove", nargs="?", type=int, const=8765, metavar="PORT",
+                   help="serve the messages over the Foxglove WebSocket protocol on PORT (default 8765)")
+    p.add_argument("--host", default="127.0.0.1", help="with --foxglove: the address to listen on (default %(default)s)")
     p.add_argument("--wait-for-subscribers", action="store_true",
-                   help="with --to ros1://: wait until every topic has a subscriber before playing")
+                   help="with --to ros1:// or --foxglove: wait until every topic has a subscriber before playing")
 
 
 def run(args: argparse.Namespace) -> int:
     if not args.rate > 0:
         raise InvalidInputError(f"--rate must be positive, not {args.rate}")
+    if args.foxglove is not None and args.to != "-":
+        raise InvalidInputError("--foxglove and --to ros1:// are two ways to play; choose one")
     if args.to != "-" and not args.to.startswith("ros1://"):
         raise InvalidInputError(f"--to {args.to!r}: write - (stdout) or ros1://[HOST:PORT]")
     with open_store(args.store, readonly=True) as store:
@@ -54,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
         if not names:
             raise InvalidInputError(f"{args.store} has no stream {' or '.join(args.topic or [])}".rstrip())
         types = stream_types(store, names)
-        send, close = _sink(args, names, types)
+        send, close = _sink(args, store, names, types)
         n = 0
         try:
             while True:
@@ -72,8 +78,17 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _sink(args: argparse.Namespace, names: list[str], types: dict):
-    """(send(name, stamp, text), close()) for --to."""
+def _sink(args: argparse.Namespace, store, names: list[str], types: dict):
+    """(send(name, stamp, text), close()) for --foxglove or --to."""
+    if args.foxglove is not None:
+        from ..foxglove_play import FoxgloveServer
+
+        server = FoxgloveServer(store, names, types, host=args.host, port=args.foxglove)
+        print(f"foxglove: serving {len(server.channels)} channels on ws://{args.host}:{server.port}", file=sys.stderr,
+              flush=True)  # fmt: skip
+        if args.wait_for_subscribers:
+            server.wait_for_subscribers()
+        return server.publish, server.close
     if args.to == "-":
         out = sys.stdout
 
