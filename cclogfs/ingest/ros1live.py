@@ -162,6 +162,7 @@ class Ros1LiveSource:
     def stop(self) -> None:
         """End the iteration after the messages already received (thread- and signal-safe)."""
         self._stop.set()
+        self._queue.put(None)  # wakes the iteration at once
 
     def signal_handler(self, signum: int, frame: Any) -> None:
         """For SIGINT/SIGTERM: the first stops the recording cleanly, a second interrupts."""
@@ -171,25 +172,23 @@ class Ros1LiveSource:
         self.stop()
 
     def __iter__(self) -> Iterator[SourceMessage]:
+        # Blocks until a message, the next look for topics, or stop(): no busy polling.
         self.discover()
         next_poll = time.monotonic() + self.poll_s
-        idle_since = None
         while True:
+            stopping = self._stop.is_set()
             try:
-                item = self._queue.get(timeout=0.05)
+                # Once stopping, end when nothing has come for idle_s: rospy may still hold a few.
+                item = self._queue.get(timeout=self.idle_s if stopping else max(0.0, next_poll - time.monotonic()))
             except queue.Empty:
-                now = time.monotonic()
-                if self._stop.is_set():
-                    # Stop once nothing has come for idle_s: rospy may still hold a few.
-                    idle_since = idle_since or now
-                    if now - idle_since >= self.idle_s:
-                        return
-                elif now >= next_poll:
-                    self.discover()
-                    next_poll = now + self.poll_s
-                continue
-            idle_since = None
-            yield self._convert(*item)
+                if stopping:
+                    return
+                item = None
+            if item is not None:
+                yield self._convert(*item)
+            if not stopping and time.monotonic() >= next_poll:
+                self.discover()
+                next_poll = time.monotonic() + self.poll_s
 
     def _convert(self, topic: str, recv_ns: int, raw: bytes, header: dict[str, str]) -> SourceMessage:
         msgtype = normalize_msgtype(header["type"])
