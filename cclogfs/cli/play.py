@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 
 from ..errors import InvalidInputError
 from ..ingest.jsonl import format_line
@@ -61,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
             raise InvalidInputError(f"{args.store} has no stream {' or '.join(args.topic or [])}".rstrip())
         types = stream_types(store, names)
         send, close = _sink(args, store, names, types)
+        progress = PlayProgress(store, names, args)
         n = 0
         try:
             while True:
@@ -68,9 +70,11 @@ def run(args: argparse.Namespace) -> int:
                                                skip_gaps_s=args.skip_gaps):  # fmt: skip
                     send(name, stamp, text)
                     n += 1
+                    progress(stamp)
                 if not args.loop or n == 0:
                     break
         finally:
+            progress.close()
             close()
     if n == 0:
         raise InvalidInputError("no message of the chosen streams lies between --start and --end")
@@ -112,3 +116,31 @@ def _sink(args: argparse.Namespace, store, names: list[str], types: dict):
     if args.wait_for_subscribers:
         pub.wait_for_subscribers()
     return pub.publish, pub.close
+
+
+class PlayProgress:
+    """On a terminal: how far into the selection's time span playback is, and the time
+    left at --rate (without --skip-gaps; with it, an upper bound)."""
+
+    def __init__(self, store, names: list[str], args: argparse.Namespace) -> None:
+        self.enabled = sys.stderr.isatty()
+        self.rate, self._drawn = args.rate, 0.0
+        if self.enabled:
+            spans = [(w.start_ns, w.end_ns) for n in names for w in store.query(n, start_ns=args.start, end_ns=args.end)]
+            self.first = max(min(a for a, _ in spans), args.start or 0) if spans else 0
+            self.last = min(max(b for _, b in spans), args.end or 1 << 63) if spans else 0
+
+    def __call__(self, stamp: int) -> None:
+        if not self.enabled or (now := time.monotonic()) - self._drawn < 0.25:
+            return
+        self._drawn = now
+        total = max(self.last - self.first, 1)
+        done = min(max(stamp - self.first, 0), total)
+        left = (total - done) / 1e9 / self.rate
+        sys.stderr.write(f"\rplay: {100 * done / total:5.1f} % ({done / 1e9:,.1f} of {total / 1e9:,.1f} s), "
+                         f"{left:,.0f} s left\x1b[K")  # fmt: skip
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.enabled and self._drawn:
+            sys.stderr.write("\n")
