@@ -73,3 +73,19 @@ def test_play_refuses_what_it_cannot_do(shared_data, tmp_path):
                        (["--to", "udp://x"], "--to 'udp://x'"), (["--start", "1", "--end", "2"], "no message")]:  # fmt: skip
         r = subprocess.run([*CCLOG, "play", str(tmp_path / "s"), *args], capture_output=True, text=True)
         assert r.returncode == 1 and said in r.stderr and r.stderr.count("\n") == 1, (args, r.stderr)
+
+
+def test_play_of_mixed_clocks_says_so_and_skip_gaps_plays_it(shared_data, tmp_path):
+    # /amcl_pose is in simulation time (924 s after 1970), /tf_static in wall time (2026)
+    subprocess.run([*CCLOG, "record", str(shared_data("nav2_turtlebot.mcap")), "--store", str(tmp_path / "s"),
+                    "--topic", "/amcl_pose", "--topic", "/tf_static"], check=True, capture_output=True)  # fmt: skip
+    proc = subprocess.Popen([*CCLOG, "play", str(tmp_path / "s"), "--rate", "100"], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)  # fmt: skip
+    try:
+        assert "(streams on different clocks?); --skip-gaps S" in proc.stderr.readline()
+    finally:
+        proc.kill()
+        proc.wait()
+    r = subprocess.run([*CCLOG, "play", str(tmp_path / "s"), "--rate", "100", "--skip-gaps", "0.5"],
+                       capture_output=True, text=True, timeout=120, check=True)  # fmt: skip
+    assert len(r.stdout.splitlines()) == 136 and "note" not in r.stderr

@@ -61,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
         if not names:
             raise InvalidInputError(f"{args.store} has no stream {' or '.join(args.topic or [])}".rstrip())
         types = stream_types(store, names)
+        _warn_long_span(store.streams(), names, args)
         send, close = _sink(args, store, names, types)
         progress = PlayProgress(store, names, args)
         n = 0
@@ -144,3 +145,16 @@ class PlayProgress:
     def close(self) -> None:
         if self.enabled and self._drawn:
             sys.stderr.write("\n")
+
+
+def _warn_long_span(streams: dict, names: list[str], args: argparse.Namespace) -> None:
+    """A note when playing would take over a day: usually streams on different clocks (one in
+    simulation time, one in wall time), which play would otherwise wait out in silence."""
+    if args.skip_gaps is not None:
+        return
+    first = max(min(streams[n]["start_ns"] for n in names), args.start or 0)
+    last = min(max(streams[n]["end_ns"] for n in names), args.end if args.end is not None else 1 << 63)
+    seconds = (last - first) / 1e9 / args.rate
+    if seconds > 86400:
+        print(f"cclog: note: the chosen messages span {seconds / 86400:,.0f} days at --rate {args.rate:g} "
+              "(streams on different clocks?); --skip-gaps S plays long gaps as S seconds", file=sys.stderr)  # fmt: skip

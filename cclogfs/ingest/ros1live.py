@@ -115,6 +115,7 @@ class Ros1LiveSource:
         self.poll_s, self.idle_s = poll_s, idle_s
         self.received: dict[str, int] = {}
         self.stopped_by: str | None = None
+        self._master_lost = False
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self._stop = threading.Event()
         self._subs: dict[str, Any] = {}
@@ -152,9 +153,14 @@ class Ros1LiveSource:
         """Subscribe to the matching topics the master lists that are not subscribed yet."""
         try:
             published = self._rospy.get_published_topics()
-        except Exception as err:  # the master went away: keep what is subscribed
-            print(f"cclog: cannot list topics at {self.master}: {err}", file=sys.stderr)
+        except Exception as err:  # the master went away: keep what is subscribed, say so once
+            if not self._master_lost:
+                print(f"cclog: cannot list topics at {self.master} (recording goes on): {err}", file=sys.stderr)
+            self._master_lost = True
             return
+        if self._master_lost:
+            print(f"cclog: {self.master} answers again", file=sys.stderr)
+            self._master_lost = False
         for topic, _ in published:
             if topic not in self._subs and self.matcher(topic):
                 self._subscribe(topic)
