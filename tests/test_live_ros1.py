@@ -22,7 +22,8 @@ from cclogfs import open_store
 from cclogfs.errors import InvalidInputError
 from cclogfs.ingest import open_source
 from cclogfs.ingest.ros1live import TopicMatcher
-from cclogfs.ingest.ros1testing import play, roscore, ros1_missing, start, stop, subscribers, wait_for, write_ros1_bag
+from cclogfs.ingest.ros1testing import (play, published, roscore, ros1_missing, start, stop, subscribers, wait_for,
+                                        write_ros1_bag)  # fmt: skip
 
 CCLOG = [sys.executable, "-m", "cclogfs"]
 
@@ -109,7 +110,7 @@ def test_latched_topic_is_received_after_it_was_published(master, shared_data, t
     publisher = play(master, bag, "--keep-alive", "--topics", "/tf_static")
     try:
         # The one message is published before the recorder exists: only latching delivers it.
-        wait_for(lambda: "/tf_static" in topics_published(master), 30, "/tf_static to be published")
+        wait_for(lambda: "/tf_static" in published(master), 30, "/tf_static to be published")
         time.sleep(0.5)
         rec = recorder(master, tmp_path / "s", "--topic", "/tf_static")
         try:
@@ -122,12 +123,6 @@ def test_latched_topic_is_received_after_it_was_published(master, shared_data, t
     assert store_messages(tmp_path / "s") == {"/tf_static": bag_messages(bag)["/tf_static"]}, err
     with open_store(tmp_path / "s", readonly=True) as store:
         assert next(iter(store.query())).meta["latching"] is True
-
-
-def topics_published(env):
-    import rosgraph
-
-    return {t for t, _ in rosgraph.Master("/cclog_test", master_uri=env["ROS_MASTER_URI"]).getPublishedTopics("")}
 
 
 @pytest.fixture(scope="module")

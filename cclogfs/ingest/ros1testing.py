@@ -2,7 +2,9 @@
 waiting for subscribers, and ROS 1 bags made from any bag rosbags reads.
 
 Every process started here runs in its own process group and is ended by its id (SIGINT,
-then SIGKILL after a timeout), so a failing test leaves nothing behind.
+then SIGKILL after a timeout), so a failing test leaves nothing behind. The master is asked
+through its XML-RPC API directly, so the calling process never imports the system's ROS
+packages (only the recorders and players it starts do).
 """
 
 from __future__ import annotations
@@ -13,25 +15,23 @@ import shutil
 import signal
 import socket
 import subprocess
+import sys
 import time
+import xmlrpc.client
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-from ..errors import SourceError
 
 
 def ros1_missing() -> str | None:
-    """Why ROS 1 cannot be used here (None when roscore, rosbag and rospy are all there)."""
+    """Why ROS 1 cannot be used here (None when roscore, rosbag and rospy are all there).
+    rospy is looked for in a child process, as `cclog record ros1://` would find it."""
     for tool in ("roscore", "rosbag"):
         if shutil.which(tool) is None:
             return f"{tool} is not on PATH"
-    from .ros1live import import_rospy
-
-    try:
-        import_rospy()
-    except SourceError as err:
-        return str(err)
-    return None
+    code = "from cclogfs.ingest.ros1live import import_rospy; import_rospy()"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    return None if r.returncode == 0 else (r.stderr.strip().splitlines() or ["rospy cannot be imported"])[-1]
 
 
 def free_port() -> int:
@@ -63,9 +63,6 @@ def stop(proc: subprocess.Popen, sig: int = signal.SIGINT, timeout: float = 15.0
 def roscore(home: Path, *, timeout: float = 30.0) -> Iterator[dict[str, str]]:
     """A roscore on a free port; yields the environment for processes that use it
     (ROS_MASTER_URI and a private ROS_HOME for logs, nothing else ROS-specific)."""
-    from .ros1live import import_rospy
-
-    import_rospy()  # rosgraph, to ask the master whether it is up
     port = free_port()
     env = {**os.environ, "ROS_MASTER_URI": f"http://127.0.0.1:{port}", "ROS_HOME": str(home)}
     log = open(Path(home) / "roscore.log", "wb")
@@ -80,10 +77,15 @@ def roscore(home: Path, *, timeout: float = 30.0) -> Iterator[dict[str, str]]:
         log.close()
 
 
-def _master_online(uri: str) -> bool:
-    import rosgraph
+def master(env: dict[str, str]) -> xmlrpc.client.ServerProxy:
+    return xmlrpc.client.ServerProxy(env["ROS_MASTER_URI"])
 
-    return rosgraph.is_master_online(uri)
+
+def _master_online(uri: str) -> bool:
+    try:
+        return xmlrpc.client.ServerProxy(uri).getPid("/cclog_test")[0] == 1
+    except OSError:
+        return False
 
 
 def wait_for(cond, timeout: float, what: str, every: float = 0.05) -> None:
@@ -96,11 +98,13 @@ def wait_for(cond, timeout: float, what: str, every: float = 0.05) -> None:
 
 def subscribers(env: dict[str, str], topic: str) -> list[str]:
     """Nodes the master lists as subscribed to `topic`."""
-    import rosgraph
-
-    master = rosgraph.Master("/cclog_test", master_uri=env["ROS_MASTER_URI"])
-    _, subs, _ = master.getSystemState()
+    _, subs, _ = master(env).getSystemState("/cclog_test")[2]
     return next((nodes for t, nodes in subs if t == topic), [])
+
+
+def published(env: dict[str, str]) -> set[str]:
+    """Topics the master lists as published."""
+    return {t for t, _ in master(env).getPublishedTopics("/cclog_test", "")[2]}
 
 
 def play(env: dict[str, str], bag: Path, *args: str) -> subprocess.Popen:
