@@ -164,7 +164,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         with source, open_store(args.store, create=True, codec=args.codec, sync_every_ms=args.sync_ms,
                                 **store_options) as store, \
-                Progress("recording") as progress:  # fmt: skip
+                Progress("recording", total=getattr(source, "message_count", None)) as progress:  # fmt: skip
             last = [0]
 
             def tick(stats):
@@ -179,6 +179,7 @@ def run(args: argparse.Namespace) -> int:
                 record(messages, store, policy, trusted_json=True, progress=tick, stats=stats, upkeep=upkeep,
                        types=StreamTypes(getattr(source, "describe", None)))
                 ended = not stats.interrupted
+                tick(stats)  # the last count (progress is told every 4,096 messages)
             except KeyboardInterrupt:  # arrived once the input had ended: all was stored
                 stats.interrupted = True
             finally:

@@ -53,6 +53,11 @@ class RosbagSource:
     def topics(self) -> dict[str, str]:
         return {c.topic: c.msgtype for c in self._connections}
 
+    @property
+    def message_count(self) -> int:
+        """How many messages iterating will yield (from the bag's index), for progress."""
+        return sum(c.msgcount for c in self._connections)
+
     def describe(self, topic: str) -> dict:
         """The ROS 1 definition of `topic`'s type, for window metadata (`msgtypes`)."""
         for c in self._connections:
