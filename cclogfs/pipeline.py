@@ -156,7 +156,7 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
                 check_message(m.topic, m.stamp_ns, m.text)
             stats.saw(m.topic, m.text)
             if types is not None:
-                types.saw(m.topic, m.msgtype)
+                types.saw(m.topic, getattr(m, "msgtype", ""))
             # A window taken from the policy must reach the store: with interrupt_handler
             # installed, Ctrl-C waits for the end of this section.
             INTERRUPTS.critical = True
