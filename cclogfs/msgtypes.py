@@ -17,6 +17,10 @@ from typing import Any
 
 Describe = Callable[[str], Mapping[str, Any] | None]
 
+# A record's metadata is at most 64 KiB (docs/FORMAT.md); a definition larger than this is
+# left out (play then uses rosbags' types), so that no window is ever refused for it.
+MAX_MSGDEF = 32 * 1024
+
 
 class StreamTypes:
     """Topic -> message type as messages come in; adds them to window metadata."""
@@ -38,7 +42,10 @@ class StreamTypes:
         out = {**meta, "msgtype": msgtype}
         if topic not in self._described and self._describe is not None:
             self._described.add(topic)
-            out.update(self._describe(topic) or {})
+            extra = dict(self._describe(topic) or {})
+            if len(extra.get("msgdef", "").encode()) > MAX_MSGDEF:
+                extra.pop("msgdef")
+            out.update(extra)
         return out
 
 
