@@ -13,6 +13,7 @@ writes as the log time, and so what a bag recording of the same playback would u
 
 from __future__ import annotations
 
+import functools
 import glob
 import os
 import queue
@@ -25,7 +26,7 @@ from collections.abc import Iterable, Iterator
 from typing import Any
 
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-from rosbags.typesys.msg import normalize_msgtype
+from rosbags.typesys.msg import normalize_msgtype as _normalize
 
 from ..errors import InvalidInputError, SourceError
 from ..msgtypes import ros1_description
@@ -251,6 +252,13 @@ class Ros1LiveSource:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+@functools.lru_cache(maxsize=1024)
+def normalize_msgtype(name: str) -> str:
+    """nav_msgs/Odometry -> nav_msgs/msg/Odometry, cached: rosbags' goes through pathlib,
+    which was the largest cost per message after decoding."""
+    return _normalize(name)
 
 
 def _is_pattern(topic: str) -> bool:
