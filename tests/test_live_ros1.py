@@ -115,7 +115,7 @@ def test_latched_topic_is_received_after_it_was_published(master, shared_data, t
         rec = recorder(master, tmp_path / "s", "--topic", "/tf_static")
         try:
             wait_subscribed(master, "/tf_static")
-            err = finish(rec, after_s=1.5)
+            err = finish(rec, after_s=3.0)  # the latched message comes once the connection is made
         finally:
             stop(rec)
     finally:
