@@ -19,6 +19,7 @@ from ._signals import signals_deferred as _signals_deferred
 from .classifier.windows import PendingWindow
 from .errors import InvalidInputError, StoreError
 from .jsontext.check import text_error
+from .jsontext.rostypes import StreamTypes
 from .store import Store, open_store
 from .upkeep import Upkeep
 
@@ -108,12 +109,14 @@ def check_message(topic: str, stamp_ns: Any, text: Any, *, check_json: bool = Tr
         raise InvalidInputError(f"message on {topic!r} at {stamp_ns} {why}")
 
 
-def store_window(store: Store, window: PendingWindow, stats: RecordStats) -> None:
+def store_window(store: Store, window: PendingWindow, stats: RecordStats, types: StreamTypes | None = None) -> None:
     """Put one window (several records when its stamps go backwards). Its messages were
-    checked when they came in (`check_message`), so the store does not parse them again."""
+    checked when they came in (`check_message`), so the store does not parse them again.
+    `types`: the streams' message types, added to the window's metadata."""
     runs = list(monotonic_runs(window.messages))
+    base = window.meta if types is None else types.meta(window.topic, window.meta)
     for k, part in enumerate(runs):
-        meta = window.meta if len(runs) == 1 else {**window.meta, "split": [k, len(runs)]}
+        meta = base if len(runs) == 1 else {**base, "split": [k, len(runs)]}
         store.put_window(window.topic, part, meta, check_json=False)
         stats.records += 1
     stats.windows += 1
@@ -125,7 +128,8 @@ def store_window(store: Store, window: PendingWindow, stats: RecordStats) -> Non
 
 def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
            check_json: bool = True, progress: Callable[[RecordStats], None] | None = None,
-           stats: RecordStats | None = None, upkeep: Upkeep | None = None) -> RecordStats:  # fmt: skip
+           stats: RecordStats | None = None, upkeep: Upkeep | None = None,
+           types: StreamTypes | None = None) -> RecordStats:  # fmt: skip
     """Feed messages (objects with .topic, .stamp_ns, .text) through `policy` into `store`.
 
     On any exit, Ctrl-C included, the policy's open windows are flushed into the store, so
@@ -134,7 +138,8 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
     JSON re-parse (the cheap checks still run: a window the store refused would lose the
     good messages it holds).
     `upkeep`: retention and aging as segments are sealed (`compact.Upkeep`); the caller
-    closes it before the store.
+    closes it before the store. `types`: keep each stream's message type (`m.msgtype`) in
+    its windows' metadata (`jsontext.rostypes.StreamTypes`).
     """
     stats = stats or RecordStats()
     started = time.perf_counter()
@@ -142,12 +147,14 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
         for m in messages:
             check_message(m.topic, m.stamp_ns, m.text, check_json=check_json)
             stats.saw(m.topic, m.text)
+            if types is not None:
+                types.saw(m.topic, getattr(m, "msgtype", ""))
             # A window taken from the policy must reach the store: with interrupt_handler
             # installed, Ctrl-C waits for the end of this section.
             INTERRUPTS.critical = True
             try:
                 for window in policy.push(m.topic, m.stamp_ns, m.text):
-                    store_window(store, window, stats)
+                    store_window(store, window, stats, types)
             finally:
                 INTERRUPTS.critical = False
             if upkeep is not None:  # after the critical section: windows taken are stored
@@ -162,7 +169,7 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
     finally:
         with _signals_deferred():  # a second Ctrl-C must not cut the flush short
             for window in policy.flush():
-                store_window(store, window, stats)
+                store_window(store, window, stats, types)
         stats.seconds = time.perf_counter() - started
     return stats
 
@@ -211,13 +218,16 @@ class Logger:
         self.store: Store | None = open_store(store_path, create=True, codec=codec, sync_every_ms=sync_every_ms,
                                               **options)  # fmt: skip
         self.stats = RecordStats()
+        self.types = StreamTypes()  # filled when called with messages that carry .msgtype
         self.upkeep = upkeep
         self._lock = threading.Lock()
 
     def __call__(self, topic_or_message: Any, stamp_ns: int | None = None, text: str | None = None) -> None:
+        msgtype = ""
         if stamp_ns is None:
             m = topic_or_message
             topic_or_message, stamp_ns, text = m.topic, m.stamp_ns, m.text
+            msgtype = getattr(m, "msgtype", "")
         topic = topic_or_message
         if self.topics is not None and topic not in self.topics and topic != getattr(self.policy, "odom_topic", None):
             return
@@ -226,8 +236,9 @@ class Logger:
             if self.store is None:
                 raise StoreError("this Logger is closed")
             self.stats.saw(topic, text)
+            self.types.saw(topic, msgtype)
             for window in self.policy.push(topic, stamp_ns, text):
-                store_window(self.store, window, self.stats)
+                store_window(self.store, window, self.stats, self.types)
             if self.upkeep is not None:
                 self.upkeep.after_put(self.store)
 
@@ -238,7 +249,7 @@ class Logger:
             try:
                 with _signals_deferred():
                     for window in self.policy.flush():
-                        store_window(self.store, window, self.stats)
+                        store_window(self.store, window, self.stats, self.types)
             finally:
                 try:
                     if self.upkeep is not None:

@@ -11,7 +11,7 @@ import sys
 from ..errors import CclogError
 
 # One module per subcommand, in the order `cclog --help` lists them.
-COMMANDS: list[str] = ["demo", "record", "cat", "info", "fsck", "compact", "export", "convert", "simulate", "train", "eval"]
+COMMANDS: list[str] = ["demo", "record", "play", "plot", "cat", "info", "fsck", "compact", "export", "convert", "simulate", "train", "eval"]
 
 
 def build_parser() -> argparse.ArgumentParser:

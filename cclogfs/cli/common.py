@@ -71,8 +71,9 @@ def load_labels(path: str | None):
 class Progress:
     """Counts items; redraws at most ten times a second; silent when not on a terminal."""
 
-    def __init__(self, label: str, *, unit: str = "msgs", stream: TextIO | None = None) -> None:
-        self.label, self.unit = label, unit
+    def __init__(self, label: str, *, unit: str = "msgs", stream: TextIO | None = None,
+                 total: int | None = None) -> None:  # fmt: skip
+        self.label, self.unit, self.total = label, unit, total
         self.stream = stream or sys.stderr
         self.enabled = self.stream.isatty()
         self.count = 0
@@ -86,7 +87,13 @@ class Progress:
 
     def _draw(self, now: float) -> None:
         rate = self.count / max(now - self._t0, 1e-9)
-        self.stream.write(f"\r{self.label}: {self.count:,} {self.unit} ({rate:,.0f}/s)\x1b[K")
+        if self.total:  # known up front (a bag's message count): how far, and the time left
+            left = max(self.total - self.count, 0) / max(rate, 1e-9)
+            line = (f"{self.count:,} of {self.total:,} {self.unit} ({100 * min(self.count / self.total, 1.0):.0f} %, "
+                    f"{rate:,.0f}/s, {left:,.0f} s left)")  # fmt: skip
+        else:
+            line = f"{self.count:,} {self.unit} ({rate:,.0f}/s)"
+        self.stream.write(f"\r{self.label}: {line}\x1b[K")
         self.stream.flush()
 
     def close(self) -> None:

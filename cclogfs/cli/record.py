@@ -8,6 +8,7 @@ import sys
 
 from ..errors import InvalidInputError
 from ..ingest import open_source
+from ..jsontext.rostypes import StreamTypes
 from ..pipeline import WINDOW_AFTER, WINDOW_BEFORE, KeepAll, RecordStats, interrupt_handler, record, smart_policy
 from ..store import open_store
 from ..times import parse_duration
@@ -21,6 +22,8 @@ examples:
   cclog record run.bag --store robot.store --model odom.model --topic /tf --before 4s --after 4s
   cclog record sim.mcap --store all.store --features-out vectors/ --labels sim.labels.json  # collect mode
   some-producer | cclog record - --store robot.store            # live JSON Lines on stdin
+  cclog record ros1:// --store robot.store --model odom.model   # live ROS 1 topics (ROS_MASTER_URI)
+  cclog record ros1://localhost:11311 --store s --topic /odom --topic '/tf.*' --exclude '/rosout.*'
   cclog record - --store robot.store --model odom.model --budget 20GiB \\
       --age-older-than 7d --age-error 1e-3      # the disk never fills; old windows shrink
 
@@ -29,6 +32,11 @@ With --model, odometry on the model's topic is scored; each anomaly opens a wind
 --before messages (or seconds, "4s") before it and --after after the last anomaly, over
 the odometry and the --topic topics (all topics when none is given). Ctrl-C or SIGTERM
 stores what was seen and closes the store cleanly.
+
+ros1:// records live from a ROS 1 master until Ctrl-C or SIGTERM (then exit 0): every topic,
+or those whose name is a --topic or fully matches one as a regular expression, minus
+--exclude; topics that appear later are picked up. A message's time is its header stamp,
+else its receive time. Needs rospy (Debian: apt-get install ros-core python3-rospy).
 """
 
 
@@ -40,7 +48,10 @@ DESCRIPTION = (
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("source", help="ROS 1/2 bag, MCAP file, JSONL file, or - for JSONL on stdin")
+    p.add_argument("source", help="ROS 1/2 bag, MCAP file, JSONL file, - for JSONL on stdin, "
+                                  "or ros1:// (ros1://HOST:PORT) for live ROS 1 topics")
+    p.add_argument("--exclude", action="append", default=[], metavar="RE",
+                   help="with ros1://: leave out topics that fully match RE (repeatable)")
     p.add_argument("--store", required=True, help="store directory (created when missing)")
     p.add_argument("--topic", action="append", metavar="T", help="record topic T (repeatable; default all)")
     p.add_argument("--model", help="smart logging with this model directory (from `cclog train`)")
@@ -116,6 +127,17 @@ def _skipped(err: Exception) -> None:
     print(f"cclog: skipped: {err}", file=sys.stderr)
 
 
+def _open(args: argparse.Namespace, topics: list[str] | None):
+    """The source: a file, stdin, or live ROS 1 topics (ros1://)."""
+    if args.source.startswith("ros1://"):
+        from ..ingest.ros1live import Ros1LiveSource
+
+        return Ros1LiveSource(args.source, topics=topics, exclude=args.exclude)
+    if args.exclude:
+        raise InvalidInputError("--exclude goes with a live source (ros1://); name the topics to read with --topic")
+    return open_source(args.source, topics=topics, on_error=args.on_error, report=_skipped)
+
+
 def _logging_policy(args: argparse.Namespace):
     """The logging policy the flags ask for, and the topics to read for it (None: all)."""
     topics = args.topic
@@ -125,7 +147,8 @@ def _logging_policy(args: argparse.Namespace):
         topics = [*topics, args.odom_topic]
     if not args.model:
         return KeepAll(chunk=args.chunk), topics
-    policy = smart_policy(args.model, topics=topics, before=args.before, after=args.after,
+    live = args.source.startswith("ros1://")  # the live source itself matches names and patterns
+    policy = smart_policy(args.model, topics=None if live else topics, before=args.before, after=args.after,
                           summary=not args.no_summary)  # fmt: skip
     # The scored odometry must be read even when --topic does not name it.
     return policy, None if topics is None else sorted({*topics, policy.odom_topic})
@@ -136,12 +159,13 @@ def run(args: argparse.Namespace) -> int:
     upkeep = _upkeep(args)
     store_options = upkeep.store_options() if upkeep is not None else {}
     final_bytes = None  # the store's size once upkeep is done
-    previous = {sig: signal.signal(sig, interrupt_handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    source = _open(args, read_topics)
+    handler = getattr(source, "signal_handler", interrupt_handler)  # live: the first signal ends the input
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        with open_store(args.store, create=True, codec=args.codec, sync_every_ms=args.sync_ms,
-                        **store_options) as store, \
-                open_source(args.source, topics=read_topics, on_error=args.on_error, report=_skipped) as source, \
-                Progress("recording") as progress:  # fmt: skip
+        with source, open_store(args.store, create=True, codec=args.codec, sync_every_ms=args.sync_ms,
+                                **store_options) as store, \
+                Progress("recording", total=getattr(source, "message_count", None)) as progress:  # fmt: skip
             last = [0]
 
             def tick(stats):
@@ -153,8 +177,10 @@ def run(args: argparse.Namespace) -> int:
             messages = _tee_odometry(source, args.odom_topic, rows) if args.features_out else source
             ended = False  # the input ran out, with no error or interrupt
             try:
-                record(messages, store, policy, check_json=False, progress=tick, stats=stats, upkeep=upkeep)
+                record(messages, store, policy, check_json=False, progress=tick, stats=stats, upkeep=upkeep,
+                       types=StreamTypes(getattr(source, "describe", None)))
                 ended = not stats.interrupted
+                tick(stats)  # the last count (progress is told every 4,096 messages)
             except KeyboardInterrupt:  # arrived once the input had ended: all was stored
                 stats.interrupted = True
             finally:
@@ -175,17 +201,20 @@ def run(args: argparse.Namespace) -> int:
             signal.signal(sig, handler)
     if args.features_out:
         _write_dataset(args, rows)
-    _print_summary(args, stats, upkeep, final_bytes)
+    _print_summary(args, source, stats, upkeep, final_bytes)
     return 130 if stats.interrupted else 0
 
 
-def _print_summary(args: argparse.Namespace, stats: RecordStats, upkeep: Upkeep | None, final_bytes: int | None) -> None:
+def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep: Upkeep | None, final_bytes: int | None) -> None:
     mode = "smart logging" if args.model else "every message"
     kept = stats.json_bytes_kept / stats.json_bytes_in if stats.json_bytes_in else 0.0
     print(f"{'interrupted: ' if stats.interrupted else ''}recorded {args.source} into {args.store} ({mode}): "
           f"{stats.messages_in:,} messages in, {stats.messages_kept:,} kept ({100 * kept:.1f} % of "
           f"{human_bytes(stats.json_bytes_in)} JSON) in {stats.windows:,} windows, {stats.seconds:.1f} s "
           f"({stats.messages_in / max(stats.seconds, 1e-9):,.0f} msg/s)", file=sys.stderr)  # fmt: skip
+    if getattr(source, "stopped_by", None):
+        print(f"{args.source}: stopped by {source.stopped_by}; received "
+              + (", ".join(f"{t} {n:,}" for t, n in sorted(source.received.items())) or "nothing"), file=sys.stderr)
     if upkeep is not None:
         state = ""
         if upkeep.budget is not None:

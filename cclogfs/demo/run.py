@@ -132,7 +132,7 @@ def run_demo(cfg: DemoConfig) -> DemoResult:
     ]
     if cfg.plots:
         step("drawing the trajectory and the anomaly score")
-        from .plots import plot_scores, plot_trajectory  # matplotlib only when plotting
+        from ..plot.figures import plot_scores, plot_trajectory  # matplotlib only when plotting
 
         res.paths["trajectory"] = plot_trajectory(out / "trajectory.png", run, res.stored_windows)
         res.paths["scores"] = plot_scores(out / "scores.png", odom.stamp_ns, scores, res.stored_windows,

@@ -10,9 +10,11 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from rosbags.highlevel import AnyReader
+from rosbags.interfaces import ConnectionExtRosbag1, MessageDefinitionFormat
 
 from ..errors import SourceError
 from ..jsontext.ros import message_stamp_ns
+from ..jsontext.rostypes import ros1_description
 from .base import SourceMessage, topic_filter
 from ..jsontext.ros import MessageConverter
 
@@ -50,6 +52,20 @@ class RosbagSource:
 
     def topics(self) -> dict[str, str]:
         return {c.topic: c.msgtype for c in self._connections}
+
+    @property
+    def message_count(self) -> int:
+        """How many messages iterating will yield (from the bag's index), for progress."""
+        return sum(c.msgcount for c in self._connections)
+
+    def describe(self, topic: str) -> dict:
+        """The ROS 1 definition of `topic`'s type, for window metadata (`jsontext.rostypes`)."""
+        for c in self._connections:
+            if c.topic == topic:
+                ros1 = c.msgdef.format == MessageDefinitionFormat.MSG and isinstance(c.ext, ConnectionExtRosbag1)
+                return ros1_description(self._reader.typestore, c.msgtype, msgdef=c.msgdef.data if ros1 else "",
+                                        md5sum=c.digest if ros1 else "", latching=ros1 and bool(c.ext.latching))
+        return {}
 
     def __iter__(self) -> Iterator[SourceMessage]:
         if not self._connections:

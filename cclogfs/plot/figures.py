@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 
-def _pyplot():
+def pyplot():
     import matplotlib
 
     matplotlib.use("Agg")  # files only: no display needed
@@ -26,7 +26,7 @@ def _inside(stamps: np.ndarray, spans: list[tuple[int, int]]) -> np.ndarray:
 
 def plot_trajectory(path: Path, run: Any, windows: list[tuple[int, int]]) -> Path:
     """The path driven (odometry), stored windows highlighted, true anomalies marked."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(8, 7), dpi=110)
     ax.plot(run.x, run.y, color="0.75", lw=1, label="trajectory (odometry)")
     kept = _inside(run.stamp_ns, windows)
@@ -53,7 +53,7 @@ def plot_trajectory(path: Path, run: Any, windows: list[tuple[int, int]]) -> Pat
 def plot_scores(path: Path, stamps: np.ndarray, scores: np.ndarray, windows: list[tuple[int, int]],
                 events: list[dict]) -> Path:  # fmt: skip
     """Anomaly score over time, the threshold, stored windows and the true anomalies."""
-    plt = _pyplot()
+    plt = pyplot()
     t0 = stamps[0]
     sec = (stamps - t0) / 1e9
     fig, ax = plt.subplots(figsize=(11, 4.4), dpi=110)

@@ -1,0 +1,42 @@
+"""`cclog plot STORE`: PNG plots of a store's trajectory, speed, windows and anomaly scores."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from ..store import open_store
+from ..plot.store import plot_data, plot_store
+
+EXAMPLES = """\
+examples:
+  cclog plot robot.store                         # plots/trajectory.png, speed.png, windows.png
+  cclog plot robot.store --topic /amcl_pose --out figs
+
+The trajectory is the first stream of type nav_msgs/Odometry, PoseStamped or
+PoseWithCovarianceStamped (else /odom), or --topic. Speed is the twist when the messages
+have one, else from consecutive poses. Smart-logged stores also show each window's peak
+anomaly score and, from /cclog/summary, the anomalous messages per summary period. A store
+without poses gets windows.png only.
+"""
+
+HELP = "PNG plots of a store: trajectory, speed, windows, anomaly scores"
+DESCRIPTION = "Plot a store: the trajectory, speed and stored windows over time, and anomaly scores."
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("store", help="store directory")
+    p.add_argument("--topic", metavar="T", help="the pose stream to draw (default: found by message type)")
+    p.add_argument("--out", default="plots", help="directory for the PNG files (default %(default)s)")
+
+
+def run(args: argparse.Namespace) -> int:
+    with open_store(args.store, readonly=True) as store:
+        data = plot_data(store, args.topic)
+    paths = plot_store(data, Path(args.out))
+    if not len(data.x):
+        print(f"cclog: no pose stream in {args.store} (name one with --topic): windows only", file=sys.stderr)
+    for path in paths:
+        print(path)
+    return 0

@@ -1,0 +1,75 @@
+"""Each stream's message type, kept in the metadata of the windows a recording stores.
+
+Every window of a stream gets `"msgtype"` (the ROS 2 spelling, `nav_msgs/msg/Odometry`, as
+rosbags names types; the MCAP export uses it as the schema name). The first window a
+recording run stores of each stream also gets what a player needs to publish the stream
+again with its original type: `"msgdef"` (the ROS 1 message definition text, dependencies
+included, as a ROS 1 connection header carries it), `"md5sum"` and `"latching"`. Once per run
+rather than in every window: the definition of an Odometry is 4 kB, more than a smart-logged
+window of it. `play` looks for the first window that has it, and falls back to the types
+rosbags ships (ROS 1 Noetic) when the window holding it was dropped.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any
+
+Describe = Callable[[str], Mapping[str, Any] | None]
+
+# A record's metadata is at most 64 KiB (docs/FORMAT.md); a definition larger than this is
+# left out (play then uses rosbags' types), so that no window is ever refused for it.
+MAX_MSGDEF = 32 * 1024
+
+
+class StreamTypes:
+    """Topic -> message type as messages come in; adds them to window metadata."""
+
+    def __init__(self, describe: Describe | None = None) -> None:
+        self.types: dict[str, str] = {}
+        self._describe = describe
+        self._described: set[str] = set()
+
+    def saw(self, topic: str, msgtype: str) -> None:
+        if msgtype and topic not in self.types:
+            self.types[topic] = msgtype
+
+    def meta(self, topic: str, meta: Mapping[str, Any]) -> Mapping[str, Any]:
+        """`meta` with the stream's type added (and its definition, the first time)."""
+        msgtype = self.types.get(topic)
+        if not msgtype:
+            return meta
+        out = {**meta, "msgtype": msgtype}
+        if topic not in self._described and self._describe is not None:
+            self._described.add(topic)
+            extra = dict(self._describe(topic) or {})
+            if len(extra.get("msgdef", "").encode()) > MAX_MSGDEF:
+                extra.pop("msgdef")
+            out.update(extra)
+        return out
+
+
+def ros1_typestore(typestore: Any = None) -> Any:
+    """A ROS 1 type store: rosbags' ROS 1 Noetic types, plus the types of `typestore` that
+    Noetic lacks. A ROS 2 type so gets a ROS 1 header (with `seq`) wherever it has one."""
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    if typestore is not None:
+        ts.register({k: v for k, v in typestore.fielddefs.items() if k not in ts.fielddefs})
+    return ts
+
+
+def ros1_description(typestore: Any, msgtype: str, *, msgdef: str = "", md5sum: str = "",
+                     latching: bool = False) -> dict[str, Any]:  # fmt: skip
+    """The metadata a ROS 1 player needs for `msgtype`: the definition and MD5 given (from a
+    ROS 1 connection), else those of `ros1_typestore(typestore)`. {} when neither can be had."""
+    if not msgdef or not md5sum:
+        try:
+            msgdef, md5sum = ros1_typestore(typestore).generate_msgdef(msgtype, ros_version=1)
+        except Exception:  # a type rosbags cannot express in ROS 1 (some ROS 2 IDL types)
+            return {}
+    out: dict[str, Any] = {"msgdef": msgdef, "md5sum": md5sum}
+    if latching:
+        out["latching"] = True
+    return out

@@ -1,0 +1,212 @@
+"""`cclog record ros1://` against a real ROS 1 master: roscore on a free port, `rosbag play`
+of a real bag, the recording compared with the bag message by message.
+
+Skips without ROS 1 (roscore, rosbag, rospy); under CI=true it fails instead, since
+.ci/run installs ROS 1 from Debian's packages.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+from cclogfs import open_store
+from cclogfs.errors import InvalidInputError
+from cclogfs.ingest import open_source
+from cclogfs.ingest.ros1live import TopicMatcher
+from cclogfs.ingest.ros1testing import (play, published, roscore, ros1_missing, start, stop, subscribers, wait_for,
+                                        write_ros1_bag)  # fmt: skip
+
+CCLOG = [sys.executable, "-m", "cclogfs"]
+
+
+@pytest.fixture(scope="module")
+def ros1():
+    why = ros1_missing()
+    if why is not None:
+        if os.environ.get("CI") == "true":
+            pytest.fail(f"ROS 1 is needed under CI (.ci/run installs it): {why}")
+        pytest.skip(why)
+
+
+@pytest.fixture(scope="module")
+def master(ros1, tmp_path_factory):
+    with roscore(tmp_path_factory.mktemp("ros")) as env:
+        yield env
+
+
+def by_topic(pairs):
+    """topic -> Counter of JSON texts (the order of two topics' messages may differ live)."""
+    out: dict[str, Counter] = {}
+    for topic, text in pairs:
+        out.setdefault(topic, Counter())[text] += 1
+    return out
+
+
+def bag_messages(bag, topics=None):
+    with open_source(bag, topics=topics) as src:
+        return by_topic((m.topic, m.text) for m in src)
+
+
+def store_messages(path, skip=("/cclog/summary",)):
+    with open_store(path, readonly=True) as store:
+        return by_topic((w.name, t) for w in store.query() if w.name not in skip for _, t in w.messages())
+
+
+def recorder(env, store, *args):
+    """`cclog record ros1://` in the background; its stderr is read by `finish`."""
+    return start([*CCLOG, "record", "ros1://", "--store", str(store), *args], env,
+                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+
+
+def finish(proc, after_s=1.0, sig=signal.SIGINT):
+    """Signal the recorder once what was played has had `after_s` to arrive; its stderr."""
+    time.sleep(after_s)
+    rc = stop(proc, sig)
+    err = proc.stderr.read()
+    assert rc == 0, err
+    return err
+
+
+def played(proc, timeout=120):
+    _, err = proc.communicate(timeout=timeout)
+    assert proc.returncode == 0, err
+
+
+def wait_subscribed(env, topic, timeout=30):
+    wait_for(lambda: any("cclog_record" in n for n in subscribers(env, topic)), timeout, f"a subscriber on {topic}")
+
+
+def test_keep_all_records_every_message_of_a_real_bag(master, shared_data, tmp_path):
+    bag = shared_data("tf_example.bag")
+    rec = recorder(master, tmp_path / "live.store")  # every topic, found on the master as they appear
+    try:
+        played(play(master, bag, "--wait-for-subscribers", "--rate", "10"))
+        err = finish(rec)
+    finally:
+        stop(rec)
+    assert "stopped by SIGINT" in err and "/tf 517" in err and "/tf_static 1" in err
+    got = store_messages(tmp_path / "live.store")
+    want = bag_messages(bag)
+    assert got["/tf"] == want["/tf"] and got["/tf_static"] == want["/tf_static"]
+    assert sum(want["/tf"].values()) == 517
+    with open_store(tmp_path / "live.store", readonly=True) as store:
+        metas = [w.meta for w in store.query("/tf")]
+    assert {m["msgtype"] for m in metas} == {"tf2_msgs/msg/TFMessage"}
+    assert metas[0]["md5sum"] == "94810edda583a504dfda3829e70d7eec"  # the type's ROS 1 definition, once
+    assert "msgdef" not in metas[1]
+
+
+def test_latched_topic_is_received_after_it_was_published(master, shared_data, tmp_path):
+    bag = write_ros1_bag(shared_data("tf_example.bag"), tmp_path / "latched.bag", latched=["/tf_static"])
+    publisher = play(master, bag, "--keep-alive", "--topics", "/tf_static")
+    try:
+        # The one message is published before the recorder exists: only latching delivers it.
+        wait_for(lambda: "/tf_static" in published(master), 30, "/tf_static to be published")
+        time.sleep(0.5)
+        rec = recorder(master, tmp_path / "s", "--topic", "/tf_static")
+        try:
+            wait_subscribed(master, "/tf_static")
+            err = finish(rec, after_s=3.0)  # the latched message comes once the connection is made
+        finally:
+            stop(rec)
+    finally:
+        stop(publisher)
+    assert store_messages(tmp_path / "s") == {"/tf_static": bag_messages(bag)["/tf_static"]}, err
+    with open_store(tmp_path / "s", readonly=True) as store:
+        assert next(iter(store.query())).meta["latching"] is True
+
+
+@pytest.fixture(scope="module")
+def sim_bag_and_model(tmp_path_factory):
+    """A simulated run with anomalies as a ROS 1 bag (/odom), and a model trained on a
+    nominal run of the same robot."""
+    d = tmp_path_factory.mktemp("sim")
+    common = ["--rate", "30", "--robot-seed", "1"]
+    subprocess.run([*CCLOG, "simulate", "--seed", "1", "--duration", "60", "--anomalies", "3", *common,
+                    "--out", str(d / "run")], check=True, capture_output=True)  # fmt: skip
+    subprocess.run([*CCLOG, "simulate", "--seed", "2", "--duration", "120", "--nominal", *common,
+                    "--out", str(d / "nominal")], check=True, capture_output=True)  # fmt: skip
+    subprocess.run([*CCLOG, "train", str(d / "nominal" / "run"), "--out", str(d / "model")], check=True,
+                   capture_output=True)  # fmt: skip
+    return write_ros1_bag(d / "run" / "run", d / "run.bag"), d / "model"
+
+
+def windows_of(path, topic):
+    with open_store(path, readonly=True) as store:
+        return [(w.start_ns, w.end_ns, w.count, list(w.messages())) for w in store.query(topic)]
+
+
+def test_smart_logging_live_keeps_the_windows_of_the_file(master, sim_bag_and_model, tmp_path):
+    bag, model = sim_bag_and_model
+    subprocess.run([*CCLOG, "record", str(bag), "--store", str(tmp_path / "file"), "--model", str(model)],
+                   check=True, capture_output=True)  # fmt: skip
+    rec = recorder(master, tmp_path / "live", "--model", str(model), "--topic", "/odom")
+    try:
+        wait_subscribed(master, "/odom")
+        played(play(master, bag, "--wait-for-subscribers", "--rate", "10"))
+        assert "stopped by SIGTERM" in finish(rec, sig=signal.SIGTERM)  # SIGTERM flushes as Ctrl-C does
+    finally:
+        stop(rec)
+    want = windows_of(tmp_path / "file", "/odom")
+    assert want, "the simulated anomalies must open windows, or this test proves nothing"
+    assert windows_of(tmp_path / "live", "/odom") == want
+    assert bag_messages(bag)["/odom"].total() == 1800  # 60 s at 30 Hz, all played
+
+
+def test_no_master_is_one_line_and_exit_1(ros1, tmp_path):
+    from cclogfs.ingest.ros1testing import free_port
+
+    env = {**os.environ, "ROS_MASTER_URI": f"http://127.0.0.1:{free_port()}"}
+    r = subprocess.run([*CCLOG, "record", "ros1://", "--store", str(tmp_path / "s")], env=env,
+                       capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert r.returncode == 1
+    assert r.stderr.startswith("cclog: error: no ROS master answers at http://127.0.0.1:") and r.stderr.count("\n") == 1
+    assert not (tmp_path / "s").exists()  # nothing created for a recording that could not start
+
+
+def test_without_rospy_says_what_to_install(tmp_path):
+    code = ("from cclogfs.ingest.ros1live import import_rospy\n"
+            "import_rospy(paths=[])\n")  # fmt: skip
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    if r.returncode == 0:
+        pytest.skip("rospy is importable without the system paths here")
+    assert "apt-get install ros-core python3-rospy" in r.stderr
+
+
+def test_topic_matcher_names_patterns_and_exclusions():
+    m = TopicMatcher(["/odom", "/tf.*"], exclude=["/tf_static"])
+    assert [t for t in ["/odom", "/odom2", "/tf", "/tf_static", "/tfx", "/scan"] if m(t)] == ["/odom", "/tf", "/tfx"]
+    assert TopicMatcher(None, exclude=["/rosout.*"])("/scan") and not TopicMatcher(None, ["/rosout.*"])("/rosout_agg")
+    with pytest.raises(InvalidInputError, match="--exclude"):
+        TopicMatcher(None, exclude=["("])
+
+
+def test_play_to_ros1_publishes_every_message_with_its_type_and_clock(master, shared_data, tmp_path):
+    bag = shared_data("tf_example.bag")
+    subprocess.run([*CCLOG, "record", str(bag), "--store", str(tmp_path / "orig")], check=True, capture_output=True)
+    rec = recorder(master, tmp_path / "back", "--topic", "/tf.*", "--topic", "/clock")  # names and patterns
+    try:
+        player = start([*CCLOG, "play", str(tmp_path / "orig"), "--to", "ros1://", "--rate", "10", "--clock",
+                        "--wait-for-subscribers"], master, stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+        played(player)
+        finish(rec)
+    finally:
+        stop(rec)
+    back = store_messages(tmp_path / "back")
+    clock = back.pop("/clock")
+    assert back == store_messages(tmp_path / "orig") == bag_messages(bag)
+    stamps = sorted(int(json.loads(t)["clock"]["sec"]) * 10**9 + json.loads(t)["clock"]["nanosec"] for t in clock)
+    with open_store(tmp_path / "orig", readonly=True) as store:
+        want = sorted(s for w in store.query() for s, _ in w.messages())
+    assert stamps == want  # one /clock per message, at its stamp
+    with open_store(tmp_path / "back", readonly=True) as store:
+        assert {w.meta["msgtype"] for w in store.query("/tf")} == {"tf2_msgs/msg/TFMessage"}
