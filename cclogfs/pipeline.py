@@ -325,7 +325,7 @@ def evaluate_run(messages: list[tuple[str, int, str]], model: Any, labels: Any, 
     total_bytes = sum(len(text) for _, _, text in messages)
     return {
         "messages": message_table(odom.stamp_ns, flags, labels),
-        "events": event_table(odom.stamp_ns, window_spans(windows, topic), labels),
+        "events": event_table(odom.stamp_ns, window_spans(windows, topic), labels, flags),
         "kept_messages": sum(len(w.messages) for w in windows),
         "total_messages": len(messages),
         "kept_bytes": sum(len(t) for w in windows for _, t in w.messages),
