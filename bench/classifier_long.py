@@ -204,6 +204,58 @@ def run_sim(args) -> list[dict]:
     return out
 
 
+def plot_episodes(runs: dict[str, OdomArrays], path: Path) -> None:
+    """The real episodes that look anomalous: one-message wheel-speed glitches of
+    tuc_lecture_hall (raw twist vs the despiked one the features use), and the ordinary
+    stops at a goal and turns in place of tuc_corridor with the scores of a model trained
+    on its first 2 minutes."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from cclogfs.classifier.api import Detector
+    from cclogfs.classifier.features import _median3
+
+    fig, axes = plt.subplots(2, 2, figsize=(13, 7))
+    hall = runs["tuc_lecture_hall"]
+    v = hall.raw[:, 7]
+    glitch = np.nonzero((v[1:-1] < v[:-2] - 0.15) & (v[2:] > v[1:-1] + 0.15))[0] + 1
+    alone = [g for g in glitch if np.sum(np.abs(glitch - g) < 30) == 1 and v[g - 8 : g + 8].max() - v[[g - 8, g + 8]].min() < 0.5]
+    burst = [g for g in glitch if np.sum(np.abs(glitch - g) < 30) >= 4]
+    titles = ("a one-message speed glitch", "3 s of speed chatter, then a stop")
+    for ax, g, title in zip(axes[0], (alone[0], burst[0]), titles):
+        sl = slice(g - 30, g + 30)
+        sec = (hall.stamp_ns[sl] - hall.stamp_ns[g]) / NS
+        ax.plot(sec, v[sl], "o-", ms=3, color="k", label="twist.linear.x as recorded")
+        ax.plot(sec, _median3(v)[sl], color="tab:blue", label="median of 3 (features v4)")
+        ax.set_title(f"tuc_lecture_hall, {(hall.stamp_ns[g] - hall.stamp_ns[0]) / NS:.1f} s: {title}",
+                     fontsize=9)  # fmt: skip
+        ax.set_xlabel("s")
+        ax.set_ylabel("m/s")
+        ax.legend(fontsize=8)
+    corr = runs["tuc_corridor"]
+    t = corr.stamp_ns
+    model = train([corr.take(t < t[0] + 120 * NS)])
+    scores, flags = Detector(model).score_batch(corr)
+    sec = (t - t[0]) / NS
+    turns = np.nonzero((np.abs(corr.raw[:, 7]) < 0.05) & (np.abs(corr.raw[:, 12]) > 0.3))[0]
+    stop = int(turns[turns > 1200][0]) if len(turns[turns > 1200]) else len(t) // 2
+    sl = slice(stop - 150, stop + 250)
+    ax = axes[1][0]
+    ax.plot(sec[sl], corr.raw[sl, 7], color="k", label="speed m/s")
+    ax.plot(sec[sl], corr.raw[sl, 12], color="tab:orange", label="yaw rate rad/s")
+    ax.set_title("tuc_corridor: stop at a goal, turn in place, drive on (ordinary)", fontsize=9)
+    ax.legend(fontsize=8)
+    ax = axes[1][1]
+    ax.plot(sec[sl], scores[sl], color="tab:green")
+    ax.axhline(0, color="grey", ls=":")
+    ax.set_title("score of a model trained on the first 2 min (> 0: anomalous)", fontsize=9)
+    ax.set_xlabel("s since the first message")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--runs", default=None, help="comma-separated run names (default all)")
@@ -215,11 +267,16 @@ def main() -> None:
     p.add_argument("--out", type=Path, default=OUT)
     p.add_argument("--before", default=WINDOW_BEFORE, help="window context (default %(default)s)")
     p.add_argument("--after", default=WINDOW_AFTER, help="window context (default %(default)s)")
+    p.add_argument("--plot", type=Path, default=None, help="plot the real episodes here and stop")
     p.add_argument("--param", action="append", default=[], metavar="K=V",
                    help="a training parameter (OneClassModel), e.g. false_alarm_rate=0.0005")
     args = p.parse_args()
     args.param = {k: float(v) for k, v in (kv.split("=", 1) for kv in args.param)}
     runs = load_runs(args.runs.split(",") if args.runs else None)
+    if args.plot:
+        plot_episodes(runs, args.plot)
+        print(f"wrote {args.plot}")
+        return
     rows = []
     print(HEAD)
     for features in args.features.split(","):
