@@ -220,6 +220,10 @@ def plot_episodes(runs: dict[str, OdomArrays], path: Path) -> None:
     fig, axes = plt.subplots(2, 2, figsize=(13, 7))
     hall = runs["tuc_lecture_hall"]
     v = hall.raw[:, 7]
+    # The despiked speed the features use (DefaultFeatures, despike_s = 0.1 s).
+    t = hall.stamp_ns
+    k1, k2 = (np.maximum(np.searchsorted(t, t - lag, side="right") - 1, 0) for lag in (NS // 10, NS // 5))
+    despiked = _median3(v[k2], v[k1], v)
     glitch = np.nonzero((v[1:-1] < v[:-2] - 0.15) & (v[2:] > v[1:-1] + 0.15))[0] + 1
     alone = [g for g in glitch if np.sum(np.abs(glitch - g) < 30) == 1 and v[g - 8 : g + 8].max() - v[[g - 8, g + 8]].min() < 0.5]
     burst = [g for g in glitch if np.sum(np.abs(glitch - g) < 30) >= 4]
@@ -228,7 +232,7 @@ def plot_episodes(runs: dict[str, OdomArrays], path: Path) -> None:
         sl = slice(g - 30, g + 30)
         sec = (hall.stamp_ns[sl] - hall.stamp_ns[g]) / NS
         ax.plot(sec, v[sl], "o-", ms=3, color="k", label="twist.linear.x as recorded")
-        ax.plot(sec, _median3(v)[sl], color="tab:blue", label="median of 3 (features v4)")
+        ax.plot(sec, despiked[sl], color="tab:blue", label="despiked (features v4)")
         ax.set_title(f"tuc_lecture_hall, {(hall.stamp_ns[g] - hall.stamp_ns[0]) / NS:.1f} s: {title}",
                      fontsize=9)  # fmt: skip
         ax.set_xlabel("s")

@@ -71,8 +71,9 @@ def test_version_3_configs_keep_their_vectors():
     assert v4.batch(odom)[0][after_spin, COL["turn_in_place"]].max() == 0.0
 
 
-def test_despike_ignores_one_message_glitches_but_not_lurches():
-    odom = manoeuvres()
+@pytest.mark.parametrize("rate", [10.0, 100.0])
+def test_despike_ignores_one_message_glitches_but_not_lurches(rate):
+    odom = manoeuvres(rate)
     s = (odom.stamp_ns - odom.stamp_ns[0]) * 1e-9
     calm = (s > 5) & (s < 18)
     clean = OdomArrays(odom.stamp_ns, odom.raw.copy())
@@ -82,8 +83,9 @@ def test_despike_ignores_one_message_glitches_but_not_lurches():
     glitched = calm & (make_features(V3).batch(clean)[0][:, COL["accel_max"]] < 1) & (X3[:, COL["accel_max"]] > 3)
     assert glitched.any()  # version 3 sees a glitch as a 3.5 m/s^2 jolt
     assert X4[glitched, COL["accel_max"]].max() < 1  # version 4 does not
-    lurch, _ = inject(clean, "accel", int(odom.stamp_ns[100]), 0.5, strength=0.4)
-    assert make_features("default").batch(lurch)[0][100:106, COL["accel_max"]].max() > 2
+    lurch, _ = inject(clean, "accel", int(10 * NS + odom.stamp_ns[0]), 0.5, strength=0.4)
+    during = (s >= 10) & (s < 10.5)
+    assert make_features("default").batch(lurch)[0][during, COL["accel_max"]].max() > 2
 
 
 def test_models_of_version_3_still_load_and_score_alike(tmp_path):
@@ -143,3 +145,19 @@ def test_window_starts_where_the_evidence_starts():
             lb = 6 * NS if i == 100 else 0
             out += b.push("/odom", i * 100 * ms, str(i), anomalous=lb > 0, lookback_ns=lb)
         assert _spans(out + b.flush())[0][0] == start
+
+
+def test_flip_threshold_learnt_from_the_robots_noise():
+    from cclogfs.classifier.api import robot_thresholds
+
+    clean = manoeuvres()
+    noisy = OdomArrays(clean.stamp_ns, clean.raw.copy())
+    noisy.raw[:, 7] += np.random.default_rng(3).normal(0, 0.05, len(clean))
+    quiet = OdomArrays(clean.stamp_ns, clean.raw.copy())
+    quiet.raw[:, 7] = 0.4
+    assert robot_thresholds([quiet])["dir_flip"] == 0.01  # smooth wheel odometry: the default
+    assert robot_thresholds([clean])["dir_flip"] < 0.05  # 0.01 m/s of noise
+    assert 0.1 < robot_thresholds([noisy])["dir_flip"] < 0.4  # ~4 x 0.05 m/s
+    model = train([noisy.take(slice(0, 400))])
+    assert model.feature_config["params"]["dir_flip"] == robot_thresholds([noisy.take(slice(0, 400))])["dir_flip"]
+    assert train([noisy.take(slice(0, 400))], features=V3).feature_config == V3  # explicit: kept

@@ -59,6 +59,19 @@ def event_masks(features, stamp_ns: np.ndarray, labels) -> tuple[np.ndarray, np.
     return inside, touched
 
 
+def robot_thresholds(runs: list[OdomArrays]) -> dict:
+    """Default-feature thresholds learnt from the robot's own odometry: a forward/backward
+    flip must stand out of the message-to-message noise of its speed (4 robust standard
+    deviations), never less than the fixed 0.01 m/s. Twist differenced from poses (the
+    slamfail robots) jitters by ~0.05-0.1 m/s per message and "reverses" ten times a second
+    while it crawls; wheel odometry (TUC) keeps 0.01. Measured in bench/classifier_long.py."""
+    steps = [np.diff(r.raw[:, 7]) for r in runs if len(r) > 2]
+    if not steps:
+        return {}
+    noise = 1.4826 * float(np.median(np.abs(np.concatenate(steps)))) / np.sqrt(2)
+    return {"dir_flip": max(0.01, 4 * noise)}
+
+
 def train(
     sources: Iterable, *, labels=None, features: dict | str | None = "default", **params
 ) -> OneClassModel:
@@ -68,8 +81,10 @@ def train(
     with one per run. Vectors that depend on an event are left out of the nominal set; the
     ones inside events select nu/gamma. `params` go to OneClassModel.
     """
-    fs = make_features(features)
     sources = [_as_odom(s) for s in sources]
+    fs = make_features(features)
+    if features in ("default", None):  # calibrated to this robot; an explicit config is kept
+        fs = make_features(fs.get_config() | {"params": fs.params | robot_thresholds(sources)})
     per_run = labels if isinstance(labels, list) else [labels] * len(sources)
     if len(per_run) != len(sources):
         raise InvalidInputError(f"Got {len(per_run)} label sets for {len(sources)} runs.")

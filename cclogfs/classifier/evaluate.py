@@ -48,9 +48,9 @@ def window_spans(windows: Iterable[LoggedWindow], topic: str = "/odom") -> list[
 
 
 def detection_delays(stamp_ns: np.ndarray, flags: np.ndarray, labels,
-                     horizon_ns: int = 10 * 10**9) -> list[float]:
-    """Per event, seconds from its start to the first anomalous message at or after it
-    (up to `horizon_ns` after its end); NaN where none is flagged."""
+                     horizon_ns: int = 2 * 10**9) -> list[float]:
+    """Per event, seconds from its start to the first anomalous message at or after it,
+    up to `horizon_ns` after its end (a later flag is not this event's); NaN where none."""
     stamp_ns, flags = np.asarray(stamp_ns), np.asarray(flags, dtype=bool)
     out = []
     for e in parse_labels(labels):

@@ -274,16 +274,19 @@ class DefaultFeatures:
         yaw_flip: float = 0.2,
         dir_flip: float = 0.01,
         gate_s: float | None = 1.0,
+        despike_s: float | None = 0.1,
     ):
         values = dict(deriv_s=deriv_s, match_s=match_s, short_s=short_s, long_s=long_s,
                       flip_s=flip_s, gap_s=gap_s, warmup_s=warmup_s, creep_mps=creep_mps,
                       yaw_flip=yaw_flip, dir_flip=dir_flip)  # fmt: skip
         # Version 4 gates the long-window features on what happens now (see `_segment`);
-        # a version 3 config has no gate_s and keeps its ungated vectors.
-        if gate_s is not None:
-            values["gate_s"] = gate_s
-        else:
+        # a version 3 config has neither gate_s nor despike_s and keeps its vectors.
+        if gate_s is not None and despike_s is not None:
+            values["gate_s"], values["despike_s"] = gate_s, despike_s
+        elif gate_s is None and despike_s is None:
             self.version = 3
+        else:
+            raise InvalidInputError("Feature parameters gate_s and despike_s go together.")
         for name, value in values.items():
             if not value > 0:
                 raise InvalidInputError(f"Feature parameter {name} must be > 0, got {value!r}.")
@@ -295,6 +298,7 @@ class DefaultFeatures:
         self._gap, self._warmup = ns["gap_s"], ns["warmup_s"]
         self._flip = ns["flip_s"]
         self._gate = ns.get("gate_s")
+        self._despike = ns.get("despike_s")
         self.creep, self.yaw_flip, self.dir_flip = creep_mps, yaw_flip, dir_flip
         # How far back each column's evidence reaches (ns): where an anomaly that a column
         # reports may have started, so that its logging window can start there too.
@@ -355,9 +359,15 @@ class DefaultFeatures:
         vx, vy, wz = raw[:, 7], raw[:, 8], raw[:, 12]
         # Integrals use the twist as reported; rates, accelerations and flips use it
         # despiked (version 4): real odometry has one-message glitches (a wheel speed that
-        # drops by 0.4 m/s for one message and is back at the next, 23 in the 23 min of
-        # tuc_lecture_hall) that no body can follow, and a median of 3 removes them.
-        fvx, fvy, fwz = (_median3(vx), _median3(vy), _median3(wz)) if self._gate else (vx, vy, wz)
+        # drops by 0.4 m/s for one message and is back at the next, 20 in the 23 min of
+        # tuc_lecture_hall) that no body can follow. The median of the values now,
+        # despike_s ago and twice that ago removes them at any message rate.
+        if self._despike is not None:
+            k1 = np.maximum(np.searchsorted(t, t - self._despike, side="right") - 1, 0)
+            k2 = np.maximum(np.searchsorted(t, t - 2 * self._despike, side="right") - 1, 0)
+            fvx, fvy, fwz = (_median3(c[k2], c[k1], c) for c in (vx, vy, wz))
+        else:
+            fvx, fvy, fwz = vx, vy, wz
         speed = np.hypot(fvx, fvy)
 
         # Step integrals between consecutive messages (trapezoid, mid-step heading).
@@ -427,11 +437,9 @@ def _flips(x: np.ndarray, h: float) -> np.ndarray:
     return out
 
 
-def _median3(x: np.ndarray) -> np.ndarray:
-    """Row i: median of x[i-2], x[i-1], x[i] (indices clamped to the first row)."""
-    a = np.concatenate((x[:1], x[:1], x[:-2]))[: len(x)]
-    b = np.concatenate((x[:1], x[:-1]))[: len(x)]
-    return np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), x))
+def _median3(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Element-wise median of three arrays."""
+    return np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c))
 
 
 def _recent(t: np.ndarray, flips: np.ndarray, within: int) -> np.ndarray:
@@ -455,13 +463,16 @@ class _DefaultStream:
         self.deriv_ns, self.match_ns, self.short_ns = fs._deriv, fs._match, fs._short
         self.long_ns, self.flip_ns, self.gap_ns, self.warmup_ns = fs._long, fs._flip, fs._gap, fs._warmup
         self.gate_ns = fs._gate
+        self.despike_ns = fs._despike
         self.last: tuple[np.ndarray, bool] | None = None
         self.prev: tuple | None = None  # (t, yaw, vx, vy, wz) of the last accepted message
         self._reset()
 
     def _reset(self) -> None:
         self.prev = None
-        self.hist: list = []  # the last two accepted (vx, vy, wz), for the despike median
+        # (t, vx, vy, wz) baselines despike_s and 2 x despike_s back, for the despike median
+        self.held1: deque = deque()
+        self.held2: deque = deque()
         self.seg_start = 0
         self.cum = (0.0,) * 5
         self.deriv: deque = deque()  # (t, vx, vy, wz): the baseline is the first entry
@@ -508,13 +519,14 @@ class _DefaultStream:
                 c4 += mw * dt
             self.cum = (c0, c1, c2, c3, c4)
         self.prev = (t, yaw, vx, vy, wz)
-        if self.gate_ns is not None:  # despike as `_median3`: from here on, filtered twist
-            h = self.hist
-            a, b = (h[0], h[-1]) if h else ((vx, vy, wz),) * 2
-            h.append((vx, vy, wz))
-            if len(h) > 2:
-                del h[0]
-            vx, vy, wz = (max(min(p, q), min(max(p, q), r)) for p, q, r in zip(a, b, (vx, vy, wz)))
+        if self.despike_ns is not None:  # as in `_segment`: from here on, the despiked twist
+            now = (t, vx, vy, wz)
+            for q, lag in ((self.held1, self.despike_ns), (self.held2, 2 * self.despike_ns)):
+                q.append(now)
+                while len(q) > 1 and q[1][0] <= t - lag:
+                    q.popleft()
+            a, b = self.held2[0], self.held1[0]
+            vx, vy, wz = (max(min(a[i], b[i]), min(max(a[i], b[i]), now[i])) for i in (1, 2, 3))
 
         # Baselines: the newest entry at least `lag` back, else the segment's first.
         d = self.deriv
@@ -609,8 +621,8 @@ def make_features(config: dict | str | None = None) -> DefaultFeatures | PaperFe
     cls = FEATURE_SETS[fid]
     version = config.get("version", cls.version)
     params = dict(config.get("params", {}))
-    if fid == "default" and version == 3 and "gate_s" not in params:
-        return _make(cls, fid, params | {"gate_s": None})  # models trained before gating
+    if fid == "default" and version == 3 and not {"gate_s", "despike_s"} & set(params):
+        return _make(cls, fid, params | {"gate_s": None, "despike_s": None})  # older models
     if version != cls.version:
         raise InvalidInputError(
             f"Feature set {fid!r} version {version} is not supported (this is version {cls.version})."
