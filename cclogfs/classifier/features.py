@@ -358,16 +358,8 @@ class DefaultFeatures:
         yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
         vx, vy, wz = raw[:, 7], raw[:, 8], raw[:, 12]
         # Integrals use the twist as reported; rates, accelerations and flips use it
-        # despiked (version 4): real odometry has one-message glitches (a wheel speed that
-        # drops by 0.4 m/s for one message and is back at the next, 20 in the 23 min of
-        # tuc_lecture_hall) that no body can follow. The median of the values now,
-        # despike_s ago and twice that ago removes them at any message rate.
-        if self._despike is not None:
-            k1 = np.maximum(np.searchsorted(t, t - self._despike, side="right") - 1, 0)
-            k2 = np.maximum(np.searchsorted(t, t - 2 * self._despike, side="right") - 1, 0)
-            fvx, fvy, fwz = (_median3(c[k2], c[k1], c) for c in (vx, vy, wz))
-        else:
-            fvx, fvy, fwz = vx, vy, wz
+        # despiked (version 4, see `_despiked`).
+        fvx, fvy, fwz = self._despiked(t, vx, vy, wz)
         speed = np.hypot(fvx, fvy)
 
         # Step integrals between consecutive messages (trapezoid, mid-step heading).
@@ -421,9 +413,19 @@ class DefaultFeatures:
             # while it still happens, so a score falls within gate_s of an event's end
             # and a logging window can close soon after it.
             X[:, 8] *= (speed < self.creep) & (np.abs(fwz) > self.yaw_flip)
-            X[:, 9] *= _recent(t, yflip, self._gate)
-            X[:, 10] *= _recent(t, dflip, self._gate)
+            X[:, 9:11] *= np.column_stack([_recent(t, f, self._gate) for f in (yflip, dflip)])
         return X, t - seg_start >= self._warmup
+
+    def _despiked(self, t: np.ndarray, *columns: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Real odometry has one-message glitches (a wheel speed that drops by 0.4 m/s for
+        one message and is back at the next, 20 in the 23 min of tuc_lecture_hall) that no
+        body can follow. The median of the values now, despike_s ago and twice that ago
+        removes them at any message rate (version 3: the columns unchanged)."""
+        if self._despike is None:
+            return columns
+        k1 = np.maximum(np.searchsorted(t, t - self._despike, side="right") - 1, 0)
+        k2 = np.maximum(np.searchsorted(t, t - 2 * self._despike, side="right") - 1, 0)
+        return tuple(_median3(c[k2], c[k1], c) for c in columns)
 
 
 def _flips(x: np.ndarray, h: float) -> np.ndarray:

@@ -142,9 +142,7 @@ class WindowBuilder:
             self.ring.append((stamp_ns, text))
             self._trim_ring(stamp_ns)
             if anomalous:
-                self._cut_ring(stamp_ns - reach)
-                self._open(stamp_ns, out)
-                self._trigger(stamp_ns, score)
+                self._start(stamp_ns, reach, score, out)
         elif not w.closing:
             self._add(self.trigger_topic, [(stamp_ns, text)], out)
             w.last_ns = stamp_ns
@@ -159,9 +157,7 @@ class WindowBuilder:
             self.ring.append((stamp_ns, text))
             if anomalous and self.lookback_max_ns and stamp_ns - reach - self.before_ns > w.last_ns:
                 self._close(out)  # its context does not reach the held window: a new one
-                self._cut_ring(stamp_ns - reach)
-                self._open(stamp_ns, out)
-                self._trigger(stamp_ns, score)
+                self._start(stamp_ns, reach, score, out)
             elif anomalous:  # its context reaches back into the held window: merge
                 w.closing = False
                 self._add(self.trigger_topic, list(self.ring), out)
@@ -205,11 +201,14 @@ class WindowBuilder:
             self._trim_pending(topic)
         return out
 
-    def _cut_ring(self, evidence_ns: int) -> None:
-        """Seconds mode: drop ring messages more than `before` older than the evidence."""
+    def _start(self, stamp_ns: int, reach: int, score: float, out: list[LoggedWindow]) -> None:
+        """Open a window for an anomaly whose evidence starts `reach` ns before it: in
+        seconds mode the ring keeps `before` ahead of the evidence, no more."""
         if self.before_ns is not None:
-            while self.ring and self.ring[0][0] < evidence_ns - self.before_ns:
+            while self.ring and self.ring[0][0] < stamp_ns - reach - self.before_ns:
                 self.ring.popleft()
+        self._open(stamp_ns, out)
+        self._trigger(stamp_ns, score)
 
     def _trim_ring(self, now_ns: int) -> None:
         """Keep the newest message and the `before` messages (or seconds, plus the
