@@ -57,10 +57,11 @@ def windows_of(model, odom: OdomArrays, before: str, after: str):
     logger = SmartLogger(Detector(model), summary_period_s=None, before=b_n, after=a_n,
                          before_s=b_s, after_s=a_s)  # fmt: skip
     texts = [str(i) for i in range(len(odom))]  # window logic only needs stamps
-    scores, flags = logger.detector.score_batch(odom)
+    scores, flags, back = logger.detector.score_windows(odom)
     out = []
-    for s, text, f, sc in zip(odom.stamp_ns.tolist(), texts, flags.tolist(), scores.tolist()):
-        out += logger.windows.push("/odom", s, text, anomalous=f, score=sc)
+    for s, text, f, sc, lb in zip(odom.stamp_ns.tolist(), texts, flags.tolist(), scores.tolist(),
+                                  back.tolist()):  # fmt: skip
+        out += logger.windows.push("/odom", s, text, anomalous=f, score=sc, lookback_ns=lb)
     out += logger.windows.flush()
     return window_spans(out, "/odom"), scores
 

@@ -24,14 +24,15 @@ from .store import Store, open_store
 from .upkeep import Upkeep
 
 # Default logging-window extents, in seconds so they mean the same at any odometry rate.
-# 8 s before: the slow anomalies are recognised only seconds after they start (a stuck
-# robot at its first backward nudge, 4-6.5 s in on the simulator; a spin once it has
-# turned further than a turn in place ever does, 2.5-4.7 s in), and the window must hold
-# the start. 8 s after: a stuck robot's nudges come 2-3.5 s apart and the event may go on
-# past the last flagged one; it also merges the flagged stretches of one event into one
-# window. (bench/classifier_sim.py --split tune: 5 s missed 2 of 16 stuck events.)
-WINDOW_BEFORE = "8s"
-WINDOW_AFTER = "8s"
+# The window starts `before` ahead of where the anomaly's evidence starts, not of the first
+# flagged message: a feature seen over an 8 s window (a spin's net rotation, a stuck robot's
+# reversals) makes the window reach 8 s further back (WindowBuilder lookback), so the slow
+# anomalies recognised seconds after they start keep their start without 8 s of context
+# around every jolt. 2 s after: the flagged stretches of one event merge when less than 4 s
+# apart, and the window closes soon after the score falls (bench/classifier_long.py,
+# docs/CLASSIFIER.md).
+WINDOW_BEFORE = "2s"
+WINDOW_AFTER = "2s"
 
 
 class WindowPolicy(Protocol):
@@ -328,7 +329,7 @@ def evaluate_run(messages: list[tuple[str, int, str]], model: Any, labels: Any, 
     total_bytes = sum(len(text) for _, _, text in messages)
     return {
         "messages": message_table(odom.stamp_ns, flags, labels),
-        "events": event_table(odom.stamp_ns, window_spans(windows, topic), labels),
+        "events": event_table(odom.stamp_ns, window_spans(windows, topic), labels, flags),
         "kept_messages": sum(len(w.messages) for w in windows),
         "total_messages": len(messages),
         "kept_bytes": sum(len(t) for w in windows for _, t in w.messages),

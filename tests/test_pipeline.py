@@ -98,7 +98,7 @@ def test_train_record_eval_smart_logging(tmp_path, shared_data, capsys):
     assert main(["eval", p("test.jsonl"), "--model", p("model"), "--labels", p("labels.json"),
                  "--before", "2s", "--after", "2s"]) == 0  # fmt: skip
     out = capsys.readouterr().out
-    assert "Events recalled" in out and "2 (100.0%)" in out
+    assert "Events recalled" in out and "2 (100.0%)" in out and "Detection delay" in out
 
 
 def test_model_file_errors(tmp_path, capsys):

@@ -59,6 +59,19 @@ def event_masks(features, stamp_ns: np.ndarray, labels) -> tuple[np.ndarray, np.
     return inside, touched
 
 
+def robot_thresholds(runs: list[OdomArrays]) -> dict:
+    """Default-feature thresholds learnt from the robot's own odometry: a forward/backward
+    flip must stand out of the message-to-message noise of its speed (4 robust standard
+    deviations), never less than the fixed 0.01 m/s. Twist differenced from poses (the
+    slamfail robots) jitters by ~0.05-0.1 m/s per message and "reverses" ten times a second
+    while it crawls; wheel odometry (TUC) keeps 0.01. Measured in bench/classifier_long.py."""
+    steps = [np.diff(r.raw[:, 7]) for r in runs if len(r) > 2]
+    if not steps:
+        return {}
+    noise = 1.4826 * float(np.median(np.abs(np.concatenate(steps)))) / np.sqrt(2)
+    return {"dir_flip": max(0.01, 4 * noise)}
+
+
 def train(
     sources: Iterable, *, labels=None, features: dict | str | None = "default", **params
 ) -> OneClassModel:
@@ -68,8 +81,10 @@ def train(
     with one per run. Vectors that depend on an event are left out of the nominal set; the
     ones inside events select nu/gamma. `params` go to OneClassModel.
     """
-    feature_set = make_features(features)
     sources = [_as_odom(s) for s in sources]
+    feature_set = make_features(features)
+    if features in ("default", None):  # calibrated to this robot; an explicit config is kept
+        feature_set = make_features(feature_set.get_config() | {"params": feature_set.params | robot_thresholds(sources)})
     per_run = labels if isinstance(labels, list) else [labels] * len(sources)
     if len(per_run) != len(sources):
         raise InvalidInputError(f"Got {len(per_run)} label sets for {len(sources)} runs.")
@@ -98,19 +113,42 @@ class Detector:
                 f"Model {model.model_id_} expects {model.n_features_in_} features, but its "
                 f"feature set {model.feature_config} gives {self.features.dim}."
             )
+        # Per feature column, how far back its evidence reaches (None: not known).
+        self.spans_ns = getattr(self.features, "spans_ns", None)
+        self.lookback_max_s = 0.0 if self.spans_ns is None else float(self.spans_ns.max()) / 1e9
+        self.last_vector: np.ndarray | None = None
         self.reset()
 
     def reset(self) -> None:
         self._stream = self.features.stream()
 
-    def score_batch(self, odom) -> tuple[np.ndarray, np.ndarray]:
-        """(scores, anomalous) per message; NaN score and False where no vector exists."""
+    def lookback_ns(self, X: np.ndarray) -> np.ndarray:
+        """Per vector, how long before its message the anomaly's evidence starts: the
+        longest window among the features that stand out most (at least half the top
+        standardized deviation). A spin seen by its net rotation over 8 s started up to
+        8 s ago; a jolt seen by the 0.5 s maxima, half a second ago."""
+        X = np.atleast_2d(X)
+        if self.spans_ns is None or not len(X):
+            return np.zeros(len(X), dtype=np.int64)
+        Z = np.nan_to_num(np.abs(self.model.transform(X)))
+        involved = (Z > 0) & (Z >= 0.5 * Z.max(axis=1, keepdims=True))
+        return np.where(involved, self.spans_ns, 0).max(axis=1)
+
+    def score_windows(self, odom) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(scores, anomalous, lookback_ns) per message, for a whole run."""
         odom = _as_odom(odom)
         X, valid = self.features.batch(odom)
         scores = np.full(len(odom), np.nan)
         if valid.any():
             scores[valid] = self.model.score(X[valid])
-        return scores, np.nan_to_num(scores, nan=-np.inf) > 0
+        flags = np.nan_to_num(scores, nan=-np.inf) > 0
+        lookback = np.zeros(len(odom), dtype=np.int64)
+        lookback[flags] = self.lookback_ns(X[flags])
+        return scores, flags, lookback
+
+    def score_batch(self, odom) -> tuple[np.ndarray, np.ndarray]:
+        """(scores, anomalous) per message; NaN score and False where no vector exists."""
+        return self.score_windows(odom)[:2]
 
     def vector(self, stamp_ns: int, row) -> np.ndarray | None:
         """The newest message's feature vector (None while there is none or it is not valid)."""
@@ -122,6 +160,7 @@ class Detector:
         got = self._stream.push(stamp_ns, row)
         if got is None or not got[1]:
             return math.nan, False
+        self.last_vector = got[0]
         score = self.model.score_one(got[0])
         return score, score > 0
 
@@ -148,6 +187,7 @@ class SmartLogger:
         self._vectors: list[np.ndarray] = []
         self.detector = detector
         self.odom_topic = odom_topic
+        window_args.setdefault("lookback_max_s", detector.lookback_max_s)
         self.windows = WindowBuilder(trigger_topic=odom_topic,
                                      model_id=detector.model.model_id_, **window_args)  # fmt: skip
         self.summary = SummaryBuilder(period_s=summary_period_s) if summary_period_s else None
@@ -164,7 +204,8 @@ class SmartLogger:
         head, row = odom_row(text)
         if self.batch == 1:
             score, flag = self.detector.update_row(head, row)
-            return self._odom(stamp_ns, text, row, score, flag)
+            back = int(self.detector.lookback_ns(self.detector.last_vector)[0]) if flag else 0
+            return self._odom(stamp_ns, text, row, score, flag, back)
         vec = self.detector.vector(head, row)
         if vec is not None:
             self._vectors.append(vec)
@@ -173,22 +214,27 @@ class SmartLogger:
 
     def _drain(self) -> list[PendingWindow]:
         """Score the held odometry vectors at once, then run the windows over the held messages."""
-        scores = iter(self.detector.model.score(np.array(self._vectors)).tolist() if self._vectors else ())
+        V = np.array(self._vectors)
+        s = self.detector.model.score(V) if self._vectors else np.empty(0)
+        back = np.zeros(len(s), dtype=np.int64)
+        back[s > 0] = self.detector.lookback_ns(V[s > 0]) if (s > 0).any() else 0
+        found = iter(zip(s.tolist(), back.tolist()))
         out: list[PendingWindow] = []
         for topic, stamp_ns, text, row, scored in self._pending:
             if row is None:
                 out += self.windows.push(topic, stamp_ns, text)
             else:
-                score = next(scores) if scored else math.nan
-                out += self._odom(stamp_ns, text, row, score, score > 0)
+                score, lb = next(found) if scored else (math.nan, 0)
+                out += self._odom(stamp_ns, text, row, score, score > 0, lb)
         self._pending.clear()
         self._vectors.clear()
         return out
 
-    def _odom(self, stamp_ns, text, row, score, flag) -> list[PendingWindow]:
+    def _odom(self, stamp_ns, text, row, score, flag, lookback_ns=0) -> list[PendingWindow]:
         self.scored += 1
         self.anomalies += flag
-        out = self.windows.push(self.odom_topic, stamp_ns, text, anomalous=flag, score=score)
+        out = self.windows.push(self.odom_topic, stamp_ns, text, anomalous=flag, score=score,
+                                lookback_ns=lookback_ns)  # fmt: skip
         if self.summary is not None:
             recs = self.summary.update(stamp_ns, row[0], row[1], math.hypot(row[7], row[8]), flag)
             out += [self._summary_window(r) for r in recs]
@@ -216,13 +262,13 @@ class SmartLogger:
         `run`, from a fresh detector), then the window logic in one pass."""
         odom_at = [i for i, m in enumerate(messages) if m[0] == self.odom_topic]
         odom = parse_odometry(messages[i][2] for i in odom_at)
-        scores, flags = self.detector.score_batch(odom)
+        scores, flags, back = self.detector.score_windows(odom)
         out: list[PendingWindow] = []
         j = 0
         raw = odom.raw.tolist()
         for i, (topic, stamp_ns, text) in enumerate(messages):
             if j < len(odom_at) and odom_at[j] == i:
-                out += self._odom(stamp_ns, text, raw[j], float(scores[j]), bool(flags[j]))
+                out += self._odom(stamp_ns, text, raw[j], float(scores[j]), bool(flags[j]), int(back[j]))
                 j += 1
             else:
                 out += self.windows.push(topic, stamp_ns, text)

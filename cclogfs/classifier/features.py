@@ -257,7 +257,7 @@ class DefaultFeatures:
     """
 
     id = "default"
-    version = 3
+    version = 4
     names = DEFAULT_NAMES
 
     def __init__(
@@ -265,7 +265,7 @@ class DefaultFeatures:
         *,
         deriv_s: float = 0.05,
         match_s: float = 0.5,
-        short_s: float = 1.0,
+        short_s: float = 0.5,
         long_s: float = 8.0,
         flip_s: float = 4.0,
         gap_s: float = 1.0,
@@ -273,10 +273,20 @@ class DefaultFeatures:
         creep_mps: float = 0.1,
         yaw_flip: float = 0.2,
         dir_flip: float = 0.01,
+        gate_s: float | None = 1.0,
+        despike_s: float | None = 0.1,
     ):
         values = dict(deriv_s=deriv_s, match_s=match_s, short_s=short_s, long_s=long_s,
                       flip_s=flip_s, gap_s=gap_s, warmup_s=warmup_s, creep_mps=creep_mps,
                       yaw_flip=yaw_flip, dir_flip=dir_flip)  # fmt: skip
+        # Version 4 gates the long-window features on what happens now (see `_segment`);
+        # a version 3 config has neither gate_s nor despike_s and keeps its vectors.
+        if gate_s is not None and despike_s is not None:
+            values["gate_s"], values["despike_s"] = gate_s, despike_s
+        elif gate_s is None and despike_s is None:
+            self.version = 3
+        else:
+            raise InvalidInputError("Feature parameters gate_s and despike_s go together.")
         for name, value in values.items():
             if not value > 0:
                 raise InvalidInputError(f"Feature parameter {name} must be > 0, got {value!r}.")
@@ -287,7 +297,14 @@ class DefaultFeatures:
         self._short, self._long = ns["short_s"], ns["long_s"]
         self._gap, self._warmup = ns["gap_s"], ns["warmup_s"]
         self._flip = ns["flip_s"]
+        self._gate = ns.get("gate_s")
+        self._despike = ns.get("despike_s")
         self.creep, self.yaw_flip, self.dir_flip = creep_mps, yaw_flip, dir_flip
+        # How far back each column's evidence reaches (ns): where an anomaly that a column
+        # reports may have started, so that its logging window can start there too.
+        short_d, short_m = self._short + self._deriv, self._short + self._match
+        self.spans_ns = np.array([self._deriv] + [short_d] * 5 + [short_m] * 2
+                                 + [self._long, self._flip, self._long], dtype=np.int64)  # fmt: skip
         # How far back the newest vector looks: a window plus the baseline of its oldest row.
         self.horizon_ns = max(self._short + self._deriv, self._short + self._match, self._long,
                               self._flip)  # fmt: skip
@@ -340,7 +357,10 @@ class DefaultFeatures:
         qx, qy, qz, qw = raw[:, 3], raw[:, 4], raw[:, 5], raw[:, 6]
         yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
         vx, vy, wz = raw[:, 7], raw[:, 8], raw[:, 12]
-        speed = np.hypot(vx, vy)
+        # Integrals use the twist as reported; rates, accelerations and flips use it
+        # despiked (version 4, see `_despiked`).
+        fvx, fvy, fwz = self._despiked(t, vx, vy, wz)
+        speed = np.hypot(fvx, fvy)
 
         # Step integrals between consecutive messages (trapezoid, mid-step heading).
         dt = np.diff(t) * 1e-9
@@ -366,28 +386,46 @@ class DefaultFeatures:
             return k, np.where(span > 0, span, np.inf)
 
         k, span = back(self._deriv)
-        ax = (vx - vx[k]) / span
-        accel = np.hypot(ax, (vy - vy[k]) / span)
-        alpha = np.abs((wz - wz[k]) / span)
+        ax = (fvx - fvx[k]) / span
+        accel = np.hypot(ax, (fvy - fvy[k]) / span)
+        alpha = np.abs((fwz - fwz[k]) / span)
         m, mspan = back(self._match)
         dpose = pos - pos[m]
         dtw = cum[:, 0:2] - cum[m, 0:2]
         mis_lin = np.hypot(dpose[:, 0] - dtw[:, 0], dpose[:, 1] - dtw[:, 1]) / mspan
         mis_yaw = np.abs((cum[:, 3] - cum[m, 3]) - (cum[:, 2] - cum[m, 2])) / mspan
-        inst = np.column_stack([accel, -ax, alpha, speed * np.abs(wz), -vx, mis_lin, mis_yaw])
+        inst = np.column_stack([accel, -ax, alpha, speed * np.abs(fwz), -fvx, mis_lin, mis_yaw])
         short = _window_max(inst, np.searchsorted(t, t - self._short, side="left"))
         short[:, 4] = np.maximum(short[:, 4], 0.0)  # reverse speed: none is 0, not -speed
 
         j = np.searchsorted(t, t - self._long, side="left")
         f = np.searchsorted(t, t - self._flip, side="left")
-        yaw_flips = np.concatenate(([0], np.cumsum(_flips(wz, self.yaw_flip))))
-        dir_flips = np.concatenate(([0], np.cumsum(_flips(vx, self.dir_flip))))
+        yflip, dflip = _flips(fwz, self.yaw_flip), _flips(fvx, self.dir_flip)
+        yaw_flips = np.concatenate(([0], np.cumsum(yflip)))
+        dir_flips = np.concatenate(([0], np.cumsum(dflip)))
         idx = np.arange(n) + 1
         X = np.column_stack([
-            np.abs(wz), short, np.abs(cum[:, 4] - cum[j, 4]),
+            np.abs(fwz), short, np.abs(cum[:, 4] - cum[j, 4]),
             yaw_flips[idx] - yaw_flips[f], dir_flips[idx] - dir_flips[j],
         ])  # fmt: skip
+        if self._gate is not None:
+            # The long windows say how much happened over seconds; gated, they speak only
+            # while it still happens, so a score falls within gate_s of an event's end
+            # and a logging window can close soon after it.
+            X[:, 8] *= (speed < self.creep) & (np.abs(fwz) > self.yaw_flip)
+            X[:, 9:11] *= np.column_stack([_recent(t, f, self._gate) for f in (yflip, dflip)])
         return X, t - seg_start >= self._warmup
+
+    def _despiked(self, t: np.ndarray, *columns: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Real odometry has one-message glitches (a wheel speed that drops by 0.4 m/s for
+        one message and is back at the next, 20 in the 23 min of tuc_lecture_hall) that no
+        body can follow. The median of the values now, despike_s ago and twice that ago
+        removes them at any message rate (version 3: the columns unchanged)."""
+        if self._despike is None:
+            return columns
+        k1 = np.maximum(np.searchsorted(t, t - self._despike, side="right") - 1, 0)
+        k2 = np.maximum(np.searchsorted(t, t - 2 * self._despike, side="right") - 1, 0)
+        return tuple(_median3(c[k2], c[k1], c) for c in columns)
 
 
 def _flips(x: np.ndarray, h: float) -> np.ndarray:
@@ -401,6 +439,17 @@ def _flips(x: np.ndarray, h: float) -> np.ndarray:
     return out
 
 
+def _median3(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Element-wise median of three arrays."""
+    return np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c))
+
+
+def _recent(t: np.ndarray, flips: np.ndarray, within: int) -> np.ndarray:
+    """True where the newest flip at or before each row is at most `within` ns old."""
+    last = np.maximum.accumulate(np.where(flips > 0, np.arange(len(t)), -1))
+    return (last >= 0) & (t - t[np.maximum(last, 0)] <= within)
+
+
 class _DefaultStream:
     """Live extraction in O(1) per message: running sums, baseline queues, running maxima
     (monotonic deques) and flip queues give the same vector `DefaultFeatures._segment`
@@ -412,16 +461,19 @@ class _DefaultStream:
     """
 
     def __init__(self, feature_set: DefaultFeatures):
-        self.feature_set = feature_set
-        f = feature_set
+        self.feature_set = f = feature_set
         self.deriv_ns, self.match_ns, self.short_ns = f._deriv, f._match, f._short
         self.long_ns, self.flip_ns, self.gap_ns, self.warmup_ns = f._long, f._flip, f._gap, f._warmup
+        self.gate_ns, self.despike_ns = f._gate, f._despike
         self.last: tuple[np.ndarray, bool] | None = None
         self.prev: tuple | None = None  # (t, yaw, vx, vy, wz) of the last accepted message
         self._reset()
 
     def _reset(self) -> None:
         self.prev = None
+        # (t, vx, vy, wz) baselines despike_s and 2 x despike_s back, for the despike median
+        self.held1: deque = deque()
+        self.held2: deque = deque()
         self.seg_start = 0
         self.cum = (0.0,) * 5
         self.deriv: deque = deque()  # (t, vx, vy, wz): the baseline is the first entry
@@ -468,6 +520,14 @@ class _DefaultStream:
                 c4 += mw * dt
             self.cum = (c0, c1, c2, c3, c4)
         self.prev = (t, yaw, vx, vy, wz)
+        if self.despike_ns is not None:  # as in `_segment`: from here on, the despiked twist
+            now = (t, vx, vy, wz)
+            for q, lag in ((self.held1, self.despike_ns), (self.held2, 2 * self.despike_ns)):
+                q.append(now)
+                while len(q) > 1 and q[1][0] <= t - lag:
+                    q.popleft()
+            a, b = self.held2[0], self.held1[0]
+            vx, vy, wz = (max(min(a[i], b[i]), min(max(a[i], b[i]), now[i])) for i in (1, 2, 3))
 
         # Baselines: the newest entry at least `lag` back, else the segment's first.
         d = self.deriv
@@ -511,7 +571,11 @@ class _DefaultStream:
         bound = t - self.long_ns
         while lq[0][0] < bound:
             lq.popleft()
-        vec.append(abs(c4 - lq[0][1]))
+        gate = self.gate_ns
+        if gate is None or (hypot(vx, vy) < self.feature_set.creep and abs(wz) > self.feature_set.yaw_flip):
+            vec.append(abs(c4 - lq[0][1]))
+        else:
+            vec.append(0.0)
         # The two reversal counters below are written out rather than shared: on this path a
         # call per message costs more than the counting (the inlining took push from 4.41 to
         # 3.64 us a message).
@@ -525,7 +589,7 @@ class _DefaultStream:
         bound = t - self.flip_ns
         while q and q[0] < bound:
             q.popleft()
-        vec.append(len(q))
+        vec.append(len(q) if gate is None or (q and t - q[-1] <= gate) else 0)
         h = self.feature_set.dir_flip
         if vx > h or vx < -h:
             sign = 1 if vx > 0 else -1
@@ -536,7 +600,7 @@ class _DefaultStream:
         bound = t - self.long_ns
         while q and q[0] < bound:
             q.popleft()
-        vec.append(len(q))
+        vec.append(len(q) if gate is None or (q and t - q[-1] <= gate) else 0)
         self.last = (np.array(vec, dtype=np.float64), t - self.seg_start >= self.warmup_ns)
         return self.last
 
@@ -557,11 +621,18 @@ def make_features(config: dict | str | None = None) -> DefaultFeatures | PaperFe
         )
     cls = FEATURE_SETS[fid]
     version = config.get("version", cls.version)
+    params = dict(config.get("params", {}))
+    if fid == "default" and version == 3 and not {"gate_s", "despike_s"} & set(params):
+        return _make(cls, fid, params | {"gate_s": None, "despike_s": None})  # older models
     if version != cls.version:
         raise InvalidInputError(
             f"Feature set {fid!r} version {version} is not supported (this is version {cls.version})."
         )
+    return _make(cls, fid, params)
+
+
+def _make(cls, fid: str, params: dict):
     try:
-        return cls(**config.get("params", {}))
+        return cls(**params)
     except TypeError as err:
         raise InvalidInputError(f"Bad parameters for feature set {fid!r}: {err}.") from err

@@ -16,7 +16,7 @@ from .features import NS, OdomArrays, parse_odometry
 
 __all__ = ["KINDS", "inject", "odom_texts", "read_odometry", "resample"]
 
-KINDS = ("accel", "pose_jump", "spin", "stop", "twist", "oscillate")
+KINDS = ("accel", "pose_jump", "spin", "stop", "twist", "oscillate", "slip")
 
 
 def read_odometry(path: str | Path, topic: str = "/odom") -> list[str]:
@@ -122,6 +122,9 @@ def inject(odom: OdomArrays, kind: str, start_ns: int, duration_s: float, *, str
     elif kind == "oscillate":  # planner dithering: back and forth at 1 Hz
         raw[a:b, 7] = 0.2 * strength * np.sign(np.sin(2 * np.pi * tau))
         raw[a:b, 12] = 0.5 * strength * np.sign(np.sin(2 * np.pi * tau + 1))
+    elif kind == "slip":  # wheel slip: the wheels report extra speed the pose does not show
+        raw[a:b, 7] += 0.4 * strength * np.clip(np.minimum(tau, duration_s - tau) / 0.1, 0, 1)
+        return OdomArrays(t.copy(), raw), {"start_ns": int(t[a]), "end_ns": int(t[b - 1]), "kind": kind}
     elif kind == "pose_jump":  # localization jump: pose moves 0.5 m sideways, twist does not
         yaw = _yaw(raw[a : a + 1])[0]
         raw[a:, 0] += -np.sin(yaw) * 0.5 * strength

@@ -85,6 +85,7 @@ class WindowBuilder:
         max_part: int = 10_000,
         max_pending: int = 100_000,
         max_ring: int = 100_000,
+        lookback_max_s: float = 0.0,
         model_id: str = "",
     ):
         if before < 0 or after < 0 or max_part < 1 or max_ring < 1:
@@ -97,6 +98,9 @@ class WindowBuilder:
         self.before, self.after = before, after
         self.before_ns = None if before_s is None else int(before_s * 1e9)
         self.after_ns = None if after_s is None else int(after_s * 1e9)
+        # Seconds mode: an anomaly may say how far back its evidence reaches (`lookback_ns`
+        # in push); the ring then keeps that much more context, up to lookback_max_s.
+        self.lookback_max_ns = int(lookback_max_s * 1e9) if before_s is not None else 0
         self.max_part = max_part
         self.max_pending = max_pending
         self.max_ring = max_ring
@@ -113,9 +117,11 @@ class WindowBuilder:
 
     def push(
         self, topic: str, stamp_ns: int, text: str, *, anomalous: bool = False,
-        score: float = math.nan,
+        score: float = math.nan, lookback_ns: int = 0,
     ) -> list[PendingWindow]:  # fmt: skip
-        """One message; `anomalous`/`score` matter only on the trigger topic."""
+        """One message; `anomalous`/`score`/`lookback_ns` matter only on the trigger topic.
+        `lookback_ns`: how long before this message the anomaly's evidence starts (the
+        window then starts `before` earlier than that, within lookback_max_s)."""
         if topic in self.latched_topics:
             kept = self.latched.setdefault(topic, {})
             if text not in kept:
@@ -133,12 +139,12 @@ class WindowBuilder:
         if last is not None and stamp_ns < last - CLOCK_RESET_NS:
             self._reset(out)
         w = self.window
+        reach = min(max(lookback_ns, 0), self.lookback_max_ns)
         if w is None:
             self.ring.append((stamp_ns, text))
             self._trim_ring(stamp_ns)
             if anomalous:
-                self._open(stamp_ns, out)
-                self._trigger(stamp_ns, score)
+                self._start(stamp_ns, reach, score, out)
         elif not w.closing:
             self._add(self.trigger_topic, [(stamp_ns, text)], out)
             w.last_ns = stamp_ns
@@ -151,7 +157,10 @@ class WindowBuilder:
                     w.closing = True
         else:
             self.ring.append((stamp_ns, text))
-            if anomalous:  # its context reaches back into the held window: merge
+            if anomalous and self.lookback_max_ns and stamp_ns - reach - self.before_ns > w.last_ns:
+                self._close(out)  # its context does not reach the held window: a new one
+                self._start(stamp_ns, reach, score, out)
+            elif anomalous:  # its context reaches back into the held window: merge
                 w.closing = False
                 self._add(self.trigger_topic, list(self.ring), out)
                 self.ring.clear()
@@ -161,7 +170,8 @@ class WindowBuilder:
             elif (
                 len(self.ring) > self.before
                 if self.before_ns is None
-                else stamp_ns - w.last_ns > self.before_ns or len(self.ring) > self.max_ring
+                else stamp_ns - w.last_ns > self.before_ns + self.lookback_max_ns
+                or len(self.ring) > self.max_ring
             ):
                 self._close(out)
                 self._trim_ring(stamp_ns)
@@ -193,13 +203,23 @@ class WindowBuilder:
             self._trim_pending(topic)
         return out
 
+    def _start(self, stamp_ns: int, reach: int, score: float, out: list[PendingWindow]) -> None:
+        """Open a window for an anomaly whose evidence starts `reach` ns before it: in
+        seconds mode the ring keeps `before` ahead of the evidence, no more."""
+        if self.before_ns is not None:
+            while self.ring and self.ring[0][0] < stamp_ns - reach - self.before_ns:
+                self.ring.popleft()
+        self._open(stamp_ns, out)
+        self._trigger(stamp_ns, score)
+
     def _trim_ring(self, now_ns: int) -> None:
-        """Keep the newest message and the `before` messages (or seconds) before it."""
+        """Keep the newest message and the `before` messages (or seconds, plus the
+        longest lookback) before it."""
         if self.before_ns is None:
             while len(self.ring) > self.before + 1:
                 self.ring.popleft()
         else:
-            while self.ring and self.ring[0][0] < now_ns - self.before_ns:
+            while self.ring and self.ring[0][0] < now_ns - self.before_ns - self.lookback_max_ns:
                 self.ring.popleft()
             while len(self.ring) > self.max_ring:
                 self.ring.popleft()

@@ -1,0 +1,312 @@
+"""Smart logging on the long real runs (issue 15): every run in ../shared/data/long/.
+
+Per run and rate: a model is trained on the first `--train-min` minutes of /odom; after
+them, anomalies of seven kinds and three severities (0.4, 0.7 and 1.0 of the injector's
+default strength, milder than the simulator's defaults; spins 0.9 to 1.2, see KINDS) are injected,
+one per `--every` seconds (three schedules: 80 s for recall and precision, 60 s and 600 s
+for the share kept). Smart logging then runs with the DEFAULT options (`smart_policy`, as
+`cclog record --model` does) over the odometry as rosbridge JSON texts. Per run and overall:
+events recalled (every message of the event stored), window precision, false windows per
+10 minutes of nominal time (test time less the events), share of messages and bytes kept,
+detection delay (event start to the first anomalous message). The `paper` feature set runs
+beside `default` at native rate, and `--sim` adds the simulator's held-out seeds
+(bench/classifier_sim.py, report split). JSON goes to out/classifier_long.json.
+
+Run: python3 dev.py bench classifier_long [--rates native,30,100] [--sim] [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from cclogfs.classifier.api import train  # noqa: E402
+from cclogfs.classifier.evaluate import detection_delays, event_table, window_spans  # noqa: E402
+from cclogfs.classifier.features import NS, OdomArrays, parse_odometry  # noqa: E402
+from cclogfs.classifier.testing import inject, odom_texts, read_odometry, resample  # noqa: E402
+from cclogfs.errors import ModelError  # noqa: E402
+from cclogfs.pipeline import WINDOW_AFTER, WINDOW_BEFORE, smart_policy  # noqa: E402
+
+DATA = ROOT.parent / "shared" / "data" / "long"
+OUT = ROOT / "out" / "classifier_long.json"
+# kind -> (duration range s, severities): events of 0.5 to 6 s as in issue 15. A spin
+# turns at least ~5.9 rad (nearly a full turn) even at its mildest: the TUC robot turns
+# in place by up to 3.1 rad in its ordinary corridor driving, so a milder spin would be
+# that robot's nominal behaviour, not an anomaly.
+KINDS = {
+    "accel": ((0.5, 1.0), (0.4, 0.7, 1.0)),
+    "twist": ((0.5, 1.0), (0.4, 0.7, 1.0)),
+    "stop": ((1.0, 4.0), (1.0,)),
+    "spin": ((5.5, 6.0), (0.9, 1.0, 1.2)),
+    "oscillate": ((3.0, 6.0), (0.4, 0.7, 1.0)),
+    "slip": ((0.5, 2.0), (0.4, 0.7, 1.0)),
+    "pose_jump": ((0.0, 0.0), (0.4, 0.7, 1.0)),
+}
+SCHEDULES = {"80s": 80.0, "60s": 60.0, "600s": 600.0}
+
+
+def load_runs(names: list[str] | None) -> dict[str, OdomArrays]:
+    """The runs' /odom, parsed once and cached in out/long_cache (keyed by size and mtime)."""
+    out = {}
+    for p in sorted(DATA.glob("*.mcap")):
+        if names and p.stem not in names:
+            continue
+        st = p.stat()
+        cache = ROOT / "out" / "long_cache" / f"{p.stem}-{st.st_size}-{int(st.st_mtime)}.npz"
+        if cache.exists():
+            with np.load(cache, allow_pickle=False) as z:
+                out[p.stem] = OdomArrays(z["stamp_ns"], z["raw"])
+            continue
+        out[p.stem] = odom = parse_odometry(read_odometry(p))
+        cache.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(cache, stamp_ns=odom.stamp_ns, raw=odom.raw)
+    return out
+
+
+def place_events(odom: OdomArrays, after_ns: int, every_s: float, seed: int) -> OdomArrays:
+    """The run with one anomaly per `every_s` seconds after `after_ns` (jittered +-10 %),
+    each starting while the robot moves (|v| > 0.1 m/s over the next 0.5 s); kinds and
+    severities in turn. Returns the run and its labels."""
+    rng = np.random.default_rng(seed)
+    t = odom.stamp_ns
+    speed = np.abs(odom.raw[:, 7])
+    k = max(1, int(round(0.5 * NS / np.median(np.diff(t)))))
+    moving = np.convolve(speed > 0.1, np.ones(k), "full")[k - 1 :] >= k  # next k all moving
+    kinds = [(kind, sev) for sev_i in range(3) for kind, (_, sevs) in KINDS.items()
+             for sev in sevs[sev_i : sev_i + 1]]  # fmt: skip
+    order = [kinds[i] for i in rng.permutation(len(kinds))]
+    events = []
+    at = after_ns + int(every_s * NS * rng.uniform(0.3, 0.7))
+    while True:
+        kind, sev = order[len(events) % len(order)]
+        lo, hi = KINDS[kind][0]
+        dur = float(rng.uniform(lo, hi))
+        i = int(np.searchsorted(t, at))
+        while i < len(t) and not moving[i]:
+            i += 1
+        if i >= len(t) or t[-1] - t[i] < int((dur + 10) * NS):
+            break
+        odom, ev = inject(odom, kind, int(t[i]), dur, strength=sev)
+        events.append(ev | {"severity": sev})
+        at = int(t[i]) + int(every_s * NS * rng.uniform(0.9, 1.1))
+    return odom, {"events": events}
+
+
+def smart_run(model, odom: OdomArrays, labels: dict, args) -> dict:
+    """Smart logging (default options unless --before/--after) over the run; the figures
+    of issue 15."""
+    texts = odom_texts(odom)
+    policy = smart_policy(model, summary=False, before=args.before, after=args.after)
+    t0 = time.perf_counter()
+    windows = policy.replay([("/odom", int(s), x) for s, x in zip(odom.stamp_ns, texts)])
+    replay_s = time.perf_counter() - t0
+    _, flags = policy.detector.score_batch(odom)
+    spans = window_spans(windows)
+    e = event_table(odom.stamp_ns, spans, labels, flags)
+    kept_bytes = sum(len(x) for w in windows for _, x in w.messages)
+    missed = []
+    for ev, d in zip(labels["events"], detection_delays(odom.stamp_ns, flags, labels)):
+        single = event_table(odom.stamp_ns, spans, {"events": [ev]})
+        if not single["recalled"]:
+            missed.append(f"{ev['kind']}@{ev['severity']}")
+    return e | {
+        "kept_bytes_fraction": kept_bytes / sum(len(x) for x in texts),
+        "replay_msg_per_s": len(texts) / replay_s, "missed": missed,
+        "flagged_fraction": float(flags.mean()),
+        "false_spans": [(a, b) for a, b in spans
+                        if not any(a <= x["end_ns"] and x["start_ns"] <= b for x in labels["events"])],
+    }  # fmt: skip
+
+
+def evaluate_run(name: str, odom: OdomArrays, features: str, rate: str, args) -> dict:
+    if rate != "native":
+        odom = resample(odom, float(rate), jitter_s=0.2 / float(rate), seed=int(rate))
+    t = odom.stamp_ns
+    split = t[0] + int(args.train_min * 60 * NS)
+    t0 = time.perf_counter()
+    model = train([odom.take(t < split)], features=features, **args.param)
+    train_s = time.perf_counter() - t0
+    test = odom.take(t >= split)
+    out = {"run": name, "features": features, "rate": rate, "train_s": train_s,
+           "test_minutes": (test.stamp_ns[-1] - test.stamp_ns[0]) / 60e9}  # fmt: skip
+    for sched, every in SCHEDULES.items():
+        if args.quick and sched != "80s":
+            continue
+        run, labels = place_events(test, int(test.stamp_ns[0]), every, seed=zlib.crc32(name.encode()) % 1000)
+        out[sched] = smart_run(model, run, labels, args)
+    return out
+
+
+def _nan(f, values: list) -> float:
+    v = [x for x in values if x is not None]
+    return float(f(v)) if v else float("nan")
+
+
+def total(rows: list[dict], sched: str) -> dict:
+    """Figures over all runs of a row group (counts summed, delays pooled as max/median)."""
+    rs = [r[sched] for r in rows if sched in r]
+    if not rs:
+        return {}
+    ev, rec = sum(r["events"] for r in rs), sum(r["recalled"] for r in rs)
+    win, false = sum(r["windows"] for r in rs), sum(r["false_windows"] for r in rs)
+    nominal = sum(r["nominal_minutes"] for r in rs)
+    return {
+        "events": ev, "recalled": rec, "windows": win, "false_windows": false,
+        "window_precision": (win - false) / win if win else float("nan"),
+        "false_per_10min": false * 10 / nominal, "nominal_minutes": nominal,
+        "kept_fraction": float(np.mean([r["kept_fraction"] for r in rs])),
+        "kept_fraction_max": float(np.max([r["kept_fraction"] for r in rs])),
+        "kept_bytes_fraction": float(np.mean([r["kept_bytes_fraction"] for r in rs])),
+        "delay_median_s": _nan(np.nanmedian, [r["delay_median_s"] for r in rs]),
+        "delay_max_s": _nan(np.nanmax, [r["delay_max_s"] for r in rs]),
+        "missed": [m for r in rs for m in r["missed"]],
+    }  # fmt: skip
+
+
+def line(label: str, r: dict, k60: dict, k600: dict) -> str:
+    r = r | {k: float("nan") if r[k] is None else r[k] for k in ("delay_median_s", "delay_max_s")}
+    kept = lambda d: f"{100 * d['kept_fraction']:5.1f}%" if d else "    -"  # noqa: E731
+    return (f"{label:<34} {r['recalled']:>4}/{r['events']:<4} {100 * r['window_precision']:6.1f}% "
+            f"{r['windows'] - r['false_windows']:>4}/{r['windows']:<4} {r['false_per_10min']:7.2f} "
+            f"{100 * r['kept_fraction']:6.1f}% {100 * r['kept_bytes_fraction']:6.1f}% {kept(k60):>7} {kept(k600):>7} "
+            f"{r['delay_median_s']:6.2f} {r['delay_max_s']:6.2f}  {' '.join(r['missed'])}")  # fmt: skip
+
+
+HEAD = (f"{'run / features / rate':<34} {'recalled':>9} {'win prec':>7} {'true/all':>9} {'F/10min':>7} "
+        f"{'kept':>7} {'bytes':>7} {'kept@1/min':>7} {'@1/10min':>7} {'dly med':>6} {'dly max':>6}  missed")  # fmt: skip
+
+
+def run_sim(args) -> list[dict]:
+    """The simulator's held-out seeds (report split), default windows, both feature sets."""
+    from bench import classifier_sim as cs
+
+    ns = argparse.Namespace(split="report", train_min=2.0, train_runs=2, anomalous_runs=2,
+                            nominal_runs=1, nominal_min=10.0, heading="imu", kinds=None,
+                            before=cs.WINDOW_BEFORE, after=cs.WINDOW_AFTER)  # fmt: skip
+    out, cache = [], {}
+    for features in args.features.split(","):
+        for rate in (10.0, 30.0, 100.0):
+            for sev in ((0.3, 0.7), (0.5, 1.5)):
+                r = cs.evaluate(ns, rate, sev, features, cache)
+                out.append({"features": features, "rate": rate, "severity": sev} | r)
+                print(f"sim {features:<7} {rate:>4g} Hz sev {sev}: recall {r['recalled']}/{r['events']}, "
+                      f"precision {100 * r['precision']:.1f}%, nominal false/10min {r['false_per_10min']:.2f}, "
+                      f"kept {100 * r['kept']:.1f}%", flush=True)  # fmt: skip
+    return out
+
+
+def plot_episodes(runs: dict[str, OdomArrays], path: Path) -> None:
+    """The real episodes that look anomalous: one-message wheel-speed glitches of
+    tuc_lecture_hall (raw twist vs the despiked one the features use), and the ordinary
+    stops at a goal and turns in place of tuc_corridor with the scores of a model trained
+    on its first 2 minutes."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from cclogfs.classifier.api import Detector
+    from cclogfs.classifier.features import _median3
+
+    fig, axes = plt.subplots(2, 2, figsize=(13, 7))
+    hall = runs["tuc_lecture_hall"]
+    v = hall.raw[:, 7]
+    # The despiked speed the features use (DefaultFeatures, despike_s = 0.1 s).
+    t = hall.stamp_ns
+    k1, k2 = (np.maximum(np.searchsorted(t, t - lag, side="right") - 1, 0) for lag in (NS // 10, NS // 5))
+    despiked = _median3(v[k2], v[k1], v)
+    glitch = np.nonzero((v[1:-1] < v[:-2] - 0.15) & (v[2:] > v[1:-1] + 0.15))[0] + 1
+    alone = [g for g in glitch if np.sum(np.abs(glitch - g) < 30) == 1 and v[g - 8 : g + 8].max() - v[[g - 8, g + 8]].min() < 0.5]
+    burst = [g for g in glitch if np.sum(np.abs(glitch - g) < 30) >= 4]
+    titles = ("a one-message speed glitch", "3 s of speed chatter, then a stop")
+    for ax, g, title in zip(axes[0], (alone[0], burst[0]), titles):
+        sl = slice(g - 30, g + 30)
+        sec = (hall.stamp_ns[sl] - hall.stamp_ns[g]) / NS
+        ax.plot(sec, v[sl], "o-", ms=3, color="k", label="twist.linear.x as recorded")
+        ax.plot(sec, despiked[sl], color="tab:blue", label="despiked (features v4)")
+        ax.set_title(f"tuc_lecture_hall, {(hall.stamp_ns[g] - hall.stamp_ns[0]) / NS:.1f} s: {title}",
+                     fontsize=9)  # fmt: skip
+        ax.set_xlabel("s")
+        ax.set_ylabel("m/s")
+        ax.legend(fontsize=8)
+    corr = runs["tuc_corridor"]
+    t = corr.stamp_ns
+    model = train([corr.take(t < t[0] + 120 * NS)])
+    scores, flags = Detector(model).score_batch(corr)
+    sec = (t - t[0]) / NS
+    turns = np.nonzero((np.abs(corr.raw[:, 7]) < 0.05) & (np.abs(corr.raw[:, 12]) > 0.3))[0]
+    stop = int(turns[turns > 1200][0]) if len(turns[turns > 1200]) else len(t) // 2
+    sl = slice(stop - 150, stop + 250)
+    ax = axes[1][0]
+    ax.plot(sec[sl], corr.raw[sl, 7], color="k", label="speed m/s")
+    ax.plot(sec[sl], corr.raw[sl, 12], color="tab:orange", label="yaw rate rad/s")
+    ax.set_title("tuc_corridor: stop at a goal, turn in place, drive on (ordinary)", fontsize=9)
+    ax.legend(fontsize=8)
+    ax = axes[1][1]
+    ax.plot(sec[sl], scores[sl], color="tab:green")
+    ax.axhline(0, color="grey", ls=":")
+    ax.set_title("score of a model trained on the first 2 min (> 0: anomalous)", fontsize=9)
+    ax.set_xlabel("s since the first message")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--runs", default=None, help="comma-separated run names (default all)")
+    p.add_argument("--rates", default="native,30,100")
+    p.add_argument("--features", default="default,paper")
+    p.add_argument("--train-min", type=float, default=2.0)
+    p.add_argument("--sim", action="store_true", help="also the simulator's held-out seeds")
+    p.add_argument("--quick", action="store_true", help="only the 80 s schedule")
+    p.add_argument("--out", type=Path, default=OUT)
+    p.add_argument("--before", default=WINDOW_BEFORE, help="window context (default %(default)s)")
+    p.add_argument("--after", default=WINDOW_AFTER, help="window context (default %(default)s)")
+    p.add_argument("--plot", type=Path, default=None, help="plot the real episodes here and stop")
+    p.add_argument("--param", action="append", default=[], metavar="K=V",
+                   help="a training parameter (OneClassModel), e.g. false_alarm_rate=0.0005")
+    args = p.parse_args()
+    args.param = {k: float(v) for k, v in (kv.split("=", 1) for kv in args.param)}
+    runs = load_runs(args.runs.split(",") if args.runs else None)
+    if args.plot:
+        plot_episodes(runs, args.plot)
+        print(f"wrote {args.plot}")
+        return
+    rows = []
+    print(HEAD)
+    for features in args.features.split(","):
+        for rate in args.rates.split(","):
+            if features == "paper" and rate != "native":
+                continue  # 500 messages are 5 s at 100 Hz, 50 s at 10 Hz: one rate is enough
+            group = []
+            for name, odom in runs.items():
+                try:
+                    r = evaluate_run(name, odom, features, rate, args)
+                except ModelError as err:
+                    print(f"{name} {features} {rate}: n/a ({err})")
+                    continue
+                group.append(r)
+                print(line(f"{name} {features} {rate}", r["80s"], r.get("60s"), r.get("600s")), flush=True)
+            if group:
+                tot = {s: total(group, s) for s in SCHEDULES}
+                print(line(f"ALL {features} {rate}", tot["80s"], tot["60s"], tot["600s"]), flush=True)
+                rows.append({"features": features, "rate": rate, "runs": group, "total": tot})
+    result = {"args": vars(args) | {"out": str(args.out)}, "rows": rows}
+    if args.sim:
+        result["sim"] = run_sim(args)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=1, default=float))
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,163 @@
+"""Issue 15: default features version 4 (despiked twist, long windows gated on what happens
+now), models of version 3 still readable, detection delay in the per-event figures."""
+
+import numpy as np
+import pytest
+
+from cclogfs.classifier import Detector, train
+from cclogfs.classifier.evaluate import detection_delays, event_table, format_event_table
+from cclogfs.classifier.features import DEFAULT_NAMES, NS, OdomArrays, make_features
+from cclogfs.classifier.model import OneClassModel
+from cclogfs.classifier.testing import inject
+
+V3 = {"id": "default", "version": 3,
+      "params": {"deriv_s": 0.05, "match_s": 0.5, "short_s": 1.0, "long_s": 8.0, "flip_s": 4.0,
+                 "gap_s": 1.0, "warmup_s": 1.0, "creep_mps": 0.1, "yaw_flip": 0.2,
+                 "dir_flip": 0.01}}  # fmt: skip
+COL = {name: i for i, name in enumerate(DEFAULT_NAMES)}
+
+
+def manoeuvres(rate=10.0, seed=1):
+    """Driving with a spin in place (20-26 s), an oscillation (40-46 s), one-message speed
+    glitches, stamp jitter and a gap: every path of the gates and the despike."""
+    rng = np.random.default_rng(seed)
+    n = int(80 * rate)
+    t = (np.arange(n) / rate * NS).astype(np.int64) + rng.integers(-3_000_000, 3_000_000, n)
+    t[n // 2 + 100 :] += 2 * NS  # a gap: everything restarts
+    s = (t - t[0]) * 1e-9
+    v = 0.4 + 0.01 * rng.standard_normal(n)
+    w = 0.1 * np.sin(0.5 * s)
+    spin = (s > 20) & (s < 26)
+    v[spin], w[spin] = 0.0, 1.0
+    osc = (s > 40) & (s < 46)
+    v[osc] = 0.2 * np.sign(np.sin(2 * np.pi * s[osc]))
+    w[osc] = 0.5 * np.sign(np.sin(2 * np.pi * s[osc] + 1))
+    glitch = rng.choice(n, 12, replace=False)
+    v[glitch] -= 0.35
+    raw = np.zeros((n, 13))
+    yaw = np.concatenate([[0], np.cumsum(w[1:] * np.diff(s))])
+    raw[:, 0] = np.concatenate([[0], np.cumsum(v[1:] * np.cos(yaw[1:]) * np.diff(s))])
+    raw[:, 1] = np.concatenate([[0], np.cumsum(v[1:] * np.sin(yaw[1:]) * np.diff(s))])
+    raw[:, 5], raw[:, 6] = np.sin(yaw / 2), np.cos(yaw / 2)
+    raw[:, 7], raw[:, 12] = v, w
+    return OdomArrays(t, raw)
+
+
+@pytest.mark.parametrize("config", ["default", V3], ids=["v4", "v3"])
+@pytest.mark.parametrize("rate", [10.0, 100.0])
+def test_batch_equals_stream(config, rate):
+    fs = make_features(config)
+    odom = manoeuvres(rate)
+    X, valid = fs.batch(odom)
+    stream = fs.stream()
+    for i, (stamp, row) in enumerate(zip(odom.stamp_ns.tolist(), odom.raw)):
+        got = stream.push(stamp, row)
+        assert (got is not None and got[1]) == valid[i], i
+        if valid[i]:
+            np.testing.assert_allclose(got[0], X[i], rtol=1e-9, atol=1e-9, err_msg=str(i))
+    assert X[valid, COL["turn_in_place"]].max() > 4  # the spin was seen
+    assert X[valid, COL["direction_reversals"]].max() >= 4  # and the oscillation
+
+
+def test_version_3_configs_keep_their_vectors():
+    v3, v4 = make_features(V3), make_features("default")
+    assert v3.get_config() == V3 and v4.get_config()["version"] == 4
+    odom = manoeuvres()
+    X3, ok = v3.batch(odom)
+    s = (odom.stamp_ns - odom.stamp_ns[0]) * 1e-9
+    after_spin = ok & (s > 27) & (s < 29)
+    # Ungated, the spin still counts for 8 s after it ended; gated it stops with the spin.
+    assert X3[after_spin, COL["turn_in_place"]].min() > 1.0
+    assert v4.batch(odom)[0][after_spin, COL["turn_in_place"]].max() == 0.0
+
+
+@pytest.mark.parametrize("rate", [10.0, 100.0])
+def test_despike_ignores_one_message_glitches_but_not_lurches(rate):
+    odom = manoeuvres(rate)
+    s = (odom.stamp_ns - odom.stamp_ns[0]) * 1e-9
+    calm = (s > 5) & (s < 18)
+    clean = OdomArrays(odom.stamp_ns, odom.raw.copy())
+    clean.raw[:, 7] = np.where(np.abs(clean.raw[:, 7] - 0.4) > 0.1, 0.4, clean.raw[:, 7])
+    X3 = make_features(V3).batch(odom)[0]
+    X4 = make_features("default").batch(odom)[0]
+    glitched = calm & (make_features(V3).batch(clean)[0][:, COL["accel_max"]] < 1) & (X3[:, COL["accel_max"]] > 3)
+    assert glitched.any()  # version 3 sees a glitch as a 3.5 m/s^2 jolt
+    assert X4[glitched, COL["accel_max"]].max() < 1  # version 4 does not
+    lurch, _ = inject(clean, "accel", int(10 * NS + odom.stamp_ns[0]), 0.5, strength=0.4)
+    during = (s >= 10) & (s < 10.5)
+    assert make_features("default").batch(lurch)[0][during, COL["accel_max"]].max() > 2
+
+
+def test_models_of_version_3_still_load_and_score_alike(tmp_path):
+    odom = manoeuvres()
+    model = train([odom.take(slice(0, 300))], features=V3)
+    assert model.feature_config == V3
+    before = Detector(model).score_batch(odom)[0]
+    model.save(tmp_path / "m")
+    back = OneClassModel.load(tmp_path / "m")
+    np.testing.assert_allclose(Detector(back).score_batch(odom)[0], before, rtol=1e-9, atol=1e-12)
+
+
+def test_detection_delay_and_nominal_time():
+    t = np.arange(0, 100 * NS, NS // 10)
+    flags = np.zeros(len(t), bool)
+    flags[205:215] = True  # 0.5 s after the first event starts
+    labels = {"events": [{"start_ns": 20 * NS, "end_ns": 22 * NS}, {"start_ns": 60 * NS, "end_ns": 61 * NS}]}
+    d = detection_delays(t, flags, labels)
+    assert d[0] == pytest.approx(0.5) and np.isnan(d[1])
+    table = event_table(t, [(int(19 * NS), int(23 * NS)), (int(80 * NS), int(81 * NS))], labels, flags)
+    assert table["recalled"] == 1 and table["false_windows"] == 1 and table["detected"] == 1
+    assert table["nominal_minutes"] == pytest.approx((t[-1] - t[0]) / 60e9 - 3 / 60)
+    assert table["false_per_10min"] == pytest.approx(10 / table["nominal_minutes"])
+    assert "median 0.50 s" in format_event_table(table)
+    assert event_table(t, [], labels)["delay_median_s"] is None
+
+
+def _spans(windows):
+    return [(w.start_ns, w.end_ns) for w in windows if w.topic == "/odom"]
+
+
+def test_window_starts_where_the_evidence_starts():
+    from cclogfs.classifier.windows import WindowBuilder
+
+    ms = NS // 1000
+    b = WindowBuilder(before_s=1, after_s=1, lookback_max_s=5)
+    out = []
+    for i in range(300):  # 10 Hz for 30 s; evidence 4 s back at 10 s, 0.5 s back at 20 s
+        t = i * 100 * ms
+        lb = {100: 4 * NS, 200: NS // 2}.get(i, 0)
+        out += b.push("/odom", t, str(i), anomalous=lb > 0, lookback_ns=lb)
+    out += b.flush()
+    assert _spans(out) == [(5 * NS, 11 * NS), (int(18.5 * NS), 21 * NS)]
+    # Evidence reaching back into the held window merges the two.
+    b = WindowBuilder(before_s=1, after_s=1, lookback_max_s=5)
+    out = []
+    for i in range(300):
+        lb = {100: NS, 140: 3 * NS}.get(i, 0)
+        out += b.push("/odom", i * 100 * ms, str(i), anomalous=lb > 0, lookback_ns=lb)
+    out += b.flush()
+    assert _spans(out) == [(8 * NS, 15 * NS)]
+    # Lookback beyond lookback_max_s is cut to it; without lookback_max_s it is ignored.
+    for cap, start in ((2, 7 * NS), (0, 9 * NS)):
+        b = WindowBuilder(before_s=1, after_s=1, lookback_max_s=cap)
+        out = []
+        for i in range(150):
+            lb = 6 * NS if i == 100 else 0
+            out += b.push("/odom", i * 100 * ms, str(i), anomalous=lb > 0, lookback_ns=lb)
+        assert _spans(out + b.flush())[0][0] == start
+
+
+def test_flip_threshold_learnt_from_the_robots_noise():
+    from cclogfs.classifier.api import robot_thresholds
+
+    clean = manoeuvres()
+    noisy = OdomArrays(clean.stamp_ns, clean.raw.copy())
+    noisy.raw[:, 7] += np.random.default_rng(3).normal(0, 0.05, len(clean))
+    quiet = OdomArrays(clean.stamp_ns, clean.raw.copy())
+    quiet.raw[:, 7] = 0.4
+    assert robot_thresholds([quiet])["dir_flip"] == 0.01  # smooth wheel odometry: the default
+    assert robot_thresholds([clean])["dir_flip"] < 0.05  # 0.01 m/s of noise
+    assert 0.1 < robot_thresholds([noisy])["dir_flip"] < 0.4  # ~4 x 0.05 m/s
+    model = train([noisy.take(slice(0, 400))])
+    assert model.feature_config["params"]["dir_flip"] == robot_thresholds([noisy.take(slice(0, 400))])["dir_flip"]
+    assert train([noisy.take(slice(0, 400))], features=V3).feature_config == V3  # explicit: kept
