@@ -81,6 +81,8 @@ def parse_general(line: str) -> tuple[str, int, str, str]:
     """Any layout of the object: scan its top level, let the json module read each value."""
     try:
         fields = _scan_object(line)
+    except RecursionError:
+        raise JsonlLineError("invalid JSON: nested too deeply") from None
     except ValueError as err:
         # The json module's own message (with column) is the clearest for broken JSON.
         try:

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..codecs import codec_for_record, codec_numeric_id
-from ..errors import CorruptionError, StoreError
+from ..errors import CodecError, CorruptionError, StoreError
 from .format import AGED_META_KEY, Reason, RecordFlag, RecordHeader
 from .segment import Segment
 
@@ -93,7 +93,21 @@ class Window:
                 path=self._segment.path, offset=self._offset, reason=Reason.CODEC_MISMATCH,
             )  # fmt: skip
         stamps, texts = codec.decode(payload, count=header.count, raw_len=header.raw_len)
+        self._check_utf8(texts)
         return zip(stamps, texts)
+
+    def _check_utf8(self, texts: list[str]) -> None:
+        """Codecs turn stray bytes into lone surrogates (they round-trip any bytes); the
+        store only ever stores UTF-8, so such a text here is damage the checksums did not
+        see, never a message to hand out. `isascii` is O(1): only other texts are encoded."""
+        for i, text in enumerate(texts):
+            if not text.isascii():
+                try:
+                    text.encode("utf-8")
+                except UnicodeEncodeError:
+                    raise CodecError(
+                        f"{self._segment.path}: record at offset {self._offset}: message {i} is not valid UTF-8"
+                    ) from None
 
     def __repr__(self) -> str:
         return f"Window({self.name!r}, seq={self.seq}, {self.start_ns}..{self.end_ns}, count={self.count})"

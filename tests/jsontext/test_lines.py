@@ -41,3 +41,14 @@ def test_the_fast_split_takes_only_the_rendered_layout():
     for other in ('{"stamp_ns": 7, "topic": "/a", "msg": {}}', '{"topic": "/a", "stamp_ns": 7, "msg": {} }',
                   '{"topic": "/a", "stamp_ns": 9223372036854775808, "msg": {}}'):  # fmt: skip
         assert split_canonical(other) is None
+
+
+def test_a_message_nested_too_deeply_is_a_line_error_not_a_recursion_error():
+    # Seen with `cclog record`/`convert` on a crafted line: a RecursionError traceback.
+    import pytest
+
+    from cclogfs.jsontext.lines import JsonlLineError
+
+    line = '{"topic":"/a","stamp_ns":1,"msg":' + "[" * 5000 + "]" * 5000 + "}"
+    with pytest.raises(JsonlLineError, match="nested too deeply"):
+        parse_line(line)

@@ -369,3 +369,32 @@ def test_record_of_another_length_than_its_index_entry(tmp_path):
         with pytest.raises(CorruptionError) as err:
             list(w.messages())
         assert err.value.reason == Reason.INDEX_MISMATCH
+
+
+def test_message_that_is_not_utf8_is_an_error_on_read_and_in_fsck(tmp_path):
+    # A payload with a valid checksum whose text is not UTF-8 (a forged record, or one a
+    # buggy writer made): the store only ever stores UTF-8, so reading it must fail, naming
+    # the record, and `fsck --deep` must say so; never a changed text handed out as intact.
+    from cclogfs.errors import CodecError
+    from cclogfs.store import check_store
+    from cclogfs.store.format import xxh3
+
+    path = tmp_path / "s"
+    with cclogfs.open_store(path, create=True, codec="none") as store:
+        store.put_window("/a", [(1, '{"a":"xyzw"}'), (2, '{"a":"qqqq"}')])
+        (w,) = store.query()
+        offset = w.offset
+    data = bytearray((path / SEG).read_bytes())
+    i = data.index(b"xyzw", offset)
+    data[i] = 0xFF
+    (path / SEG).write_bytes(bytes(data))
+    fields = RECORD_FIXED.unpack_from(data, offset)
+    header_len, enc_len = fields[4], fields[14]
+    payload = bytes(data[offset + header_len : offset + header_len + enc_len])
+    patch_header(path / SEG, offset, xxh3=xxh3(payload))  # the checksums hold: only the text is wrong
+    with cclogfs.open_store(path, readonly=True) as store:
+        (w,) = store.query()
+        with pytest.raises(CodecError, match=f"offset {offset}: message 0 is not valid UTF-8"):
+            list(w.messages())
+    report = check_store(str(path), deep=True)
+    assert any("not valid UTF-8" in f.what for f in report.errors)
