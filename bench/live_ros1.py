@@ -11,7 +11,8 @@ runs its C++ recorder as a child), in all and per message net of start-up (the C
 run that starts, subscribes, idles 3 s and stops); and the messages each one received
 against the bag's, per topic. (Idle CPU per second was also tried as a correction: on this
 shared machine it varied 2x between runs, more than the figure it would correct.) `rosbag play --delay 2` gives both time to
-connect before the first message. Loss is reported as measured, never hidden.
+connect before the first message. Loss is reported as measured, never hidden, next to
+what cclog itself reported lost from header.seq (and its exit status: 4 when it knew).
 """
 
 from __future__ import annotations
@@ -75,6 +76,15 @@ def received_cclog(err_path: Path) -> dict[str, int]:
     return {t: int(n.replace(",", "")) for t, n in re.findall(r"(/\S+) ([\d,]+)", line.split("received", 1)[-1])}
 
 
+def reported_lost(err_path: Path) -> dict[str, int | str]:
+    """What cclog itself reported lost per topic (from header.seq), or why it could not tell."""
+    out: dict[str, int | str] = {}
+    for topic, rest in re.findall(r"^  (/\S+): [\d,]+ received, (.*)$", err_path.read_text(), re.MULTILINE):
+        m = re.fullmatch(r"([\d,]+) lost", rest)
+        out[topic] = int(m.group(1).replace(",", "")) if m else "not checked"
+    return out
+
+
 def received_bag(path: Path) -> dict[str, int]:
     out: dict[str, int] = {}
     with open_source(path) as src:
@@ -97,6 +107,7 @@ def one_rate(env, tmp: Path, bag: Path, model: Path, topics: list[str], want: di
     return {
         "rate": rate, "play_wall_s": round(wall, 2), "messages": n, "cpu_s": cpu,
         "lost": {k: {t: want[t] - v.get(t, 0) for t in topics} for k, v in got.items()},
+        "cclog_reported_lost": reported_lost(tmp / f"{tag}.cclog.err"), "cclog_exit": cclog.returncode,
     }  # fmt: skip
 
 
@@ -141,4 +152,5 @@ def main() -> int:
               f"{c['rosbag']:.2f} s; per message net of start-up {b['cclog']} us vs {b['rosbag']} us "
               f"({b['cclog'] / max(b['rosbag'], 1e-9):.1f}x)")  # fmt: skip
         print(f"  lost: cclog {r['lost']['cclog']}, rosbag record {r['lost']['rosbag']}")
+        print(f"  cclog's own report (header.seq): {r['cclog_reported_lost']}, exit {r['cclog_exit']}")
     return 0

@@ -33,11 +33,18 @@ With --model, odometry on the model's topic is scored; each anomaly opens a wind
 the odometry and the --topic topics (all topics when none is given). Ctrl-C or SIGTERM
 stores what was seen and closes the store cleanly.
 
-ros1:// records live from a ROS 1 master until Ctrl-C or SIGTERM (then exit 0): every topic,
+ros1:// records live from a ROS 1 master until Ctrl-C or SIGTERM (then exit 0, or 4): every topic,
 or those whose name is a --topic or fully matches one as a regular expression, minus
 --exclude; topics that appear later are picked up. A message's time is its header stamp,
 else its receive time. Needs rospy (Debian: apt-get install ros-core python3-rospy).
+At the end, stderr says per topic what was received and how many messages were lost, told
+from each publisher's header.seq (a gap means dropped messages); topics whose type has no
+header (tf2_msgs/TFMessage) or whose seq does not count up are listed as not checked.
+
+exit status: 0 done, 1 error, 130 interrupted (file input), 4 ros1:// recorded but
+messages were lost (seq gaps, or received after the recording stopped and not stored).
 """
+LOST = 4  # the exit status when a live recording knows it lost messages
 
 
 HELP = "log a bag, MCAP file or JSONL stream into a store"
@@ -202,7 +209,10 @@ def run(args: argparse.Namespace) -> int:
     if args.features_out:
         _write_dataset(args, rows)
     _print_summary(args, source, stats, upkeep, final_bytes)
-    return 130 if stats.interrupted else 0
+    if stats.interrupted:
+        return 130
+    seq = getattr(source, "seq", None)
+    return LOST if seq is not None and seq.lost else 0
 
 
 def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep: Upkeep | None, final_bytes: int | None) -> None:
@@ -215,6 +225,11 @@ def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep:
     if getattr(source, "stopped_by", None):
         print(f"{args.source}: stopped by {source.stopped_by}; received "
               + (", ".join(f"{t} {n:,}" for t, n in sorted(source.received.items())) or "nothing"), file=sys.stderr)
+    if getattr(source, "seq", None) is not None:
+        lost = source.seq.lost
+        print(f"{args.source}: {'LOST ' if lost else ''}{lost:,} messages lost (from header.seq)", file=sys.stderr)
+        for line in source.seq.lines():
+            print(line, file=sys.stderr)
     if upkeep is not None:
         state = ""
         if upkeep.budget is not None:

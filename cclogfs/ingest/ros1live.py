@@ -32,6 +32,7 @@ from ..errors import InvalidInputError, SourceError
 from ..jsontext.rostypes import ros1_description
 from ..jsontext.ros import MessageConverter, message_stamp_ns
 from .base import SourceMessage
+from .ros1seq import SeqCheck
 
 INSTALL_HINT = (
     "ROS 1 is not installed (no rospy): on Debian/Ubuntu `sudo apt-get install ros-core python3-rospy "
@@ -115,6 +116,7 @@ class Ros1LiveSource:
         self.matcher = TopicMatcher(topics, exclude)
         self.poll_s, self.idle_s = poll_s, idle_s
         self.received: dict[str, int] = {}
+        self.seq = SeqCheck()  # messages lost, told from header.seq: `seq.lost`, `seq.lines()`
         self.stopped_by: str | None = None
         self._master_lost = False
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
@@ -142,7 +144,8 @@ class Ros1LiveSource:
     # -- receiving ---------------------------------------------------------------------
 
     def _subscribe(self, topic: str) -> None:
-        # queue_size=None: rospy keeps every message it receives (a bounded queue drops).
+        # queue_size=None: rospy keeps every message it receives (a bounded queue drops the
+        # oldest, silently). The cost is memory: while decoding lags, the backlog grows.
         self._subs[topic] = self._rospy.Subscriber(topic, self._rospy.AnyMsg, self._received, callback_args=topic,
                                                    queue_size=None, buff_size=1 << 20)  # fmt: skip
 
@@ -184,6 +187,10 @@ class Ros1LiveSource:
         next_poll = time.monotonic() + self.poll_s
         while True:
             stopping = self._stop.is_set()
+            if stopping and self._subs:
+                # Stop receiving first: a topic that keeps publishing would never let the
+                # queue fall idle. What rospy already holds still arrives within idle_s.
+                self._unsubscribe()
             try:
                 # Once stopping, end when nothing has come for idle_s: rospy may still hold a few.
                 item = self._queue.get(timeout=self.idle_s if stopping else max(0.0, next_poll - time.monotonic()))
@@ -199,6 +206,7 @@ class Ros1LiveSource:
 
     def _convert(self, topic: str, recv_ns: int, raw: bytes, header: dict[str, str]) -> SourceMessage:
         msgtype = normalize_msgtype(header["type"])
+        self.seq.add(topic, raw, header)
         if topic not in self._conns:
             self._conns[topic] = header
         typestore = self._typestore(topic, msgtype, header)
@@ -241,10 +249,22 @@ class Ros1LiveSource:
 
     # -- lifetime ----------------------------------------------------------------------
 
-    def close(self) -> None:
+    def _unsubscribe(self) -> None:
         for sub in self._subs.values():
             sub.unregister()
         self._subs.clear()
+
+    def close(self) -> None:
+        self._unsubscribe()
+        # What arrived after the iteration ended (or was cut short) is not stored: say so.
+        while True:
+            try:
+                item = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            if item is not None:
+                self.seq.add(item[0], item[2], item[3])
+                self.seq.not_stored += 1
         self._rospy.signal_shutdown("cclog: recording ended")
 
     def __enter__(self) -> Ros1LiveSource:

@@ -14,6 +14,7 @@ import os
 import shutil
 import signal
 import socket
+import struct
 import subprocess
 import sys
 import time
@@ -115,26 +116,34 @@ def play(env: dict[str, str], bag: Path, *args: str) -> subprocess.Popen:
 
 def write_ros1_bag(src: Path, dst: Path, *, latched: Iterable[str] = (), topics: Iterable[str] | None = None) -> Path:
     """A ROS 1 bag of `src` (any bag rosbags reads; ROS 2 types get their ROS 1 form, a
-    header its `seq` = 0); `latched` topics are marked latching, as /tf_static is on a robot."""
+    header the `seq` a ROS 1 publisher gives it: 1, 2, 3... per topic); `latched` topics are
+    marked latching, as /tf_static is on a robot."""
     from rosbags.highlevel import AnyReader
     from rosbags.rosbag1 import Writer
 
     from ..jsontext.rostypes import ros1_typestore
     from ..jsontext.ros import MessageConverter
     from ..jsontext.rosmsg import from_json
+    from .ros1seq import starts_with_header
 
     latched, wanted = set(latched), None if topics is None else set(topics)
     to_json = MessageConverter().to_json
     with AnyReader([Path(src)]) as reader, Writer(dst) as writer:
         ts = ros1_typestore(reader.typestore)
         chosen = [c for c in reader.connections if wanted is None or c.topic in wanted]
-        conns = {}
+        conns, numbered, seq = {}, set(), {}
         for c in chosen:
             msgdef, md5 = ts.generate_msgdef(c.msgtype, ros_version=1)
             conns[c.id] = writer.add_connection(c.topic, c.msgtype, msgdef=msgdef, md5sum=md5,
                                                 latching=1 if c.topic in latched else None)  # fmt: skip
+            if starts_with_header(msgdef):
+                numbered.add(c.id)
         for c, t, raw in reader.messages(connections=chosen):
             if reader.is2:
-                raw = ts.serialize_ros1(from_json(ts, c.msgtype, to_json(reader.deserialize(raw, c.msgtype))), c.msgtype)
+                raw = bytearray(ts.serialize_ros1(from_json(ts, c.msgtype, to_json(reader.deserialize(raw, c.msgtype))),
+                                                  c.msgtype))  # fmt: skip
+                if c.id in numbered:  # the header's seq leads the serialized message
+                    seq[c.id] = seq.get(c.id, 0) + 1
+                    struct.pack_into("<I", raw, 0, seq[c.id])
             writer.write(conns[c.id], t, bytes(raw))
     return dst

@@ -210,3 +210,119 @@ def test_play_to_ros1_publishes_every_message_with_its_type_and_clock(master, sh
     assert stamps == want  # one /clock per message, at its stamp
     with open_store(tmp_path / "back", readonly=True) as store:
         assert {w.meta["msgtype"] for w in store.query("/tf")} == {"tf2_msgs/msg/TFMessage"}
+
+
+# -- loss, told from header.seq ---------------------------------------------------------
+
+def lost_lines(err):
+    """The loss report of a recorder's stderr: the total line and the per-topic lines."""
+    lines = err.splitlines()
+    at = next(i for i, x in enumerate(lines) if "messages lost (from header.seq)" in x)
+    return lines[at], [x.strip() for x in lines[at + 1:] if x.startswith("  ")]
+
+
+def test_at_1x_nothing_is_lost_and_exit_0(master, sim_bag_and_model, tmp_path):
+    bag, _ = sim_bag_and_model  # /odom, seq 1, 2, 3... as a ROS 1 publisher numbers it
+    rec = recorder(master, tmp_path / "s", "--topic", "/odom")
+    try:
+        wait_subscribed(master, "/odom")
+        played(play(master, bag, "--wait-for-subscribers", "--duration", "3"))  # 3 s at the bag's own 30 Hz
+        err = finish(rec, after_s=0.5)  # exit 0 is asserted there
+    finally:
+        stop(rec)
+    total, topics = lost_lines(err)
+    n = store_messages(tmp_path / "s")["/odom"].total()
+    assert 80 <= n <= 100, err  # about 3 s of 30 Hz
+    assert total.endswith(": 0 messages lost (from header.seq)") and topics == [f"/odom: {n:,} received, 0 lost"]
+
+
+SKIPPING_PUBLISHER = """
+import sys, time
+from cclogfs.ingest.ros1live import import_rospy
+rospy = import_rospy()
+from nav_msgs.msg import Odometry
+from std_msgs.msg import String
+
+class Numbered(Odometry):
+    _has_header = False  # so rospy sends header.seq as set here instead of numbering it
+
+rospy.init_node("skipper")
+odom = rospy.Publisher("/odom", Numbered, queue_size=100)
+text = rospy.Publisher("/text", String, queue_size=100)
+while odom.get_num_connections() == 0 or text.get_num_connections() == 0:
+    time.sleep(0.05)
+time.sleep(0.5)
+for seq in [int(s) for s in sys.argv[1].split(",")]:
+    m = Numbered()
+    m.header.seq = seq
+    odom.publish(m)
+    text.publish(String(data=str(seq)))
+    time.sleep(0.01)
+time.sleep(1.0)
+"""
+
+
+def test_a_seq_gap_is_reported_as_lost_with_exit_4(master, tmp_path):
+    sent = [1, 2, 3, 4, 8, 9, 10, 11, 12, 15, 16]  # 5, 6, 7, 13 and 14 never arrive: 5 lost
+    script = tmp_path / "skipper.py"
+    script.write_text(SKIPPING_PUBLISHER)
+    rec = recorder(master, tmp_path / "s", "--topic", "/odom", "--topic", "/text")
+    try:
+        wait_subscribed(master, "/odom")
+        wait_subscribed(master, "/text")
+        publisher = start([sys.executable, str(script), ",".join(map(str, sent))], master,
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+        played(publisher, timeout=60)
+        time.sleep(0.5)
+        rc = stop(rec)
+        err = rec.stderr.read()
+    finally:
+        stop(rec)
+    assert rc == 4, err
+    total, topics = lost_lines(err)
+    assert "LOST 5 messages lost" in total
+    assert topics == ["/odom: 11 received, 5 lost",
+                      "/text: 11 received, not checked (std_msgs/String has no header.seq)"]
+    assert store_messages(tmp_path / "s")["/odom"].total() == 11  # what did arrive is all stored
+    assert "exit status" in subprocess.run([*CCLOG, "record", "--help"], capture_output=True, text=True).stdout
+
+
+def test_seq_check_counts_gaps_per_publisher_and_says_what_it_cannot_tell():
+    from cclogfs.ingest.ros1seq import SeqCheck, starts_with_header
+
+    odom = {"type": "nav_msgs/Odometry", "md5sum": "a", "message_definition": "# c\n\nHeader header\nstring child"}
+    tf = {"type": "tf2_msgs/TFMessage", "md5sum": "b", "message_definition": "geometry_msgs/TransformStamped[] t"}
+    check = SeqCheck()
+    for caller, seqs in [("/a", [7, 8, 10, 11]), ("/b", [1, 2, 3]), ("/a", [15])]:  # /a: 9, 12, 13, 14 lost
+        for s in seqs:
+            check.add("/odom", s.to_bytes(4, "little") + b"xx", {**odom, "callerid": caller})
+    for s in [0, 0, 0]:  # a publisher that does not number: no gap can be told
+        check.add("/scan", s.to_bytes(4, "little"), {**odom, "md5sum": "c", "callerid": "/z"})
+    check.add("/tf", b"\0\0\0\0", tf)
+    assert check.lost == 4
+    assert check.lines() == ["  /odom: 8 received, 4 lost",
+                             "  /scan: 3 received, not checked (seq does not go up one by one from /z)",
+                             "  /tf: 1 received, not checked (tf2_msgs/TFMessage has no header.seq)"]  # fmt: skip
+    check.not_stored = 2
+    assert check.lost == 6
+    assert check.lines()[-1] == "  2 received after the recording stopped taking messages, not stored"
+    assert starts_with_header("std_msgs/Header header\n") and not starts_with_header("Header stamp_holder\n")
+
+
+def test_stop_ends_the_recording_while_a_topic_keeps_publishing(master, tmp_path):
+    talker = start(["rostopic", "pub", "-r", "100", "/chatter", "std_msgs/String", "data: hi"], master,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    try:
+        rec = recorder(master, tmp_path / "s", "--topic", "/chatter")
+        try:
+            wait_subscribed(master, "/chatter")
+            t0 = time.monotonic()
+            err = finish(rec, after_s=1.0)  # exit 0: nothing known lost
+            assert time.monotonic() - t0 < 6, err  # the stream never falls idle; stopping must not wait for it
+        finally:
+            stop(rec)
+    finally:
+        stop(talker)
+    total, topics = lost_lines(err)
+    n = store_messages(tmp_path / "s")["/chatter"].total()
+    assert n > 0 and topics[0] == f"/chatter: {n:,} received, not checked (std_msgs/String has no header.seq)", err
