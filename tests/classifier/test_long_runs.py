@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 
 from cclogfs.classifier import Detector, train
-from cclogfs.classifier.evaluate import detection_delays, event_table, format_event_table
 from cclogfs.classifier.features import DEFAULT_NAMES, NS, OdomArrays, make_features
 from cclogfs.classifier.model import OneClassModel
 from cclogfs.classifier.testing import inject
@@ -96,21 +95,6 @@ def test_models_of_version_3_still_load_and_score_alike(tmp_path):
     model.save(tmp_path / "m")
     back = OneClassModel.load(tmp_path / "m")
     np.testing.assert_allclose(Detector(back).score_batch(odom)[0], before, rtol=1e-9, atol=1e-12)
-
-
-def test_detection_delay_and_nominal_time():
-    t = np.arange(0, 100 * NS, NS // 10)
-    flags = np.zeros(len(t), bool)
-    flags[205:215] = True  # 0.5 s after the first event starts
-    labels = {"events": [{"start_ns": 20 * NS, "end_ns": 22 * NS}, {"start_ns": 60 * NS, "end_ns": 61 * NS}]}
-    d = detection_delays(t, flags, labels)
-    assert d[0] == pytest.approx(0.5) and np.isnan(d[1])
-    table = event_table(t, [(int(19 * NS), int(23 * NS)), (int(80 * NS), int(81 * NS))], labels, flags)
-    assert table["recalled"] == 1 and table["false_windows"] == 1 and table["detected"] == 1
-    assert table["nominal_minutes"] == pytest.approx((t[-1] - t[0]) / 60e9 - 3 / 60)
-    assert table["false_per_10min"] == pytest.approx(10 / table["nominal_minutes"])
-    assert "median 0.50 s" in format_event_table(table)
-    assert event_table(t, [], labels)["delay_median_s"] is None
 
 
 def _spans(windows):

@@ -1,8 +1,5 @@
-import json
-
 import pytest
 
-from cclogfs.classifier.summary import SummaryBuilder
 from cclogfs.classifier.windows import WindowBuilder
 from cclogfs.errors import InvalidInputError
 
@@ -86,20 +83,6 @@ def test_unlisted_topics_ignored_and_bad_sizes_rejected():
     assert {w.topic for w in ws} == {"/odom", "/tf_static"} - {"/tf_static"}
     with pytest.raises(InvalidInputError):
         WindowBuilder(before=-1)
-
-
-def test_summary_per_minute():
-    sb = SummaryBuilder(period_s=60)
-    recs = []
-    for i in range(0, 1300):  # 130 s at 10 Hz, moving 0.5 m/s along x
-        t = i * 100 * MS
-        recs += sb.update(t, 0.05 * i, 0.0, 0.5, anomalous=(i == 700))
-    recs += sb.flush()
-    stats = [json.loads(t) for _, t in recs]
-    assert [s["messages"] for s in stats] == [600, 600, 100]
-    assert stats[0]["distance_m"] == pytest.approx(29.95)
-    assert stats[1]["anomalies"] == 1 and stats[1]["peak_speed"] == 0.5
-    assert stats[0]["moving_s"] == pytest.approx(59.9)
 
 
 def test_out_of_order_other_topic_is_taken_by_its_window():

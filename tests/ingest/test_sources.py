@@ -6,14 +6,11 @@ import json
 from collections import Counter
 
 import pytest
-from mcap.writer import Writer
 from rosbags.highlevel import AnyReader
 
 from cclogfs.errors import SourceError
 from cclogfs.ingest import (
     FORMATS,
-    McapJsonSource,
-    RosbagSource,
     Source,
     detect_format,
     open_source,
@@ -84,46 +81,6 @@ def test_ros1_and_ros2_bags_hold_the_same_transforms(shared_data):
     assert transforms("tf_example.bag") == transforms("tf_example")
 
 
-def _write_json_mcap(path, rows, encoding="json"):
-    with open(path, "wb") as f:
-        w = Writer(f)
-        w.start()
-        schema = w.register_schema("demo/Thing", "jsonschema", b'{"type": "object"}')
-        chans = {}
-        for topic, t, text in rows:
-            if topic not in chans:
-                chans[topic] = w.register_channel(topic, encoding, schema)
-            w.add_message(chans[topic], log_time=t, data=text.encode(), publish_time=t)
-        w.finish()
-
-
-def test_plain_json_mcap(tmp_path):
-    rows = [("/a", 5, '{"x": 1.5}'), ("/b", 7, '{"y":  [1,2]}'), ("/a", 9, '{"x": NaN}')]
-    path = tmp_path / "plain.mcap"
-    _write_json_mcap(path, rows)
-    assert detect_format(path) == "mcap-json"
-    with open_source(path) as src:
-        assert isinstance(src, McapJsonSource)
-        assert src.topics() == {"/a": "demo/Thing", "/b": "demo/Thing"}
-        assert [(m.topic, m.stamp_ns, m.text) for m in src] == rows
-    with open_source(path, topics=["/b"]) as src:
-        assert [m.text for m in src] == ['{"y":  [1,2]}']
-
-
-def test_json_mcap_with_broken_message(tmp_path):
-    path = tmp_path / "bad.mcap"
-    _write_json_mcap(path, [("/a", 5, '{"x": 1'), ("/a", 6, "{}")])
-    with open_source(path) as src, pytest.raises(SourceError, match=r"bad.mcap.*/a.*5 ns.*JSON"):
-        list(src)
-
-
-def test_mcap_with_other_encoding_is_refused(tmp_path):
-    path = tmp_path / "proto.mcap"
-    _write_json_mcap(path, [("/a", 5, "xx")], encoding="protobuf")
-    with pytest.raises(SourceError, match=r"proto.mcap.*\['protobuf'\]"):
-        open_source(path)
-
-
 def test_unknown_and_missing_inputs(tmp_path, shared_data):
     (tmp_path / "notes.txt").write_text("hello robot\n")
     with pytest.raises(SourceError, match=r"notes.txt is of an unknown file type"):
@@ -142,15 +99,6 @@ def test_unknown_and_missing_inputs(tmp_path, shared_data):
         open_source(renamed)
     with pytest.raises(SourceError, match=r"Unknown source format 'csv'"):
         open_source(renamed, format="csv")
-
-
-def test_damaged_bag_names_the_file(tmp_path, shared_data):
-    data = shared_data("tf_example.bag").read_bytes()
-    bad = tmp_path / "cut.bag"
-    bad.write_bytes(data[: len(data) // 3])
-    with pytest.raises(SourceError, match=r"cut.bag"):
-        with RosbagSource(bad) as src:
-            list(src)
 
 
 def test_formats_map_to_source_classes():

@@ -89,15 +89,3 @@ def test_play_of_mixed_clocks_says_so_and_skip_gaps_plays_it(shared_data, tmp_pa
     r = subprocess.run([*CCLOG, "play", str(tmp_path / "s"), "--rate", "100", "--skip-gaps", "0.5"],
                        capture_output=True, text=True, timeout=120, check=True)  # fmt: skip
     assert len(r.stdout.splitlines()) == 136 and "note" not in r.stderr
-
-
-def test_stream_types_keep_the_type_everywhere_and_the_definition_once():
-    from cclogfs.jsontext.rostypes import MAX_MSGDEF, StreamTypes
-
-    t = StreamTypes(lambda topic: {"msgdef": "x" * (MAX_MSGDEF + 1 if topic == "/big" else 10), "md5sum": "m"})
-    t.saw("/a", "pkg/msg/A")
-    t.saw("/big", "pkg/msg/B")
-    assert t.meta("/a", {"kind": "all"}) == {"kind": "all", "msgtype": "pkg/msg/A", "msgdef": "x" * 10, "md5sum": "m"}
-    assert t.meta("/a", {"kind": "all"}) == {"kind": "all", "msgtype": "pkg/msg/A"}
-    assert t.meta("/big", {}) == {"msgtype": "pkg/msg/B", "md5sum": "m"}  # too big for a record's metadata
-    assert t.meta("/untyped", {"k": 1}) == {"k": 1}

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import threading
 import time
 
@@ -14,16 +13,7 @@ from cclogfs.upkeep import Policy, parse_rule
 from cclogfs.cli import main
 from cclogfs.upkeep import compact
 from cclogfs.store import check_store
-from helpers import flip
-
-NS = 1_000_000_000
-
-
-def odom(i: int) -> str:
-    t = i * 0.1
-    return json.dumps({"header": {"stamp": {"sec": i // 10, "nanosec": i % 10 * 100_000_000}, "frame_id": "odom"},
-                       "pose": {"x": math.sin(t) * 3.123456789, "y": t * 0.7071067811865476, "n": i},
-                       "twist": {"v": 0.25 + 0.01 * math.cos(t), "w": -0.0}})  # fmt: skip
+from _odom import NS, odom, sealed_store
 
 
 def build(path, windows=12, per=50, **kw):
@@ -211,17 +201,6 @@ def test_recorder_ages_in_the_background_within_bounds(tmp_path, capsys):
     assert not check_store(store, deep=True).errors
 
 
-def test_logger_sizes_its_segments_for_its_budget(tmp_path):
-    from cclogfs.upkeep import Upkeep
-    from cclogfs.pipeline import Logger
-
-    with Logger(str(tmp_path / "s"), chunk=100, upkeep=Upkeep(budget=256 << 10)) as log:
-        for i in range(40_000):
-            log("/odom", i * NS // 20, odom(i))
-    with cclogfs.open_store(tmp_path / "s", readonly=True) as s:
-        assert s.data_bytes() <= 256 << 10 and s.dropped()["segments"] >= 1
-
-
 @pytest.mark.parametrize(
     "args, match",
     [(["--age-older-than", "7d"], "give --age-error or --age-max-rate"),
@@ -232,24 +211,6 @@ def test_recorder_refuses_incomplete_upkeep_flags(tmp_path, capsys, args, match)
     assert main(["record", str(tmp_path / "run.jsonl"), "--store", str(tmp_path / "s"), *args]) == 1
     assert match in capsys.readouterr().err
     assert not (tmp_path / "s").exists()
-
-
-def test_logger_with_background_aging_stops_cleanly_and_keeps_every_window(tmp_path):
-    from cclogfs.upkeep import Upkeep
-    from cclogfs.pipeline import Logger
-
-    upkeep = Upkeep(budget=1 << 20, policy=Policy([parse_rule("1e-3")]), older_than_ns=60 * NS)
-    with Logger(str(tmp_path / "s"), chunk=50, upkeep=upkeep) as log:
-        for i in range(20_000):
-            log("/odom", i * NS // 20, odom(i))
-    assert upkeep.errors == []
-    with cclogfs.open_store(tmp_path / "s", readonly=True) as s:
-        windows = list(s.query("/odom"))
-        assert windows[-1].end_ns == 19_999 * NS // 20
-        assert upkeep.aged_windows > 0 and any(w.aged is not None for w in windows)
-        assert [w.seq for w in windows] == list(range(windows[0].seq, windows[0].seq + len(windows)))
-    report = check_store(str(tmp_path / "s"), deep=True)
-    assert not report.errors and not report.findings  # no leftover from a stopped rewrite
 
 
 # -- found in review -------------------------------------------------------------------
@@ -340,51 +301,10 @@ def test_cli_says_to_stop_the_recorder_when_the_store_is_locked(tmp_path, capsys
 # -- found in the review of background aging ------------------------------------------------
 
 
-def _sealed_store(path, windows=16):
-    """/tf_static once, then /odom windows of 5 s at 10 Hz, four windows per segment."""
-    store = cclogfs.open_store(path, create=True, segment_records=4, sync_every_ms=None)
-    store.put_window("/tf_static", [(0, '{"x": 1.2345678}')])
-    for w in range(windows):
-        store.put_window("/odom", [(i * NS // 10, odom(i)) for i in range(w * 50, (w + 1) * 50)])
-    return store
-
-
-def test_background_aging_goes_past_a_segment_holding_a_stream_that_stopped(tmp_path):
-    from cclogfs.upkeep import Upkeep
-
-    store = _sealed_store(tmp_path / "s")
-    upkeep = Upkeep(policy=Policy([parse_rule("1e-3")]), older_than_ns=20 * NS, streams=["/odom"])
-    upkeep.after_put(store)
-    upkeep.close(finish=True)
-    aged = [w.seq for w in store.query("/odom") if w.aged is not None]
-    # /odom windows ending over 20 s before the newest sealed one (74.9 s): 0-9, all of them
-    assert aged == list(range(1, 11)) and upkeep.errors == []
-    store.close()
-
-
-def test_finishing_after_an_error_returns_and_later_segments_still_age(tmp_path):
-    from cclogfs.upkeep import Upkeep
-
-    store = _sealed_store(tmp_path / "s")
-    store.close()
-    seg = tmp_path / "s" / "00000000000000000000.seg"
-    flip(seg, -5, 0xFF)  # damage the oldest segment
-    store = cclogfs.open_store(tmp_path / "s", segment_records=4, sync_every_ms=None)
-    upkeep = Upkeep(policy=Policy([parse_rule("1e-3")]), older_than_ns=20 * NS)
-    upkeep.after_put(store)
-    closer = threading.Thread(target=upkeep.close, kwargs={"finish": True})
-    closer.start()
-    closer.join(30)
-    assert not closer.is_alive(), "close(finish=True) hung after an error"
-    assert len(upkeep.errors) == 1 and "CorruptionError" in upkeep.errors[0]
-    assert any(w.aged is not None for w in store.query("/odom") if w.seq >= 4)
-    store.close()
-
-
 def test_overlapping_rewrites_of_one_segment_never_lose_it(tmp_path):
     from cclogfs.store import Replacement
 
-    store = _sealed_store(tmp_path / "s", windows=3)
+    store = sealed_store(tmp_path / "s", windows=3)
 
     def slow(w):
         time.sleep(0.05)

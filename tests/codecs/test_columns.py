@@ -1,0 +1,105 @@
+"""cclogfs.codecs.columns: one value slot of a shape, classified, written and read back."""
+
+import base64
+
+import numpy as np
+import pytest
+
+from cclogfs.codecs.columnar_format import OFFSET_HEADER, PACKED_HEADER, ColumnKind
+from cclogfs.codecs.columns import Reader, classify, read_column, read_packed, write_column, write_packed
+from cclogfs.errors import CodecError
+
+B64 = tuple('"' + base64.b64encode(bytes([i]) * 60).decode() + '"' for i in range(3))
+
+
+def round_trip(tokens, decimal=False):
+    kind, values = classify(tokens, decimal=decimal)
+    out = bytearray()
+    write_column(kind, values, out)
+    reader = Reader(bytes(out))
+    got, _floats = read_column(kind, reader, len(tokens), [])
+    assert reader.pos == len(out)  # the column reads exactly what was written
+    return kind, got
+
+
+@pytest.mark.parametrize(
+    "tokens, kind",
+    [
+        (("7", "7", "7"), ColumnKind.CONST),
+        (('"a"', '"bé"', '""'), ColumnKind.TEXT),
+        (("1", "-5", "9223372036854775807"), ColumnKind.INT),
+        (("0.1", "2.5e-07", "-3.0"), ColumnKind.FLOAT),
+        (("true", "false", "true"), ColumnKind.BOOL),
+        (B64, ColumnKind.BASE64),
+        (("01", "2", "3"), ColumnKind.TEXT),  # not canonical ints: kept as written
+        (("1", "9223372036854775808", "0"), ColumnKind.TEXT),  # over i64
+        (("1.50", "2.25", "3.00"), ColumnKind.TEXT),  # floats that do not render back
+        (("3", "3", "4", "3", "3", "4", "5", "3", "3"), ColumnKind.INT),  # repeats take the dedup path
+    ],
+)
+def test_classify_picks_a_kind_that_reproduces_every_token(tokens, kind):
+    got_kind, got = round_trip(tokens)
+    assert got_kind is kind
+    assert got == (tokens[0] if kind is ColumnKind.CONST else list(tokens))
+
+
+def test_decimal_only_when_allowed():
+    tokens = ("1.50", "2.25", "3.00")
+    kind, got = round_trip(tokens, decimal=True)
+    assert kind is ColumnKind.DECIMAL and got == list(tokens)
+
+
+@pytest.mark.parametrize("offset", [False, True])
+@pytest.mark.parametrize(
+    "values",
+    [[5], [0, 36_000, 72_000, 108_001], [-(2**63), 2**63 - 1, 0, -1], [10, 10, 10], []],
+)
+def test_packed_integers_round_trip(values, offset):
+    out = bytearray()
+    write_packed(np.array(values, dtype="<i8"), out, offset=offset)
+    reader = Reader(bytes(out))
+    assert read_packed(reader, len(values), "t", offset=offset).tolist() == values
+    assert reader.pos == len(out)
+
+
+def test_a_steady_rate_packs_into_its_header_alone():
+    stamps = np.arange(0, 36_000 * 1000, 36_000, dtype="<i8")
+    out = bytearray()
+    write_packed(stamps, out, offset=True)
+    assert len(out) == OFFSET_HEADER.size  # every quotient equals the base: zero-width deltas
+    out = bytearray()
+    write_packed(stamps, out)
+    assert len(out) == PACKED_HEADER.size + len(stamps) - 1  # zigzag(1) = 2: one byte each
+
+
+def test_reader_refuses_to_read_past_the_end():
+    reader = Reader(b"\x01\x02")
+    with pytest.raises(CodecError, match="count at body offset 0 needs 4 bytes, 2 are left"):
+        reader.u32("count")
+    with pytest.raises(CodecError, match="needs -1 bytes"):
+        reader.take(-1, "x")
+
+
+@pytest.mark.parametrize(
+    "kind, data, message",
+    [
+        (ColumnKind.BOOL, b"\x00\x02", "bool column holds a value above 1"),
+        (ColumnKind.CONST, b"\x02\x00\x00\x00\xff\xfe", "constant is not UTF-8"),
+        (ColumnKind.TEXT, b"\x01\x00\x00\x00\x09\x00\x00\x00ab", "text column at body offset 8 needs 9"),
+        (ColumnKind.QUAT_W, bytes(16), "lacks x, y, z"),
+        (ColumnKind.FLOAT_DELTA, b"\x07" + bytes(16), "delta order 7"),
+        (200, b"", "unknown column kind 200"),
+    ],
+)
+def test_corrupt_columns_are_codec_errors(kind, data, message):
+    n = 2 if kind is not ColumnKind.TEXT else 1
+    with pytest.raises(CodecError, match=message):
+        read_column(kind, Reader(data), n, [])
+
+
+def test_text_lengths_that_do_not_add_up_are_refused():
+    out = bytearray()
+    write_column(ColumnKind.TEXT, ('"ab"', '"c"'), out)
+    out[0] += 1  # the first token claims one char more
+    with pytest.raises(CodecError, match="lengths do not add up"):
+        read_column(ColumnKind.TEXT, Reader(bytes(out)), 2, [])

@@ -1,0 +1,126 @@
+"""cclogfs.store.fs: the file-system layer all store I/O goes through, and the recording
+variant crash tests build disk images from."""
+
+import os
+
+import pytest
+
+import cclogfs
+from cclogfs.store.fs import FileSystem, RecordingFileSystem
+
+
+def test_open_create_is_exclusive(tmp_path):
+    fs, path = FileSystem(), str(tmp_path / "f")
+    fs.close(fs.open(path, write=True, create=True))
+    with pytest.raises(FileExistsError):
+        fs.open(path, write=True, create=True)
+    with pytest.raises(FileNotFoundError):
+        fs.open(str(tmp_path / "missing"))
+
+
+def test_pwrite_pread_size_truncate(tmp_path):
+    fs = FileSystem()
+    fd = fs.open(str(tmp_path / "f"), write=True, create=True)
+    try:
+        data = os.urandom(3 << 20)  # several MB: reads and writes may be short
+        fs.pwrite(fd, data, 0)
+        fs.pwrite(fd, b"XY", 5)
+        assert fs.size(fd) == len(data)
+        assert fs.pread(fd, 4, 3) == data[3:5] + b"XY"
+        assert fs.pread(fd, len(data), 0) == data[:5] + b"XY" + data[7:]
+        assert fs.pread(fd, 100, len(data) - 10) == data[-10:]  # past the end: what there is
+        assert fs.pread(fd, 10, len(data) + 5) == b""
+        fs.truncate(fd, 100)
+        fs.fsync(fd)
+        assert fs.size(fd) == 100
+    finally:
+        fs.close(fd)
+
+
+def test_pread_on_a_read_only_fd_cannot_write(tmp_path):
+    fs, path = FileSystem(), tmp_path / "f"
+    path.write_bytes(b"abc")
+    fd = fs.open(str(path))
+    try:
+        with pytest.raises(OSError):
+            fs.pwrite(fd, b"z", 0)
+    finally:
+        fs.close(fd)
+    assert path.read_bytes() == b"abc"
+
+
+def test_write_file_atomic_replaces_and_clears_a_stale_tmp(tmp_path):
+    fs, path = FileSystem(), tmp_path / "M"
+    path.write_bytes(b"old")
+    (tmp_path / "M.tmp").write_bytes(b"left by a crash")
+    fs.write_file_atomic(str(path), b"new contents")
+    assert fs.read_file(str(path)) == b"new contents"
+    assert sorted(os.listdir(tmp_path)) == ["M"]
+
+
+def test_listdir_sorted_mkdir_exists_rename_unlink(tmp_path):
+    fs = FileSystem()
+    fs.mkdir(str(tmp_path / "d"))
+    fs.mkdir(str(tmp_path / "d"))  # already there: fine
+    for name in ("b", "a", "c"):
+        (tmp_path / "d" / name).write_bytes(b"")
+    assert fs.listdir(str(tmp_path / "d")) == ["a", "b", "c"]
+    fs.rename(str(tmp_path / "d" / "a"), str(tmp_path / "d" / "z"))
+    fs.unlink(str(tmp_path / "d" / "b"))
+    fs.fsync_dir(str(tmp_path / "d"))
+    assert fs.listdir(str(tmp_path / "d")) == ["c", "z"]
+    assert fs.exists(str(tmp_path / "d" / "z")) and not fs.exists(str(tmp_path / "d" / "a"))
+
+
+def test_lock_is_exclusive_until_unlocked(tmp_path):
+    fs, path = FileSystem(), str(tmp_path / "LOCK")
+    first = fs.lock(path)
+    assert first is not None
+    assert fs.lock(path) is None  # a second holder (flock is per open file) is refused
+    fs.unlock(first)
+    again = fs.lock(path)
+    assert again is not None
+    fs.unlock(again)
+
+
+def test_recording_fs_logs_every_change_in_order(tmp_path):
+    fs = RecordingFileSystem()
+    path = str(tmp_path / "f")
+    fd = fs.open(path, write=True, create=True)
+    fs.pwrite(fd, b"abc", 0)
+    fs.fsync(fd)
+    fs.truncate(fd, 1)
+    fs.pread(fd, 1, 0)  # reads change nothing: not logged
+    fs.close(fd)
+    fs.mark("done")
+    fs.rename(path, path + "2")
+    fs.fsync_dir(str(tmp_path))
+    fs.unlink(path + "2")
+    assert fs.ops == [
+        ("create", path), ("write", path, 0, b"abc"), ("fsync", path), ("truncate", path, 1),
+        ("mark", "done"), ("rename", path, path + "2"), ("fsync_dir", str(tmp_path)), ("unlink", path + "2"),
+    ]  # fmt: skip
+
+
+def test_recording_fs_injected_fsync_failure_is_not_logged_as_done(tmp_path):
+    fs = RecordingFileSystem(fail_fsync=True)
+    fd = fs.open(str(tmp_path / "f"), write=True, create=True)
+    try:
+        with pytest.raises(OSError, match="injected"):
+            fs.fsync(fd)
+        with pytest.raises(OSError, match="injected"):
+            fs.fsync_dir(str(tmp_path))
+    finally:
+        fs.close(fd)
+    assert [op[0] for op in fs.ops] == ["create"]
+
+
+def test_a_store_does_all_its_writes_through_its_fs(tmp_path):
+    fs = RecordingFileSystem()
+    with cclogfs.open_store(tmp_path / "s", create=True, fs=fs, sync_every_ms=None) as store:
+        store.put_window("/a", [(1, "{}")])
+        store.sync()
+    made = {os.path.basename(op[1]) for op in fs.ops if op[0] == "create"}
+    made |= {os.path.basename(op[2]) for op in fs.ops if op[0] == "rename"}
+    on_disk = set(os.listdir(tmp_path / "s")) - {"LOCK"}  # the lock holds no data
+    assert on_disk and on_disk <= made
