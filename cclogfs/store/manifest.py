@@ -111,15 +111,34 @@ class Manifest(Mapping[str, Any]):
         return cls({"format_version": FORMAT_VERSION, "store_id": uuid.uuid4().hex,
                     "created_ns": time.time_ns(), "codec": codec_config, "segments": []})  # fmt: skip
 
+    @property
+    def checkpoint(self) -> dict[str, int]:
+        """What a clean close proved durable of the active segment: {"first_seq", "synced",
+        "next_seq"} (FORMAT.md, "Proof of what was synced"); {} when none."""
+        return self._body.get("checkpoint", {})
+
+    def damage(self) -> list[tuple[dict[str, Any], dict[str, Any]]]:
+        """(segment entry, damage entry) for every damaged stretch not yet discarded."""
+        return [(info, d) for info in self.segments for d in info.get("damaged", ())]
+
+    def _next(self, **changes: Any) -> Manifest:
+        # Whatever this version writes may hold record version 2 and the keys of format
+        # version 3, which an older reader would misread: it must refuse the store.
+        return Manifest(dict(self._body, format_version=FORMAT_VERSION, **changes))
+
     def with_sealed(self, info: dict[str, Any]) -> Manifest:
-        """A segment sealed: appended to the list (sealing is not compaction: the format
-        version stays)."""
-        return Manifest(dict(self._body, segments=[*self.segments, info]))
+        """A segment sealed: appended to the list."""
+        return self._next(segments=[*self.segments, info])
+
+    def with_checkpoint(self, first_seq: int, synced: int, next_seq: int) -> Manifest:
+        """A clean close: the active segment is durable up to `synced` bytes, `next_seq`."""
+        return self._next(checkpoint={"first_seq": first_seq, "synced": synced, "next_seq": next_seq})
 
     def with_replaced(self, infos: Mapping[int, dict[str, Any]]) -> Manifest:
         """Segments rewritten as new generations: `infos` by first_seq."""
         segments = [infos.get(info["first_seq"], info) for info in self.segments]
-        return Manifest(dict(self._body, format_version=COMPACTED_FORMAT_VERSION, segments=segments))
+        version = max(self.format_version, COMPACTED_FORMAT_VERSION)
+        return Manifest(dict(self._body, format_version=version, segments=segments))
 
     def without_oldest(self) -> Manifest:
         """Retention: the oldest sealed segment dropped, its statistics added to `dropped`."""
@@ -127,7 +146,8 @@ class Manifest(Mapping[str, Any]):
         before = self.dropped
         streams = {k: dict(v) for k, v in before["streams"].items()}
         merge_stream_stats(streams, oldest["streams"])
-        return Manifest(dict(self._body, format_version=COMPACTED_FORMAT_VERSION, first_seq=oldest["end_seq"],
+        version = max(self.format_version, COMPACTED_FORMAT_VERSION)
+        return Manifest(dict(self._body, format_version=version, first_seq=oldest["end_seq"],
                              segments=self.segments[1:],
                              dropped={"segments": before["segments"] + 1, "streams": streams}))  # fmt: skip
 

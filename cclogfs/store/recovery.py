@@ -13,7 +13,7 @@ import threading
 from dataclasses import dataclass, field
 
 from ..errors import CorruptionError
-from .format import MANIFEST, Reason, parse_seq_name, segment_name
+from .format import MANIFEST, SEGMENT_HEADER_SIZE, Reason, parse_seq_name, segment_name
 from .fs import FileSystem
 from .manifest import Manifest
 from .segment import Problem, Segment, intact_after, open_segment, scan
@@ -24,6 +24,8 @@ class Recovery:
     """What opening the store found and did."""
 
     problems: list[Problem] = field(default_factory=list)  # truncated or dropped tails
+    # Damage below the synced point found in the tail: kept, declared, never cut.
+    damage: list[Problem] = field(default_factory=list)
     skipped: list[Problem] = field(default_factory=list)  # intact records of unknown kind
     sealed_on_open: list[str] = field(default_factory=list)
     removed_files: list[str] = field(default_factory=list)
@@ -33,7 +35,7 @@ class Recovery:
 
     @property
     def clean(self) -> bool:
-        return not (self.problems or self.skipped)
+        return not (self.problems or self.skipped or self.damage)
 
 
 @dataclass
@@ -89,7 +91,7 @@ class SegmentOpener:
             files = _sort_files(self.fs.listdir(self.path), manifest)
             self._open_sealed(manifest, files)
             self._remove_leftovers(files)
-            self._recover_tail(manifest.end_seq, [files.tail[s] for s in sorted(files.tail)])
+            self._recover_tail(manifest.end_seq, [files.tail[s] for s in sorted(files.tail)], manifest.checkpoint)
         except BaseException:
             for seg in (*self.sealed, *self.tail):
                 if seg.fd >= 0:
@@ -123,7 +125,7 @@ class SegmentOpener:
                 self.recovery.removed_files.append(name)
             self.fs.fsync_dir(self.path)
 
-    def _recover_tail(self, next_seq: int, names: list[str]) -> None:
+    def _recover_tail(self, next_seq: int, names: list[str], checkpoint: dict) -> None:
         """Scan the unsealed segments; keep exactly their valid prefix (see FORMAT.md)."""
         broken = False
         for name in names:
@@ -144,26 +146,41 @@ class SegmentOpener:
                 self._drop_segment(seg)
                 broken = True
                 continue
-            broken = self._keep_prefix(seg)
+            broken = self._keep_prefix(seg, checkpoint)
             self.tail.append(seg)
             next_seq = seg.next_seq
 
-    def _keep_prefix(self, seg: Segment) -> bool:
-        """Scan one tail segment and cut it to its valid prefix; True when it had to be cut."""
-        result = scan(seg)
+    def _keep_prefix(self, seg: Segment, checkpoint: dict) -> bool:
+        """Scan one tail segment; keep every intact record below the synced point (damage
+        there is declared in `seg.damage`, never cut) and cut an unsynced torn tail. True
+        when it had to be cut."""
+        result = scan(seg, salvage=True)
         self.recovery.skipped.extend(result.skipped)
-        seg.rows, seg.next_seq = result.rows, result.next_seq
-        problem = result.problem
-        if problem is None:
+        seg.synced = max(result.synced, SEGMENT_HEADER_SIZE)
+        if checkpoint.get("first_seq") == seg.first_seq:
+            seg.synced = max(seg.synced, checkpoint["synced"])
+        problems = [*result.damage, *([result.problem] if result.problem else [])]
+        cut = next((p for p in problems if p.offset >= seg.synced), None)
+        seg.damage = [p for p in problems if p.offset < seg.synced]
+        ours = checkpoint if checkpoint.get("first_seq") == seg.first_seq else {}
+        for problem in seg.damage:
+            if problem.seqs is None:  # damage up to the end: only the checkpoint knows the seqs lost
+                problem.seqs = (result.next_seq, max(ours.get("next_seq", 0), result.next_seq + 1))
+        self.recovery.damage.extend(seg.damage)
+        end = cut.offset if cut is not None else seg.fs.size(seg.fd)
+        seg.rows = [r for r in result.rows if r[5] < end]
+        seg.next_seq = max([r[2] + 1 for r in seg.rows] + [p.seqs[1] for p in seg.damage] + [seg.first_seq])
+        if cut is None:
+            seg.size = end
             return False
-        problem.intact_after = intact_after(seg, problem.offset)
-        self.recovery.problems.append(problem)
+        cut.intact_after = intact_after(seg, cut.offset)
+        self.recovery.problems.append(cut)
         if not self.readonly:
-            if problem.intact_after:
-                problem.kept_in = self._keep_tail(seg, problem.offset)
-            self.fs.truncate(seg.fd, result.end)
+            if cut.intact_after:
+                cut.kept_in = self._keep_tail(seg, cut.offset)
+            self.fs.truncate(seg.fd, cut.offset)
             self.fs.fsync(seg.fd)
-        seg.size = result.end
+        seg.size = cut.offset
         return True
 
     def _keep_tail(self, seg: Segment, offset: int) -> str:

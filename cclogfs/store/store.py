@@ -19,6 +19,7 @@ from .._signals import signals_deferred as _signals_deferred
 from ..codecs import codec_from_config
 from ..errors import (
     CorruptionError,
+    DamagedError,
     InvalidInputError,
     StoreError,
     StoreFailedError,
@@ -87,6 +88,7 @@ class Store:
         self._unsynced_since: float | None = None
         self._flusher: threading.Thread | None = None
         self._sealed_spans: SegmentSpans | None = None
+        self._dirty = False  # this writer changed the active segment: close writes a checkpoint
 
     # -- context manager -------------------------------------------------------------------
 
@@ -215,10 +217,27 @@ class Store:
         if self.readonly:
             self.unsealed = opener.tail
             return
-        for seg in opener.tail[:-1]:  # a crash while sealing left it complete but unsealed
+        for seg in opener.tail:
+            self._make_durable(seg)
+        # The newest tail segment stays active unless it holds damage: that is sealed with
+        # the damage named in the manifest, so no later write can hide it.
+        keep = len(opener.tail) - 1 if opener.tail and not opener.tail[-1].damage else len(opener.tail)
+        for seg in opener.tail[:keep]:  # a crash while sealing left it complete but unsealed
             self._seal(seg)
             self.recovery.sealed_on_open.append(os.path.basename(seg.path))
-        self.active = opener.tail[-1] if opener.tail else self._new_segment(self.manifest.end_seq)
+        tail = opener.tail[keep:]
+        self.active = tail[0] if tail else self._new_segment(self.manifest.end_seq)
+
+    def _make_durable(self, seg: Segment) -> None:
+        """Write again, and fsync, what recovery kept but cannot prove durable: a crash may
+        have left it only in the page cache, and after a failed fsync the kernel may have
+        marked pages clean that never reached the disk (FORMAT.md, "Durability contract")."""
+        if seg.size > seg.synced:
+            self.fs.pwrite(seg.fd, self.fs.pread(seg.fd, seg.size - seg.synced, seg.synced), seg.synced)
+            self.fs.fsync(seg.fd)
+            seg.synced = seg.size
+            # An older store's records carry no synced length: it stays as it is until written.
+            self._dirty = self._dirty or self.manifest.format_version >= 3
 
     def _index_path(self, seg: Segment) -> str:
         return self.file_path(index_name(seg.first_seq, seg.gen))
@@ -265,7 +284,7 @@ class Store:
             self.check_writable()
             seg = self.active
             seq = seg.next_seq
-            record = enc.pack(seq)
+            record = enc.pack(seq, synced=seg.synced)
             row = (name, len(stamps), seq, stamps[0], stamps[-1], seg.end, len(record), raw_len)
             if self._unsynced_since is None:  # before the append: a commit must never skip its fsync
                 self._unsynced_since = time.monotonic()
@@ -275,6 +294,7 @@ class Store:
                 self._failed = err
                 raise StoreFailedError(f"{seg.path}: write failed: {err}") from err
             self._unsynced_bytes += len(record)
+            self._dirty = True
             # A full segment is committed (and so sealed) at once, not at the next group
             # commit: the limits bound what recovery must scan.
             if self._commit_due() or seg.end >= self.segment_bytes or len(seg.rows) >= self.segment_records:
@@ -301,6 +321,7 @@ class Store:
             seg.flush()
             if self._unsynced_since is not None:
                 self.fs.fsync(seg.fd)
+                seg.synced = seg.size
         except OSError as err:
             self._failed = err
             raise StoreFailedError(f"{seg.path}: fsync failed: {err}; the store refuses further "
@@ -356,6 +377,8 @@ class Store:
         self.fs.write_file_atomic(self._index_path(seg), index.encode(seg.first_seq, seg.size))
         info = {"first_seq": seg.first_seq, "end_seq": seg.next_seq, "size": seg.size,
                 "streams": index.stream_stats()}  # fmt: skip
+        if seg.damage:
+            info["damaged"] = [p.damage_info() for p in seg.damage]
         self.commit_manifest(self.manifest.with_sealed(info))
         seg.sealed_size = seg.size
         self.sealed.append(seg)
@@ -370,6 +393,14 @@ class Store:
     def fail(self, err: BaseException) -> None:
         """Refuse further writes: what reached the disk is unknown (package-internal)."""
         self._failed = err
+
+    def _checkpoint(self) -> None:
+        """A clean close proves the whole active segment durable (FORMAT.md, "Proof of
+        what was synced"), so recovery can tell damage in its last group from a torn tail."""
+        seg = self.active
+        mark = {"first_seq": seg.first_seq, "synced": seg.synced, "next_seq": seg.next_seq}
+        if self._dirty and self.manifest.checkpoint != mark:
+            self.commit_manifest(self.manifest.with_checkpoint(**mark))
 
     def _start_flusher(self) -> None:
         if self.sync_every_ms:
@@ -405,6 +436,7 @@ class Store:
             try:
                 if not self.readonly and self._failed is None:
                     self._commit()
+                    self._checkpoint()
             finally:
                 self._closed = True
                 self._wake.notify_all()
@@ -468,15 +500,41 @@ class Store:
             t["aged"] = sum(info.get("aged", {}).get(name, 0) for info in infos)
         return dict(sorted(total.items()))
 
+    def damage(self) -> list[dict[str, Any]]:
+        """Damage below the synced point that the store knows of and that was not
+        discarded: per stretch its `segment` file, `offset`, `length`, the seqs it lost
+        [`first_seq`, `end_seq`) and `reason` (FORMAT.md, "Damage")."""
+        with self.lock:
+            found = [dict(d, segment=segment_name(info["first_seq"], info.get("gen", 0)))
+                     for info, d in self.manifest.damage()]  # fmt: skip
+            if self.readonly:  # a writer has named the tail's damage in the manifest already
+                found += [dict(p.damage_info(), segment=os.path.basename(p.path)) for p in self.recovery.damage]
+        return found
+
+    def _refuse_damaged(self) -> None:
+        damage = self.damage()
+        if damage:
+            where = "; ".join(describe_damage(d) for d in damage)
+            raise DamagedError(f"{self.path}: windows lost to damage below the synced point ({where}); a "
+                               "query could miss them, so it refuses: run `cclog fsck --repair`, or read "
+                               "the intact windows with --skip-damaged", damage, path=self.path,
+                               reason=damage[0]["reason"])  # fmt: skip
+
     def query(self, name: str | None = None, start_ns: int | None = None,
-              end_ns: int | None = None) -> Iterator[Window]:  # fmt: skip
+              end_ns: int | None = None, *, skip_damaged: bool = False) -> Iterator[Window]:  # fmt: skip
         """Windows of stream `name` (all streams when None) overlapping [start_ns, end_ns],
-        in (start_ns, seq) order. Includes this writer's puts not yet synced."""
+        in (start_ns, seq) order. Includes this writer's puts not yet synced.
+
+        Raises DamagedError when the store knows of damaged windows (their stream and time
+        are lost with them, so any query may miss one), unless `skip_damaged`: then only
+        the intact windows come back and `damage()` says what is missing."""
         t0 = MIN_NS if start_ns is None else int(start_ns)
         t1 = MAX_NS if end_ns is None else int(end_ns)
         with self.lock:
             if self._closed:
                 raise StoreError(f"{self.path}: the store is closed")
+            if not skip_damaged:
+                self._refuse_damaged()
             names = [name] if name is not None else list(self.streams())
             runs = []
             for stream in names:
@@ -529,6 +587,13 @@ class Store:
             except FileNotFoundError:  # removed meanwhile (a writer compacting while we read)
                 pass
         return total
+
+
+def describe_damage(d: Mapping[str, Any]) -> str:
+    """One damaged stretch as reports print it."""
+    first, end = d["first_seq"], d["end_seq"]
+    seqs = "no seq" if end <= first else f"seq {first}" if end == first + 1 else f"seqs {first}..{end - 1}"
+    return f"{d['segment']} at offset {d['offset']}, {d['length']} bytes, {seqs}: {d['reason']}"
 
 
 def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: bool = False,

@@ -32,7 +32,7 @@ def test_versions_are_built_never_changed():
     assert m0.segments == [] and len(m1.segments) == 1 and m2.end_seq == 20
     assert m2.format_version == FORMAT_VERSION  # sealing is not compaction
     m3 = m2.with_replaced({10: info(10, 20, gen=1, a=1)})
-    assert m3.format_version == COMPACTED_FORMAT_VERSION and m3.segments[1]["gen"] == 1
+    assert m3.format_version == FORMAT_VERSION and m3.segments[1]["gen"] == 1
     assert m2.segments[1].get("gen") is None and m3.segments[0] is m2.segments[0]
     m4 = m3.without_oldest()
     assert m4.first_seq == 10 and [s["first_seq"] for s in m4.segments] == [10]

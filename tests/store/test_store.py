@@ -216,7 +216,7 @@ def test_public_catalogue_api(tmp_path):
         assert store.segment_first_seqs() == [0, 3, 6]
         assert [w.seq for w in store.segment_windows(6)] == [6]
         assert sorted(w.seq for w in store.segment_windows(3)) == [3, 4, 5]
-        assert store.format_version == 1 and len(store.store_id) == 32
+        assert store.format_version == 3 and len(store.store_id) == 32
         store_id = store.store_id
     with cclogfs.open_store(path, readonly=True) as reader:
         assert reader.active_first_seq is None and reader.segment_count() == 3
