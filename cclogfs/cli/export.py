@@ -8,7 +8,7 @@ import sys
 
 from ..export import export_mcap, export_parquet
 from ..store import open_store
-from .common import Progress, add_selection, selected_windows
+from .common import Progress, add_selection, selected_windows, Skipped
 
 EXAMPLES = """\
 examples:
@@ -40,7 +40,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     with open_store(args.store, readonly=True) as store, Progress("export") as progress:
-        windows = selected_windows(store, args)
+        skipped = Skipped(store, args)
+        windows = selected_windows(store, args, skipped)
         if args.mcap:
             stats = export_mcap(windows, args.mcap, progress=progress)
         else:
@@ -53,4 +54,4 @@ def run(args: argparse.Namespace) -> int:
         f"{len(stats.streams)} streams to {len(stats.files)} files",
         file=sys.stderr,
     )
-    return 0
+    return skipped.report()

@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import os
+import re
 from dataclasses import dataclass, field
 
 from ..errors import CclogError, UnknownCodecError
-from .format import index_name, parse_seq_name, segment_name
+from .format import LOCK, MANIFEST, TMP_SUFFIX, index_name, parse_seq_name, segment_name
+from .records import count_intact
 from .fs import FileSystem
 from .index import SegmentIndex
 from .manifest import SealedSegment
 from .segment import Problem, Segment, open_segment, scan
-from .store import Store, open_store
+from .store import Store, describe_damage, open_store
 
 
 @dataclass
@@ -61,6 +63,9 @@ def check_store(path: str, *, deep: bool = False, fs: FileSystem | None = None) 
             else:
                 report.add("warning", _loc(p), f"{p.reason}: the writer will truncate this torn tail on open "
                                                f"({p.dropped_bytes} bytes of unsynced writes)")  # fmt: skip
+        for d in store.damage():
+            report.add("error", f"{d['segment']}@{d['offset']}",
+                       f"damage below the synced point, kept and not cut: {describe_damage(d)}")  # fmt: skip
         for p in store.recovery.skipped:
             report.add("warning", _loc(p), f"{p.reason} (intact; written by a newer cclogfs?), skipped")
         for name in store.recovery.leftovers:
@@ -76,13 +81,32 @@ def check_store(path: str, *, deep: bool = False, fs: FileSystem | None = None) 
             report.messages += sum(w.count for w in windows)
         if deep:
             _decode_all(store, report)
+    _check_names(path, fs, leftovers, report)
+    return report
+
+
+def _check_names(path: str, fs: FileSystem, leftovers: set[str], report: FsckReport) -> None:
+    """Every file in the directory is one the store may hold; side files are evidence."""
     names = set(os.listdir(path))
     for name in sorted(names):
         parsed = parse_seq_name(name)
         if (parsed and parsed[1] == "idx" and name not in leftovers
                 and segment_name(parsed[0], parsed[2]) not in names):  # fmt: skip
             report.add("warning", name, "index of a segment that does not exist")
-    return report
+        elif _SIDE_FILE.match(name):
+            data = fs.read_file(os.path.join(path, name))
+            intact = count_intact(b"\0" + data)  # count_intact looks past the first byte
+            if intact:
+                report.add("error", name, f"bytes recovery cut from the log hold {intact} intact records "
+                                          "(perhaps acknowledged): they are not in the store")  # fmt: skip
+            else:
+                report.add("warning", name, "bytes recovery cut from the log (no intact record among them)")
+        elif not parsed and name not in (MANIFEST, LOCK) and not name.endswith(TMP_SUFFIX):
+            report.add("warning", name, "not a file a cclogfs store holds")
+
+
+# Bytes recovery cut from a segment's tail (FORMAT.md, "Durability contract").
+_SIDE_FILE = re.compile(r"^\d{20}(?:-\d+)?\.seg\.tail-\d+$")
 
 
 def _decode_all(store: Store, report: FsckReport) -> None:

@@ -16,6 +16,7 @@ from ..errors import CorruptionError
 from .format import MANIFEST, SEGMENT_HEADER_SIZE, Reason, parse_seq_name, segment_name
 from .fs import FileSystem
 from .manifest import Manifest
+from .records import count_intact
 from .segment import Problem, Segment, intact_after, open_segment, scan
 
 
@@ -136,17 +137,27 @@ class SegmentOpener:
                 continue
             seg, header_ok = open_segment(self.fs, path, write=not self.readonly, lock=self.lock)
             reason = None
+            header_damage = None
             if broken or first_seq != next_seq:
                 reason = Reason.DROPPED_SEGMENT if broken else Reason.SEQ_GAP
-            elif not header_ok or seg.first_seq != first_seq:
+            elif (not header_ok or seg.first_seq != first_seq) and not _holds_records(seg):
                 # Created but its header never reached the disk: it cannot hold synced data.
                 reason = Reason.BAD_SEGMENT_HEADER
+            elif not header_ok or seg.first_seq != first_seq:
+                # The header is fsynced before any record is written: records after a damaged
+                # header mean damage to synced data, kept like any other (issue 11, item 6).
+                seg.first_seq, seg.next_seq = first_seq, first_seq
+                header_damage = Problem(path, 0, Reason.BAD_SEGMENT_HEADER, "", SEGMENT_HEADER_SIZE,
+                                        seqs=(first_seq, first_seq))  # fmt: skip
             if reason is not None:
                 self.recovery.problems.append(Problem(path, 0, reason, "", seg.size))
                 self._drop_segment(seg)
                 broken = True
                 continue
             broken = self._keep_prefix(seg, checkpoint)
+            if header_damage is not None:
+                seg.damage.insert(0, header_damage)
+                self.recovery.damage.insert(0, header_damage)
             self.tail.append(seg)
             next_seq = seg.next_seq
 
@@ -200,3 +211,9 @@ class SegmentOpener:
             self.fs.unlink(seg.path)
             self.fs.fsync_dir(self.path)
             self.recovery.removed_files.append(os.path.basename(seg.path))
+
+
+def _holds_records(seg: Segment) -> bool:
+    """Whether any intact record lies past the segment header."""
+    size = seg.fs.size(seg.fd)
+    return size > SEGMENT_HEADER_SIZE and count_intact(seg.fs.pread(seg.fd, size, 0)) > 0

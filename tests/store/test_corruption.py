@@ -331,13 +331,24 @@ def test_tail_segment_that_does_not_start_where_the_log_ends_is_a_gap(tmp_path):
 
 def test_bad_segment_header_drops_the_segment_and_all_after_it(tmp_path):
     files = _three_segments(tmp_path / "s")
-    zero(files[1], 0, 8)  # the header of the tail's first segment never reached the disk
+    files[1].write_bytes(b"\0" * 32)  # created, its header never reached the disk, no record
     with cclogfs.open_store(tmp_path / "s") as store:
         got = [(p.path.rsplit("/", 1)[1], p.reason) for p in store.recovery.problems]
         assert got[0] == (files[1].name, Reason.BAD_SEGMENT_HEADER)
         assert got[1:] == [(f.name, Reason.DROPPED_SEGMENT) for f in files[2:]]
         assert seqs(store) == list(range(10)) and store.active_first_seq == 10  # a new, empty segment 10
     assert not files[2].exists() and not files[3].exists()
+
+
+def test_a_damaged_header_before_synced_records_is_damage_not_an_empty_tail(tmp_path):
+    # Issue 11, item 6: one flipped bit in the active header used to delete the segment.
+    files = _three_segments(tmp_path / "s")
+    flip(files[1], 9)
+    with cclogfs.open_store(tmp_path / "s") as store:
+        (d,) = store.damage()
+        assert (d["segment"], d["offset"], d["reason"]) == (files[1].name, 0, Reason.BAD_SEGMENT_HEADER)
+        assert [w.seq for w in store.query(skip_damaged=True)] == list(range(30))
+    assert files[1].exists()
 
 
 def test_segment_after_the_torn_tail_is_dropped(tmp_path):
