@@ -121,3 +121,44 @@ def test_reordered_writes_do_not_leave_a_hole(tmp_path):
         assert [w.seq for w in store.query()] == [0]
         (problem,) = store.recovery.problems
         assert problem.reason == "zero fill"
+
+
+def _killed_writer_then(tmp_path, then):
+    """A writer killed with records handed to the OS but never fsynced; a second process
+    opens the same store (same page cache) and runs `then(store)`; then the power fails.
+    Returns the store the power loss leaves, opened."""
+    fs = RecordingFileSystem()
+    opts = dict(fs=fs, sync_every_ms=None, sync_every_bytes=None)
+    first = cclogfs.open_store(tmp_path / "s", create=True, **opts)
+    first.put_window("/a", [(0, "0")])
+    first.sync()  # acknowledged
+    for i in range(1, 4):
+        first.put_window("/a", [(i, str(i))])
+    first.active.flush()  # in the page cache only
+    first._closed = True  # kill -9: nothing more of it runs
+    fs.unlock(first._lock_fd)
+    with cclogfs.open_store(tmp_path / "s", **opts) as second:
+        assert [w.seq for w in second.query()] == [0, 1, 2, 3]
+        then(second)
+    model = DiskModel()
+    for op in fs.ops:
+        model.apply(op)
+    img = tmp_path / "img"
+    img.mkdir()
+    for name, data in model.image(random.Random(0), "lost").items():  # only what was fsynced
+        (img / name).write_bytes(data)
+    return cclogfs.open_store(img, sync_every_ms=None)
+
+
+def test_seal_after_a_crash_seals_only_durable_data(tmp_path):
+    # Issue 11, item 5: the second process seals before any put; a power loss must not
+    # leave a sealed segment whose tail lived only in the page cache.
+    with _killed_writer_then(tmp_path, lambda store: store.seal()) as store:
+        assert [w.seq for w in store.query()] == [0, 1, 2, 3]
+        assert [list(w.messages()) for w in store.query()][0] == [(0, "0")]
+
+
+def test_records_recovered_after_a_crash_are_made_durable_by_the_next_sync(tmp_path):
+    # Issue 11, item 11: what the second process recovered and answered is durable.
+    with _killed_writer_then(tmp_path, lambda store: store.sync()) as store:
+        assert [w.seq for w in store.query()] == [0, 1, 2, 3]
