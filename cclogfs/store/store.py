@@ -8,6 +8,7 @@ from __future__ import annotations
 import heapq
 import json
 import os
+import shutil
 import signal
 import socket
 import threading
@@ -142,21 +143,9 @@ class Store:
     def _open(self, create: bool) -> None:
         manifest_path = self.file_path(MANIFEST)
         if not self.fs.exists(manifest_path):
-            # Only a lock and temporary files: a crash while the store was being created.
-            leftovers = [n for n in self.fs.listdir(self.path)] if self.fs.exists(self.path) else []
-            if all(n == LOCK or n.endswith(TMP_SUFFIX) for n in leftovers):
-                if not create or self.readonly:
-                    raise StoreError(f"{self.path} is not a cclogfs store (no {MANIFEST}); "
-                                     "pass create=True to make one")  # fmt: skip
-            else:
-                raise StoreError(f"{self.path} holds files but no {MANIFEST}: not a cclogfs store, "
-                                 "or one whose manifest was lost (run `cclog fsck`)")  # fmt: skip
-        if not self.readonly:
-            self.fs.mkdir(self.path)
+            self._create_or_finish(create)
+        if not self.readonly and self._lock_fd is None:
             self._take_lock()
-        if not self.fs.exists(manifest_path):
-            self.fs.mkdir(self.path)
-            Manifest.new(self.codecs.default.get_config()).commit(self.fs, manifest_path)
         self.manifest, _raw = Manifest.load(self.fs, manifest_path)
         if not self.readonly:
             for name in self.fs.listdir(self.path):
@@ -166,6 +155,36 @@ class Store:
         self._open_segments_retrying()
         if not self.readonly:
             self._start_flusher()
+
+    def _create_or_finish(self, create: bool) -> None:
+        """A store exists complete or not at all: it is made in a hidden sibling directory
+        and renamed into place once its manifest is durable. A directory an older version
+        left half made (only LOCK and temporary files) is finished by the next writer."""
+        names = self.fs.listdir(self.path) if self.fs.exists(self.path) else []
+        if any(n != LOCK and not n.endswith(TMP_SUFFIX) for n in names):
+            raise StoreError(f"{self.path} holds files but no {MANIFEST}: not a cclogfs store, "
+                             "or one whose manifest was lost (run `cclog fsck`)")  # fmt: skip
+        half_made = LOCK in names
+        if self.readonly or not (create or half_made):
+            what = ("its creation was interrupted; open it for writing to finish it" if half_made
+                    else "pass create=True to make one")  # fmt: skip
+            raise StoreError(f"{self.path} is not a cclogfs store (no {MANIFEST}): {what}")
+        manifest = Manifest.new(self.codecs.default.get_config())
+        if half_made:
+            self._take_lock()
+            manifest.commit(self.fs, self.file_path(MANIFEST))
+            return
+        parent, base = os.path.split(os.path.abspath(self.path))
+        _remove_stale_creations(parent, base)
+        tmp = os.path.join(parent, f".{base}.creating-{os.getpid()}")
+        self.fs.mkdir(tmp)
+        try:
+            manifest.commit(self.fs, os.path.join(tmp, MANIFEST))
+            self.fs.rename(tmp, self.path)  # the commit point; onto an empty directory too
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+        self.fs.fsync_dir(parent)
 
     def _take_lock(self) -> None:
         path = self.file_path(LOCK)
@@ -587,6 +606,20 @@ class Store:
             except FileNotFoundError:  # removed meanwhile (a writer compacting while we read)
                 pass
         return total
+
+
+def _remove_stale_creations(parent: str, base: str) -> None:
+    """Hidden directories of creations of this store whose process is gone (killed)."""
+    prefix = f".{base}.creating-"
+    for name in os.listdir(parent):
+        if name.startswith(prefix) and name[len(prefix):].isdigit():
+            try:
+                os.kill(int(name[len(prefix):]), 0)
+                continue  # still running: another process creating the same store
+            except ProcessLookupError:
+                shutil.rmtree(os.path.join(parent, name), ignore_errors=True)
+            except PermissionError:
+                continue
 
 
 def describe_damage(d: Mapping[str, Any]) -> str:

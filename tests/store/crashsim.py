@@ -60,6 +60,10 @@ class DiskModel:
             inode = self.inodes[self.names[name]]
             inode.durable = bytearray(inode.current)
             inode.pending.clear()
+        elif kind == "rename" and name not in self.names:
+            # A directory renamed (a store created in a hidden sibling, then moved into place):
+            # the model's namespace is flat, so the files it holds are already in it.
+            pass
         elif kind == "rename":
             dst = os.path.basename(op[2])
             self.names[dst] = self.names.pop(name)
