@@ -105,6 +105,9 @@ LOCK = "LOCK"
 TMP_SUFFIX = ".tmp"
 SEGMENT_SUFFIX = ".seg"
 INDEX_SUFFIX = ".idx"
+QUARANTINE = "quarantine"  # directory of bytes cut from the log, named by the manifest
+# Bytes recovery cut from a segment's tail (FORMAT.md, "Durability contract").
+SIDE_FILE = re.compile(r"^\d{20}(?:-\d+)?\.seg\.tail-\d+$")
 _SEQ_NAME = re.compile(r"^(\d{20})(?:-([1-9]\d{0,9}))?\.(seg|idx)$")
 
 

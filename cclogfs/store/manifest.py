@@ -134,6 +134,35 @@ class Manifest(Mapping[str, Any]):
         """A clean close: the active segment is durable up to `synced` bytes, `next_seq`."""
         return self._next(checkpoint={"first_seq": first_seq, "synced": synced, "next_seq": next_seq})
 
+    @property
+    def quarantine(self) -> list[str]:
+        """Files in the store's `quarantine/` directory: bytes cut from the log, kept until
+        `fsck --repair --discard-damaged` drops them."""
+        return self._body.get("quarantine", [])
+
+    def with_quarantined(self, name: str) -> Manifest:
+        return self._next(quarantine=sorted({*self.quarantine, name}))
+
+    def with_damage(self, first_seq: int, damaged: list[dict[str, Any]], streams: dict[str, Any],
+                    aged: dict[str, int]) -> Manifest:  # fmt: skip
+        """The sealed segment at `first_seq` holds these damaged stretches; `streams` and
+        `aged` count only its intact records."""
+        segments = [dict(info, damaged=damaged, streams=streams, aged=aged) if info["first_seq"] == first_seq
+                    else info for info in self.segments]  # fmt: skip
+        return self._next(segments=segments)
+
+    def with_damage_discarded(self) -> Manifest:
+        """Damage dropped on request: each stretch moves from `damaged` to `discarded`, a
+        record of what was lost that no longer stops reads."""
+        segments = []
+        for info in self.segments:
+            info = dict(info)
+            lost = info.pop("damaged", [])
+            if lost:
+                info["discarded"] = [*info.get("discarded", []), *lost]
+            segments.append(info)
+        return self._next(segments=segments, quarantine=[])
+
     def with_replaced(self, infos: Mapping[int, dict[str, Any]]) -> Manifest:
         """Segments rewritten as new generations: `infos` by first_seq."""
         segments = [infos.get(info["first_seq"], info) for info in self.segments]

@@ -112,6 +112,9 @@ class SegmentOpener:
             seg, _ok = open_segment(self.fs, self._file(name), write=False, lock=self.lock)
             seg.first_seq, seg.next_seq = info["first_seq"], info["end_seq"]
             seg.sealed_size, seg.gen = info["size"], gen
+            seg.damage = [Problem(seg.path, d["offset"], d["reason"], "", d["length"],
+                                  seqs=(d["first_seq"], d["end_seq"])) for d in info.get("damaged", ())]  # fmt: skip
+            seg.known_damage = {d["offset"] for d in (*info.get("damaged", ()), *info.get("discarded", ()))}
             self.sealed.append(seg)
 
     def _remove_leftovers(self, files: _Files) -> None:

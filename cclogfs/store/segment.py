@@ -89,6 +89,7 @@ class Segment:
         self.gen = 0  # for a sealed segment: how often compaction rewrote it (names its files)
         self.synced = 0  # bytes proven durable: the size at the last completed fsync
         self.damage: list[Problem] = []  # damage below the synced point (recovery, the manifest)
+        self.known_damage: set[int] = set()  # offsets of damage the manifest names or discarded
         self._index: SegmentIndex | None = None
 
     @property
@@ -140,9 +141,13 @@ class Segment:
         try:
             self._index = SegmentIndex.decode(self.fs.read_file(index_path), self.first_seq, self.size)
         except (OSError, RecordError, ValueError, TypeError):
-            result = scan(self)
-            problem = result.problem
-            if problem is None and result.next_seq != self.next_seq:
+            # Damage the manifest declares is known and skipped; any other is corruption.
+            result = scan(self, salvage=bool(self.known_damage))
+            declared = self.known_damage
+            found = [*result.damage, *([result.problem] if result.problem else [])]
+            problem = next((p for p in found if p.offset not in declared), None)
+            ends_damaged = result.problem is not None and result.problem.offset in declared
+            if problem is None and result.next_seq != self.next_seq and not ends_damaged:
                 problem = Problem(self.path, result.end, Reason.SEQ_GAP,
                                   f"ends at seq {result.next_seq}, the manifest says {self.next_seq}")  # fmt: skip
             if problem:
