@@ -7,6 +7,7 @@ import os
 import sys
 
 from ..export import export_mcap, export_parquet
+from ..errors import InvalidInputError
 from ..store import open_store
 from .common import Progress, add_selection, selected_windows, Skipped
 
@@ -38,7 +39,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def check_output(args: argparse.Namespace) -> None:
+    """Refuse an output that cannot be written before any work (and any temporary file)."""
+    if args.mcap:
+        parent = os.path.dirname(os.path.abspath(args.mcap))
+        if os.path.isdir(args.mcap):
+            raise InvalidInputError(f"--mcap {args.mcap} is a directory; give a file name")
+        if not os.path.isdir(parent):
+            raise InvalidInputError(f"--mcap {args.mcap}: directory {parent} does not exist")
+    elif os.path.exists(args.parquet) and not os.path.isdir(args.parquet):
+        raise InvalidInputError(f"--parquet {args.parquet} is a file; give a directory")
+
+
 def run(args: argparse.Namespace) -> int:
+    check_output(args)
     with open_store(args.store, readonly=True) as store, Progress("export") as progress:
         skipped = Skipped(store, args)
         windows = selected_windows(store, args, skipped)

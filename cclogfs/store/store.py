@@ -653,11 +653,14 @@ def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: 
         check_stream_name(name)
     try:
         store._open(create)
-    except BaseException:
+    except BaseException as err:
         store._closed = True
         store._close_segments()
         if store._lock_fd is not None:
             store.fs.unlock(store._lock_fd)
+        if isinstance(err, OSError):  # a path that is a file, unwritable, gone: one line, no traceback
+            where = err.filename or store.path
+            raise StoreError(f"{store.path}: cannot open the store: {err.strerror or err} ({where})") from err
         raise
     return store
 
