@@ -86,6 +86,7 @@ class Reason:
     SIZE_MISMATCH = "sealed segment size differs from the manifest"
     MISSING_SEGMENT = "missing segment"
     STRAY_SEGMENT = "stray segment"
+    ROLLED_BACK = "manifest older than its segments"
 
 
 # -- limits --------------------------------------------------------------------------------
@@ -137,9 +138,17 @@ SEGMENT_HEADER = struct.Struct("<4sHHQqI")  # magic, version, flags, first_seq, 
 SEGMENT_HEADER_SIZE = SEGMENT_HEADER.size + 4  # + crc
 
 
-def pack_segment_header(first_seq: int, created_ns: int) -> bytes:
-    body = SEGMENT_HEADER.pack(SEGMENT_MAGIC, FILE_VERSION, 0, first_seq, created_ns, 0)
+def pack_segment_header(first_seq: int, created_ns: int, manifest_gen: int = 0) -> bytes:
+    """`manifest_gen`: the manifest generation the file was made under (format 3; 0 before)."""
+    body = SEGMENT_HEADER.pack(SEGMENT_MAGIC, FILE_VERSION, 0, first_seq, created_ns, manifest_gen)
     return body + struct.pack("<I", crc32c(body))
+
+
+def segment_manifest_gen(data: bytes) -> int:
+    """The manifest generation an intact segment header states (0 when damaged or older)."""
+    if unpack_segment_header(data) is None:
+        return 0
+    return SEGMENT_HEADER.unpack_from(data)[5]
 
 
 def unpack_segment_header(data: bytes) -> tuple[int, int] | None:

@@ -17,7 +17,6 @@ from typing import Any
 
 from ..errors import CorruptionError, StoreError
 from .format import (
-    COMPACTED_FORMAT_VERSION,
     FORMAT_VERSION,
     FORMAT_VERSIONS,
     RecordError,
@@ -124,7 +123,13 @@ class Manifest(Mapping[str, Any]):
     def _next(self, **changes: Any) -> Manifest:
         # Whatever this version writes may hold record version 2 and the keys of format
         # version 3, which an older reader would misread: it must refuse the store.
-        return Manifest(dict(self._body, format_version=FORMAT_VERSION, **changes))
+        return Manifest(dict(self._body, format_version=FORMAT_VERSION, generation=self.generation + 1, **changes))
+
+    @property
+    def generation(self) -> int:
+        """Counts the manifest's versions; segment files state the one they were made under,
+        so a manifest rolled back to an older copy is detected (FORMAT.md, "MANIFEST")."""
+        return self._body.get("generation", 0)
 
     def with_sealed(self, info: dict[str, Any]) -> Manifest:
         """A segment sealed: appended to the list."""
@@ -166,8 +171,7 @@ class Manifest(Mapping[str, Any]):
     def with_replaced(self, infos: Mapping[int, dict[str, Any]]) -> Manifest:
         """Segments rewritten as new generations: `infos` by first_seq."""
         segments = [infos.get(info["first_seq"], info) for info in self.segments]
-        version = max(self.format_version, COMPACTED_FORMAT_VERSION)
-        return Manifest(dict(self._body, format_version=version, segments=segments))
+        return self._next(segments=segments)
 
     def without_oldest(self) -> Manifest:
         """Retention: the oldest sealed segment dropped, its statistics added to `dropped`."""
@@ -175,10 +179,8 @@ class Manifest(Mapping[str, Any]):
         before = self.dropped
         streams = {k: dict(v) for k, v in before["streams"].items()}
         merge_stream_stats(streams, oldest["streams"])
-        version = max(self.format_version, COMPACTED_FORMAT_VERSION)
-        return Manifest(dict(self._body, format_version=version, first_seq=oldest["end_seq"],
-                             segments=self.segments[1:],
-                             dropped={"segments": before["segments"] + 1, "streams": streams}))  # fmt: skip
+        return self._next(first_seq=oldest["end_seq"], segments=self.segments[1:],
+                          dropped={"segments": before["segments"] + 1, "streams": streams})
 
     # -- on disk ---------------------------------------------------------------------------
 

@@ -13,7 +13,7 @@ import threading
 from dataclasses import dataclass, field
 
 from ..errors import CorruptionError
-from .format import MANIFEST, SEGMENT_HEADER_SIZE, Reason, parse_seq_name, segment_name
+from .format import MANIFEST, SEGMENT_HEADER_SIZE, Reason, parse_seq_name, segment_manifest_gen, segment_name
 from .fs import FileSystem
 from .manifest import Manifest
 from .records import count_intact
@@ -90,6 +90,7 @@ class SegmentOpener:
         """Fill `sealed` and `tail` (the tail's valid prefix); on failure close what was opened."""
         try:
             files = _sort_files(self.fs.listdir(self.path), manifest)
+            self._refuse_rolled_back(manifest, files)
             self._open_sealed(manifest, files)
             self._remove_leftovers(files)
             self._recover_tail(manifest.end_seq, [files.tail[s] for s in sorted(files.tail)], manifest.checkpoint)
@@ -99,6 +100,26 @@ class SegmentOpener:
                     self.fs.close(seg.fd)
                     seg.fd = -1
             raise
+
+    def _refuse_rolled_back(self, manifest: Manifest, files: _Files) -> None:
+        """A segment file made under a later manifest generation than this manifest's means
+        the manifest was rolled back to an older copy: acting on it (removing what it does not
+        name) would delete data. Refuse, touching nothing. A compaction's new generation is
+        stamped one ahead of the manifest that was to commit it, so its leftover may be too."""
+        later = [(n, 0) for n in files.tail.values()] + [(n, 1) for n in files.leftovers if n.endswith(".seg")]
+        for name, ahead in later:
+            fd = self.fs.open(self._file(name))
+            try:
+                gen = segment_manifest_gen(self.fs.pread(fd, SEGMENT_HEADER_SIZE, 0))
+            finally:
+                self.fs.close(fd)
+            if gen > manifest.generation + ahead:
+                raise CorruptionError(
+                    f"{self.path}: {name} was made under manifest generation {gen}, but {MANIFEST} is "
+                    f"generation {manifest.generation}: the manifest was rolled back to an older copy; "
+                    "nothing was changed (restore the current MANIFEST)",
+                    path=self._file(MANIFEST), reason=Reason.ROLLED_BACK,
+                )  # fmt: skip
 
     def _open_sealed(self, manifest: Manifest, files: _Files) -> None:
         for info in manifest.segments:

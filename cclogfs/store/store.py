@@ -213,7 +213,10 @@ class Store:
                 if not self.readonly or self.fs.read_file(self.file_path(MANIFEST)) == raw:
                     return
             except (CorruptionError, FileNotFoundError) as err:
-                retry = isinstance(err, FileNotFoundError) or err.reason == Reason.MISSING_SEGMENT
+                # A reader that read the manifest before a writer's commit sees later files:
+                # missing ones, or ones made under a later generation. It reads again.
+                retry = isinstance(err, FileNotFoundError) or err.reason in (Reason.MISSING_SEGMENT,
+                                                                             Reason.ROLLED_BACK)
                 if not (self.readonly and retry and attempt < 4):
                     raise
             if attempt == 4:
@@ -265,7 +268,7 @@ class Store:
         path = self.file_path(segment_name(first_seq))
         created = time.time_ns()
         fd = self.fs.open(path, write=True, create=True)
-        self.fs.pwrite(fd, pack_segment_header(first_seq, created), 0)
+        self.fs.pwrite(fd, pack_segment_header(first_seq, created, self.manifest.generation), 0)
         self.fs.fsync(fd)
         self.fs.fsync_dir(self.path)
         return Segment(self.fs, path, first_seq, created, fd, SEGMENT_HEADER_SIZE, lock=self.lock)

@@ -71,3 +71,28 @@ def test_load_names_damage_and_unknown_versions(tmp_path):
     path.write_bytes(pack_manifest({"format_version": 9, "segments": []}))
     with pytest.raises(StoreError, match="format_version is 9"):
         Manifest.load(fs, str(path))
+
+
+def test_a_rolled_back_manifest_is_refused_and_nothing_is_deleted(tmp_path):
+    # Issue 11, item 7: an older valid MANIFEST after a compaction used to make the writer
+    # remove every later segment as 'after a gap'.
+    import cclogfs
+    from cclogfs.errors import CorruptionError
+    from cclogfs.store import Replacement
+    from cclogfs.store.format import Reason
+
+    path = tmp_path / "s"
+    with cclogfs.open_store(path, create=True, segment_records=3, sync_every_ms=None) as store:
+        for i in range(6):
+            store.put_window("/a", [(i, str(i))])
+        old = (path / "MANIFEST").read_bytes()
+        store.rewrite(lambda w: Replacement([(w.start_ns, '"x"')], {}) if w.seq == 1 else None)
+        for i in range(6, 14):
+            store.put_window("/a", [(i, str(i))])
+    (path / "MANIFEST").write_bytes(old)
+    before = {p.name: p.read_bytes() for p in path.iterdir()}
+    for opts in ({}, {"readonly": True}):
+        with pytest.raises(CorruptionError, match="rolled back") as err:
+            cclogfs.open_store(path, **opts)
+        assert err.value.reason == Reason.ROLLED_BACK
+    assert {p.name: p.read_bytes() for p in path.iterdir()} == before
