@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from ..errors import CorruptionError
 from .format import MANIFEST, SEGMENT_HEADER_SIZE, Reason, parse_seq_name, segment_manifest_gen, segment_name
 from .fs import FileSystem
+from . import planted
 from .manifest import Manifest
 from .records import count_intact
 from .segment import Problem, Segment, intact_after, open_segment, scan
@@ -194,6 +195,8 @@ class SegmentOpener:
         seg.synced = max(result.synced, SEGMENT_HEADER_SIZE)
         if checkpoint.get("first_seq") == seg.first_seq:
             seg.synced = max(seg.synced, checkpoint["synced"])
+        if "torn-tail" in planted.BUGS:
+            seg.synced = SEGMENT_HEADER_SIZE
         problems = [*result.damage, *([result.problem] if result.problem else [])]
         cut = next((p for p in problems if p.offset >= seg.synced), None)
         seg.damage = [p for p in problems if p.offset < seg.synced]

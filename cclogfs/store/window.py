@@ -9,6 +9,7 @@ from typing import Any
 
 from ..codecs import codec_for_record, codec_numeric_id
 from ..errors import CorruptionError, StoreError
+from . import planted
 from .format import AGED_META_KEY, Reason, RecordFlag, RecordHeader
 from .segment import Segment
 
@@ -54,6 +55,8 @@ class Window:
     def _check_entry(self, header: RecordHeader) -> None:
         """The record must be the one the index entry describes: a stale or forged index
         whose checksum holds would otherwise hand out another window's messages."""
+        if "trust-index" in planted.BUGS:
+            return
         said = (self.name, self.seq, self.start_ns, self.end_ns, self.count)
         found = (header.name, header.seq, header.start_ns, header.end_ns, header.count)
         if said != found:

@@ -408,3 +408,23 @@ def test_record_of_another_length_than_its_index_entry(tmp_path):
         with pytest.raises(CorruptionError) as err:
             list(w.messages())
         assert err.value.reason == Reason.INDEX_MISMATCH
+
+
+def test_a_forged_index_is_caught_on_read(tmp_path):
+    # Issue 11, item 10, at the library: an index with a valid checksum naming the wrong
+    # records must not hand out another window's messages.
+    from cclogfs.store.index import SegmentIndex
+
+    make_store(tmp_path / "s", n=6, segment_records=3)
+    idx = tmp_path / "s" / "00000000000000000000.idx"
+    size = (tmp_path / "s" / SEG).stat().st_size
+    index = SegmentIndex.decode(idx.read_bytes(), 0, size)
+    e = index.entries
+    rows = [(index.names[int(x["stream"])], int(x["count"]), int(x["seq"]), int(x["start"]), int(x["end"]),
+             int(y["offset"]), int(y["length"]), int(x["raw_len"])) for x, y in zip(e, e[::-1])]  # fmt: skip
+    idx.write_bytes(SegmentIndex.build(rows).encode(0, size))
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        w = next(w for w in store.query() if w.seq == 0)
+        with pytest.raises(CorruptionError, match="the time index says") as err:
+            list(w.messages())
+        assert err.value.reason == Reason.INDEX_MISMATCH
