@@ -94,6 +94,7 @@ class SegmentOpener:
             self._refuse_rolled_back(manifest, files)
             self._open_sealed(manifest, files)
             self._remove_leftovers(files)
+            self._refuse_missing_active(manifest, files)
             self._recover_tail(manifest.end_seq, [files.tail[s] for s in sorted(files.tail)], manifest.checkpoint)
         except BaseException:
             for seg in (*self.sealed, *self.tail):
@@ -121,6 +122,18 @@ class SegmentOpener:
                     "nothing was changed (restore the current MANIFEST)",
                     path=self._file(MANIFEST), reason=Reason.ROLLED_BACK,
                 )  # fmt: skip
+
+    def _refuse_missing_active(self, manifest: Manifest, files: _Files) -> None:
+        """The active segment a clean close proved to hold records must be there: without
+        this, a deleted active segment would pass for an empty tail."""
+        mark = manifest.checkpoint
+        if (mark and mark["next_seq"] > mark["first_seq"] >= manifest.end_seq
+                and mark["first_seq"] not in files.tail):  # fmt: skip
+            raise CorruptionError(
+                f"{self.path}: {segment_name(mark['first_seq'])}, the active segment holding seqs "
+                f"{mark['first_seq']}..{mark['next_seq'] - 1} at the last clean close, is missing",
+                path=self._file(segment_name(mark["first_seq"])), reason=Reason.MISSING_SEGMENT,
+            )  # fmt: skip
 
     def _open_sealed(self, manifest: Manifest, files: _Files) -> None:
         for info in manifest.segments:

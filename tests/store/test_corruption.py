@@ -428,3 +428,17 @@ def test_a_forged_index_is_caught_on_read(tmp_path):
         with pytest.raises(CorruptionError, match="the time index says") as err:
             list(w.messages())
         assert err.value.reason == Reason.INDEX_MISMATCH
+
+
+def test_a_deleted_active_segment_is_missing_not_an_empty_tail(tmp_path):
+    # Issue 11, item 11: the active segment's file could be deleted without anyone noticing.
+    from cclogfs.store import check_store
+
+    make_store(tmp_path / "s", n=3)
+    (tmp_path / "s" / SEG).unlink()
+    for opts in ({}, {"readonly": True}):
+        with pytest.raises(CorruptionError, match="seqs 0..2 at the last clean close, is missing") as err:
+            cclogfs.open_store(tmp_path / "s", **opts)
+        assert err.value.reason == Reason.MISSING_SEGMENT
+    assert check_store(str(tmp_path / "s")).errors
+    assert sorted(p.name for p in (tmp_path / "s").iterdir()) == ["LOCK", "MANIFEST"]
