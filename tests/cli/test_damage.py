@@ -1,7 +1,6 @@
 """Issue 11: reads never return a partial answer silently; damage stays visible."""
 
 import json
-import shutil
 
 import cclogfs
 from cclogfs.cli import main
@@ -88,3 +87,11 @@ def test_a_read_checks_the_record_against_its_index_entry(tmp_path, capsys):
     idx.write_bytes(SegmentIndex.build(rows).encode(0, seg_size))
     assert main(["cat", str(tmp_path / "s")]) == 1
     assert "the time index says" in capsys.readouterr().err
+
+
+def test_record_into_a_damaged_store_says_so_every_time(tmp_path, capsys):
+    _damaged_active(tmp_path / "s")
+    (tmp_path / "in.jsonl").write_text(json.dumps({"topic": "/b", "stamp_ns": 10**12, "msg": {"x": 1}}) + "\n")
+    for _ in range(2):
+        assert main(["record", str(tmp_path / "in.jsonl"), "--store", str(tmp_path / "s")]) == 0
+        assert "damage below the synced point" in capsys.readouterr().err
