@@ -90,6 +90,7 @@ class Segment:
         self.synced = 0  # bytes proven durable: the size at the last completed fsync
         self.damage: list[Problem] = []  # damage below the synced point (recovery, the manifest)
         self.known_damage: set[int] = set()  # offsets of damage the manifest names or discarded
+        self.index_untrusted = False  # set when a read found a record its index entry misdescribes
         self._index: SegmentIndex | None = None
 
     @property
@@ -122,6 +123,11 @@ class Segment:
             self._index = SegmentIndex.build(self.rows)
         return self._index
 
+    def distrust_index(self) -> None:
+        """A record did not match its index entry: the index (checksum valid, content
+        stale or forged) is rebuilt from the segment on next use, and written back."""
+        self._index, self.index_untrusted = None, True
+
     def set_index(self, index: SegmentIndex) -> None:
         """Adopt an index built elsewhere (compaction has one for the generation it wrote)."""
         self._index = index
@@ -139,6 +145,8 @@ class Segment:
                                   path=self.path, offset=min(self.size, self.sealed_size),
                                   reason=Reason.SIZE_MISMATCH)  # fmt: skip
         try:
+            if self.index_untrusted:
+                raise ValueError("a record did not match its index entry")
             self._index = SegmentIndex.decode(self.fs.read_file(index_path), self.first_seq, self.size)
         except (OSError, RecordError, ValueError, TypeError):
             # Damage the manifest declares is known and skipped; any other is corruption.

@@ -60,10 +60,12 @@ class Window:
         said = (self.name, self.seq, self.start_ns, self.end_ns, self.count)
         found = (header.name, header.seq, header.start_ns, header.end_ns, header.count)
         if said != found:
+            if self._segment.sealed_size >= 0:
+                self._segment.distrust_index()
             raise CorruptionError(
                 f"{self._segment.path}: record at offset {self._offset} is seq {header.seq} of "
-                f"{header.name!r}, but the time index says seq {self.seq} of {self.name!r} "
-                "(run `cclog fsck --repair` to rebuild the index)",
+                f"{header.name!r}, but the time index says seq {self.seq} of {self.name!r}; the index "
+                "is rebuilt from the segment: query again",
                 path=self._segment.path, offset=self._offset, reason=Reason.INDEX_MISMATCH,
             )  # fmt: skip
 

@@ -428,6 +428,14 @@ def test_a_forged_index_is_caught_on_read(tmp_path):
         with pytest.raises(CorruptionError, match="the time index says") as err:
             list(w.messages())
         assert err.value.reason == Reason.INDEX_MISMATCH
+        # The mismatch rebuilt the index: the next query answers right.
+        assert [(w.seq, list(w.messages())[0][0]) for w in store.query()] == [(i, i * 10) for i in range(6)]
+    with cclogfs.open_store(tmp_path / "s") as store:  # a writer writes the rebuilt index back
+        with pytest.raises(CorruptionError, match="the time index says"):
+            [list(w.messages()) for w in store.query()]
+        assert [(w.seq, list(w.messages())[0][0]) for w in store.query()] == [(i, i * 10) for i in range(6)]
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        assert [(w.seq, list(w.messages())[0][0]) for w in store.query()] == [(i, i * 10) for i in range(6)]
 
 
 def test_a_deleted_active_segment_is_missing_not_an_empty_tail(tmp_path):

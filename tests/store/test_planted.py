@@ -3,20 +3,16 @@
 import pytest
 
 from cclogfs.store import planted
-from test_corruption import (
-    test_a_forged_index_is_caught_on_read,
-    test_damage_below_the_synced_point_is_kept_declared_and_never_hidden,
-    test_damage_in_the_last_synced_group_is_not_a_torn_tail,
-)
-from test_crash import test_records_recovered_after_a_crash_are_made_durable_by_the_next_sync, \
-    test_seal_after_a_crash_seals_only_durable_data  # fmt: skip
+import test_corruption as corruption
+import test_crash as crash
 
 CASES = [
-    ("torn-tail", test_damage_below_the_synced_point_is_kept_declared_and_never_hidden),
-    ("torn-tail", test_damage_in_the_last_synced_group_is_not_a_torn_tail),
-    ("seal-no-fsync", test_seal_after_a_crash_seals_only_durable_data),
-    ("seal-no-fsync", test_records_recovered_after_a_crash_are_made_durable_by_the_next_sync),
-    ("trust-index", test_a_forged_index_is_caught_on_read),
+    ("torn-tail", corruption.test_damage_below_the_synced_point_is_kept_declared_and_never_hidden),
+    ("torn-tail", corruption.test_damage_in_the_last_synced_group_is_not_a_torn_tail),
+    ("seal-no-fsync", crash.test_seal_after_a_crash_seals_only_durable_data),
+    ("seal-no-fsync", crash.test_records_recovered_after_a_crash_are_made_durable_by_the_next_sync),
+    ("seal-no-fsync", crash.test_a_reopen_after_a_failed_fsync_rewrites_what_it_cannot_prove_durable),
+    ("trust-index", corruption.test_a_forged_index_is_caught_on_read),
 ]
 
 
