@@ -12,7 +12,7 @@ checks it). Layers, each importing only those before it:
     compaction          rewrite and retention (the store passes itself in)
     store               `Store` and `open_store`
     fsck                the checker, on the store's public API
-    repair              `fsck --repair`: rebuild, salvage, quarantine
+    rebuild, repair     `fsck --repair`: a damaged manifest rebuilt; indexes, salvage, quarantine
 """
 
 from importlib import import_module

@@ -14,11 +14,14 @@ import os
 import types
 from dataclasses import dataclass, field
 
-from ..errors import CclogError
-from .format import AGED_META_KEY, QUARANTINE, SIDE_FILE, check_fields
+from ..codecs import codec_from_config
+from ..errors import CclogError, CorruptionError
+from .format import AGED_META_KEY, MANIFEST, QUARANTINE, SIDE_FILE, check_fields
 from .fs import FileSystem
 from .records import intact_records
 from .index import SegmentIndex
+from .manifest import Manifest
+from .rebuild import rebuild_manifest
 from .segment import scan
 from .store import Store, describe_damage, open_store
 from .window import Window
@@ -40,6 +43,8 @@ class RepairReport:
 
 def repair_store(path: str, *, discard_damaged: bool = False, fs: FileSystem | None = None) -> RepairReport:
     report = RepairReport(path)
+    fs = fs or FileSystem()
+    _rebuild_manifest_if_damaged(path, fs, report)
     with open_store(path, sync_every_ms=None, sync_every_bytes=None, fs=fs) as store:
         rec = store.recovery
         report.actions += [f"cut torn tail: {p}" for p in rec.problems]
@@ -55,6 +60,18 @@ def repair_store(path: str, *, discard_damaged: bool = False, fs: FileSystem | N
         report.damage_left = [describe_damage(d) for d in store.damage()]
         report.damage_left += [f"{QUARANTINE}/{n}: bytes cut from the log" for n in store.manifest.quarantine]
     return report
+
+
+def _rebuild_manifest_if_damaged(path: str, fs: FileSystem, report: RepairReport) -> None:
+    """A MANIFEST that fails its checks (not a missing one: that is no store) is derived
+    again from the segment files."""
+    manifest = os.path.join(path, MANIFEST)
+    if not fs.exists(manifest):
+        return
+    try:
+        Manifest.load(fs, manifest)
+    except CorruptionError:
+        report.actions += rebuild_manifest(fs, path, codec_from_config("columnar").get_config())
 
 
 def _rebuild_indexes(store: Store, report: RepairReport) -> None:

@@ -109,3 +109,18 @@ def test_repair_is_crash_safe(tmp_path):
             got = [w for w in store.query()]
             assert sorted(w.seq for w in got if "salvaged" not in w.meta) == [0, 1, 2, 3, 4]
             assert sorted(w.meta["salvaged"]["seq"] for w in got if "salvaged" in w.meta) == [3, 4]  # once each
+
+
+def test_repair_rebuilds_a_damaged_manifest_from_the_segments(tmp_path):
+    make_store(tmp_path / "s", n=9, segment_records=3)
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        before = _messages(store)
+    flip(tmp_path / "s" / "MANIFEST", 20)
+    with pytest.raises(cclogfs.errors.CorruptionError, match="MANIFEST"):
+        cclogfs.open_store(tmp_path / "s")
+    report = repair_store(str(tmp_path / "s"))
+    assert report.exit_code == 4 and any("rebuilt MANIFEST" in a for a in report.actions)
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        assert _messages(store) == before and len(store.sealed) == 3
+    assert repair_store(str(tmp_path / "s"), discard_damaged=True).exit_code == 1
+    assert not check_store(str(tmp_path / "s"), deep=True).findings
