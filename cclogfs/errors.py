@@ -40,6 +40,15 @@ class CorruptionError(CclogError):
         self.reason = reason
 
 
+class DamagedError(CorruptionError):
+    """A read would miss windows the store knows are damaged: it refuses rather than
+    answer in part. `damage` lists them; pass `skip_damaged=True` to read the rest."""
+
+    def __init__(self, message: str, damage: list, **kwargs):
+        super().__init__(message, **kwargs)
+        self.damage = damage
+
+
 class CodecError(CclogError):
     """A codec cannot encode or decode (unknown id, bad config, bad payload)."""
 

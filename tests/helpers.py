@@ -93,3 +93,14 @@ def unseal(path, keep: int) -> None:
 
 def segment_files(path) -> list[Path]:
     return sorted(Path(path).glob("*.seg"))
+
+
+def drop_checkpoint(path) -> None:
+    """Rewrite the store's MANIFEST without the checkpoint of its last clean close: the
+    state a crash after the last put leaves, whose unsynced tail recovery may cut."""
+    from cclogfs.store.format import MANIFEST, pack_manifest, unpack_manifest
+
+    manifest = Path(path) / MANIFEST
+    body = unpack_manifest(manifest.read_bytes())
+    body.pop("checkpoint", None)
+    manifest.write_bytes(pack_manifest(body))

@@ -78,3 +78,26 @@ def test_aged_record_bytes_are_pinned():
                          name=b"/tf", config=b'{"id":"none"}', meta=meta, raw_len=len(raw), payload=raw,
                          flags=RecordFlag.AGED)  # fmt: skip
     assert record in data
+
+
+def test_golden_store_v3_reads_back(tmp_path):
+    # Version 3: records carry their synced length; the clean close left a checkpoint.
+    from cclogfs.store import check_store
+    from cclogfs.store.format import unpack_manifest
+
+    expected = json.loads((GOLDEN / "store_v3.expected.json").read_text())
+    shutil.copytree(GOLDEN / "store_v3", tmp_path / "s")
+    before = {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir()}
+    body = unpack_manifest(before["MANIFEST"])
+    assert body["format_version"] == 3 and body["checkpoint"]["first_seq"] == 3
+    for opts in ({"readonly": True}, {"sync_every_ms": None, "segment_age_s": 1e12}):
+        with cclogfs.open_store(tmp_path / "s", **opts) as store:
+            assert store.recovery.clean and not store.damage()
+            got = [{"seq": w.seq, "name": w.name, "meta": w.meta, "messages": [list(m) for m in w.messages()]}
+                   for w in sorted(store.query(), key=lambda w: w.seq)]  # fmt: skip
+            assert got == expected
+    after = {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir() if p.name != "LOCK"}
+    assert after == before
+    assert not check_store(str(tmp_path / "s")).findings
+    data = before["00000000000000000003.seg"]
+    assert data[4:6] == b"\x01\x00" and data[32 + 5] == 2  # segment header 1, record version 2

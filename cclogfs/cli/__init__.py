@@ -42,3 +42,7 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     except BrokenPipeError:
         return 0
+    except OSError as err:  # a path the file system refused (NotADirectory, permissions...): say which
+        where = " -> ".join(str(p) for p in (err.filename, err.filename2) if p is not None)
+        print(f"cclog: error: {where + ': ' if where else ''}{err.strerror or err}", file=sys.stderr)
+        return 1

@@ -7,7 +7,7 @@ import sys
 
 from ..export import write_jsonl
 from ..store import open_store
-from .common import Progress, add_selection, selected_windows
+from .common import Progress, Skipped, add_selection, selected_windows
 
 EXAMPLES = """\
 examples:
@@ -40,8 +40,9 @@ def run(args: argparse.Namespace) -> int:
             yield w
 
     with open_store(args.store, readonly=True) as store, Progress("cat") as progress:
+        skipped = Skipped(store, args)
         write_jsonl(
-            counted(selected_windows(store, args)),
+            counted(selected_windows(store, args, skipped)),
             sys.stdout,
             start_ns=args.start,
             end_ns=args.end,
@@ -51,4 +52,4 @@ def run(args: argparse.Namespace) -> int:
     if aged[0]:
         print(f"cclog: note: {aged[0]} of {aged[1]} windows were aged by compaction: their values are "
               "within stated error bounds, not byte-exact (`cclog info` says how)", file=sys.stderr)  # fmt: skip
-    return 0
+    return skipped.report()

@@ -7,13 +7,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
 import sys
 import time
 from pathlib import Path
 from typing import TextIO
 
-from ..errors import InvalidInputError
+from ..errors import CorruptionError, InvalidInputError
 from ..textfmt import human_bytes, iso_ns, table
 from ..times import parse_time
 
@@ -47,15 +48,53 @@ def add_selection(p: argparse.ArgumentParser) -> None:
     p.add_argument("--topic", action="append", metavar="T", help="only stream T (repeatable)")
     p.add_argument("--start", type=time_arg, metavar="TIME", help="from this time on")
     p.add_argument("--end", type=time_arg, metavar="TIME", help="up to this time (inclusive)")
+    p.add_argument("--skip-damaged", action="store_true",
+                   help="read every intact window of a damaged store; say on stderr what was skipped "
+                        f"and exit {EXIT_SKIPPED} (without it, damage is an error)")  # fmt: skip
 
 
-def selected_windows(store, args: argparse.Namespace):
-    """The store's windows for the chosen topics and times, in start order."""
+# Exit status of a reading command that skipped damaged windows (--skip-damaged): not 0,
+# since the answer is partial, and not 1, since it is not a failure (docs/CLI.md).
+EXIT_SKIPPED = 3
+
+
+class Skipped:
+    """What a reading command with --skip-damaged left out: stretches the store knows are
+    damaged, and windows whose record failed a check when read."""
+
+    def __init__(self, store, args: argparse.Namespace):
+        self.skip = bool(getattr(args, "skip_damaged", False))
+        self.stretches = store.damage() if self.skip else []
+        self.windows: list[str] = []
+
+    def report(self) -> int:
+        """Say on stderr what was skipped; the exit status."""
+        if not (self.stretches or self.windows):
+            return 0
+        from ..store.store import describe_damage
+
+        where = [describe_damage(d) for d in self.stretches] + self.windows
+        print(f"cclog: warning: skipped {len(self.stretches)} damaged stretches and {len(self.windows)} "
+              f"damaged windows: {'; '.join(where)}", file=sys.stderr)  # fmt: skip
+        return EXIT_SKIPPED
+
+
+def selected_windows(store, args: argparse.Namespace, skipped: Skipped | None = None):
+    """The store's windows for the chosen topics and times, in start order. With
+    `skipped` collecting (--skip-damaged), damaged windows are left out and noted there."""
     topics = set(args.topic or ())
     name = next(iter(topics)) if len(topics) == 1 else None
-    for w in store.query(name, start_ns=args.start, end_ns=args.end):
-        if not topics or w.name in topics:
-            yield w
+    skip = skipped is not None and skipped.skip
+    for w in store.query(name, start_ns=args.start, end_ns=args.end, skip_damaged=skip):
+        if topics and w.name not in topics:
+            continue
+        if skip:
+            try:
+                w.check()
+            except CorruptionError as err:
+                skipped.windows.append(f"{os.path.basename(err.path)} at offset {err.offset}: {err.reason}")
+                continue
+        yield w
 
 
 def load_labels(path: str | None):

@@ -7,8 +7,9 @@ import os
 import sys
 
 from ..export import export_mcap, export_parquet
+from ..errors import InvalidInputError
 from ..store import open_store
-from .common import Progress, add_selection, selected_windows
+from .common import Progress, add_selection, selected_windows, Skipped
 
 EXAMPLES = """\
 examples:
@@ -38,9 +39,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def check_output(args: argparse.Namespace) -> None:
+    """Refuse an output that cannot be written before any work (and any temporary file)."""
+    if args.mcap:
+        parent = os.path.dirname(os.path.abspath(args.mcap))
+        if os.path.isdir(args.mcap):
+            raise InvalidInputError(f"--mcap {args.mcap} is a directory; give a file name")
+        if not os.path.isdir(parent):
+            raise InvalidInputError(f"--mcap {args.mcap}: directory {parent} does not exist")
+    elif os.path.exists(args.parquet) and not os.path.isdir(args.parquet):
+        raise InvalidInputError(f"--parquet {args.parquet} is a file; give a directory")
+
+
 def run(args: argparse.Namespace) -> int:
+    check_output(args)
     with open_store(args.store, readonly=True) as store, Progress("export") as progress:
-        windows = selected_windows(store, args)
+        skipped = Skipped(store, args)
+        windows = selected_windows(store, args, skipped)
         if args.mcap:
             stats = export_mcap(windows, args.mcap, progress=progress)
         else:
@@ -53,4 +68,4 @@ def run(args: argparse.Namespace) -> int:
         f"{len(stats.streams)} streams to {len(stats.files)} files",
         file=sys.stderr,
     )
-    return 0
+    return skipped.report()

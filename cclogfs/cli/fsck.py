@@ -4,13 +4,19 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from ..store import check_store
 
 EXAMPLES = """examples:
   cclog fsck out/demo/store
   cclog fsck out/demo/store --deep      # also decode every window
-exit status: 0 clean (warnings allowed), 1 damaged data found.
+  cclog fsck out/demo/store --repair     # rebuild indexes, cut a torn tail, salvage side files
+  cclog fsck out/demo/store --repair --discard-damaged   # and drop named damage for good
+exit status without --repair: 0 clean (warnings allowed), 1 damaged data found.
+exit status with --repair (as e2fsck): 0 clean, nothing to do; 1 repaired, now clean;
+  4 damage left (named in the manifest or quarantined: reads refuse it until
+  --discard-damaged); 8 operational error (the store could not be opened or written).
 """
 
 
@@ -26,9 +32,39 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("store", help="store directory")
     p.add_argument("--deep", action="store_true", help="decode every window's messages too")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.add_argument("--repair", action="store_true",
+                   help="repair: rebuild indexes, cut an unsynced torn tail, salvage intact records of side "
+                        "files into the store, quarantine damaged bytes (exit 0/1/4/8, see below)")  # fmt: skip
+    p.add_argument("--discard-damaged", action="store_true",
+                   help="with --repair: drop the damage named in the manifest and the quarantined bytes; "
+                        "the only way they are ever dropped")  # fmt: skip
+
+
+def repair(args: argparse.Namespace) -> int:
+    from ..errors import CclogError
+    from ..store import repair_store
+
+    try:
+        report = repair_store(args.store, discard_damaged=args.discard_damaged)
+    except (CclogError, OSError) as err:
+        print(f"cclog: error: cannot repair {args.store}: {err}", file=sys.stderr)
+        return 8
+    for line in report.actions:
+        print(f"repaired: {line}")
+    for line in report.damage_left:
+        print(f"damage left: {line}")
+    state = {0: "clean, nothing to repair", 1: "repaired, now clean",
+             4: "damage left (`--discard-damaged` drops it)"}[report.exit_code]  # fmt: skip
+    print(f"{report.path}: {state}")
+    return report.exit_code
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.discard_damaged and not args.repair:
+        print("cclog: error: --discard-damaged needs --repair", file=sys.stderr)
+        return 2
+    if args.repair:
+        return repair(args)
     report = check_store(args.store, deep=args.deep)
     if args.json:
         print(json.dumps({"path": report.path, "segments": report.segments, "records": report.records,

@@ -7,7 +7,8 @@ import json
 
 from ..classifier.summary import SUMMARY_TOPIC
 from ..store import open_store
-from .common import human_bytes, iso_ns, table
+from ..store.store import describe_damage
+from .common import EXIT_SKIPPED, human_bytes, iso_ns, table
 
 EXAMPLES = """examples:
   cclog info out/demo/store
@@ -33,7 +34,7 @@ def store_info(path: str) -> dict:
         streams = store.streams()
         for name, st in streams.items():
             last = None
-            for last in store.query(name, start_ns=st["end_ns"], end_ns=st["end_ns"]):
+            for last in store.query(name, start_ns=st["end_ns"], end_ns=st["end_ns"], skip_damaged=True):
                 pass
             st["codec"] = last.codec_config if last is not None else None
             st["ratio"] = st["stored_bytes"] / st["json_bytes"] if st["json_bytes"] else None
@@ -49,6 +50,7 @@ def store_info(path: str) -> dict:
             "json_bytes": sum(s["json_bytes"] for s in streams.values()),
             "streams": streams,
             "recovery": [str(p) for p in store.recovery.problems],
+            "damage": [describe_damage(d) for d in store.damage()],
         }
 
 
@@ -56,7 +58,7 @@ def summary_totals(store) -> dict:
     """Totals of the smart-logging summary stream: what the robot did while nothing was stored."""
     total = {"minutes": 0, "messages": 0, "distance_m": 0.0, "moving_s": 0.0, "anomalies": 0,
              "peak_speed": 0.0, "peak_accel": 0.0}  # fmt: skip
-    for w in store.query(SUMMARY_TOPIC):
+    for w in store.query(SUMMARY_TOPIC, skip_damaged=True):  # damage is reported beside the totals
         for _, text in w.messages():
             rec = json.loads(text)
             total["minutes"] += 1
@@ -71,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     info = store_info(args.store)
     if args.json:
         print(json.dumps(info, indent=2))
-        return 0
+        return EXIT_SKIPPED if info["damage"] else 0
     rows = []
     for name, st in info["streams"].items():
         span = (st["end_ns"] - st["start_ns"]) / 1e9
@@ -95,4 +97,6 @@ def run(args: argparse.Namespace) -> int:
               f"{iso_ns(st['start_ns'])} to {iso_ns(st['end_ns'])}")
     for line in info["recovery"]:
         print(f"note: a reader would drop a torn tail: {line}")
-    return 0
+    for line in info["damage"]:  # the totals above leave these windows out
+        print(f"DAMAGE (not counted above; `cclog fsck --repair`): {line}")
+    return EXIT_SKIPPED if info["damage"] else 0

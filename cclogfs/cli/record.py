@@ -161,6 +161,16 @@ def _logging_policy(args: argparse.Namespace):
     return policy, None if topics is None else sorted({*topics, policy.odom_topic})
 
 
+def _warn_damage(store) -> None:
+    """Recording into a damaged store goes on, but says so each time: damage stays named
+    until `cclog fsck --repair --discard-damaged` (docs/FORMAT.md)."""
+    from ..store.store import describe_damage
+
+    for d in store.damage():
+        print(f"cclog: warning: {store.path} holds damage below the synced point, kept and not cut: "
+              f"{describe_damage(d)} (run `cclog fsck --repair`)", file=sys.stderr)  # fmt: skip
+
+
 def run(args: argparse.Namespace) -> int:
     policy, read_topics = _logging_policy(args)
     upkeep = _upkeep(args)
@@ -173,6 +183,7 @@ def run(args: argparse.Namespace) -> int:
         with source, open_store(args.store, create=True, codec=args.codec, sync_every_ms=args.sync_ms,
                                 **store_options) as store, \
                 Progress("recording", total=getattr(source, "message_count", None)) as progress:  # fmt: skip
+            _warn_damage(store)
             last = [0]
 
             def tick(stats):

@@ -12,6 +12,7 @@ checks it). Layers, each importing only those before it:
     compaction          rewrite and retention (the store passes itself in)
     store               `Store` and `open_store`
     fsck                the checker, on the store's public API
+    rebuild, repair     `fsck --repair`: a damaged manifest rebuilt; indexes, salvage, quarantine
 """
 
 from importlib import import_module
@@ -21,7 +22,7 @@ from importlib import import_module
 _HOME = {
     "Dropped": "compaction", "Replacement": "compaction", "RewriteReport": "compaction",
     "file_bytes": "compaction", "Reason": "format", "RecordFlag": "format", "Finding": "fsck",
-    "FsckReport": "fsck", "check_store": "fsck", "merge_stream_stats": "index",
+    "FsckReport": "fsck", "check_store": "fsck", "RepairReport": "repair", "repair_store": "repair", "merge_stream_stats": "index",
     "SealedSegment": "manifest", "Recovery": "recovery", "Store": "store", "open_store": "store",
     "Receipt": "window", "Window": "window",
 }  # fmt: skip
@@ -41,6 +42,7 @@ __all__ = [
     "Reason",
     "Receipt",
     "RecordFlag",
+    "RepairReport",
     "Recovery",
     "Replacement",
     "RewriteReport",
@@ -51,4 +53,5 @@ __all__ = [
     "file_bytes",
     "merge_stream_stats",
     "open_store",
+    "repair_store",
 ]

@@ -168,9 +168,10 @@ class _Replayed:
     kept: int = 0
 
 
-def _replay(codecs: Codecs, seg: Segment, end_seq: int, fn: Callable) -> _Replayed:
-    """Call `fn` on every record of a sealed segment; the records it keeps or replaces."""
-    out = _Replayed(bytearray(pack_segment_header(seg.first_seq, seg.created_ns)))
+def _replay(codecs: Codecs, seg: Segment, end_seq: int, fn: Callable, manifest_gen: int) -> _Replayed:
+    """Call `fn` on every record of a sealed segment; the records it keeps or replaces.
+    `manifest_gen`: the generation the manifest that commits them will have at least."""
+    out = _Replayed(bytearray(pack_segment_header(seg.first_seq, seg.created_ns, manifest_gen)))
     for rec, data in _records(seg, end_seq):
         header, rep = rec.header, None
         if rec.skip is None:
@@ -194,7 +195,7 @@ def _replay(codecs: Codecs, seg: Segment, end_seq: int, fn: Callable) -> _Replay
 def _plan(store: Host, seg: Segment, info: dict[str, Any], fn: Callable, report: RewriteReport) -> _Plan | None:
     """Replay a sealed segment through `fn`; when it replaced any record, write the new
     generation (segment, then index, each durable) and say what the manifest must name."""
-    done = _replay(store.codecs, seg, info["end_seq"], fn)
+    done = _replay(store.codecs, seg, info["end_seq"], fn, store.manifest.generation + 1)
     if not done.replaced:
         return None
     gen, size = seg.gen + 1, len(done.buf)

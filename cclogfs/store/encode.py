@@ -29,11 +29,11 @@ class Encoded:
     raw_len: int
     payload: bytes
 
-    def pack(self, seq: int, flags: int = 0) -> bytes:
+    def pack(self, seq: int, flags: int = 0, synced: int | None = None) -> bytes:
         return pack_record(
             seq=seq, start_ns=self.stamps[0], end_ns=self.stamps[-1], count=len(self.stamps),
             codec=self.codec, name=self.name, config=self.config, meta=self.meta,
-            raw_len=self.raw_len, payload=self.payload, flags=flags,
+            raw_len=self.raw_len, payload=self.payload, flags=flags, synced=synced,
         )  # fmt: skip
 
 

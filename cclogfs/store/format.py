@@ -17,10 +17,12 @@ import crcmod.predefined
 import xxhash
 
 # The manifest's `format_version`: 1 for a store never compacted (byte for byte what version 1
-# wrote), 2 once records were rewritten or segments dropped. Readers accept both.
-FORMAT_VERSION = 1
+# wrote), 2 once records were rewritten or segments dropped, 3 once a writer of this version
+# wrote to it (records carry their synced length; the manifest a checkpoint and the damage
+# found). Readers accept all three.
+FORMAT_VERSION = 3
 COMPACTED_FORMAT_VERSION = 2
-FORMAT_VERSIONS = (1, 2)
+FORMAT_VERSIONS = (1, 2, 3)
 # The `version` field of the segment, index and manifest file headers: their layouts did not
 # change in format version 2.
 FILE_VERSION = 1
@@ -84,6 +86,7 @@ class Reason:
     SIZE_MISMATCH = "sealed segment size differs from the manifest"
     MISSING_SEGMENT = "missing segment"
     STRAY_SEGMENT = "stray segment"
+    ROLLED_BACK = "manifest older than its segments"
 
 
 # -- limits --------------------------------------------------------------------------------
@@ -103,6 +106,9 @@ LOCK = "LOCK"
 TMP_SUFFIX = ".tmp"
 SEGMENT_SUFFIX = ".seg"
 INDEX_SUFFIX = ".idx"
+QUARANTINE = "quarantine"  # directory of bytes cut from the log, named by the manifest
+# Bytes recovery cut from a segment's tail (FORMAT.md, "Durability contract").
+SIDE_FILE = re.compile(r"^\d{20}(?:-\d+)?\.seg\.tail-\d+$")
 _SEQ_NAME = re.compile(r"^(\d{20})(?:-([1-9]\d{0,9}))?\.(seg|idx)$")
 
 
@@ -132,9 +138,17 @@ SEGMENT_HEADER = struct.Struct("<4sHHQqI")  # magic, version, flags, first_seq, 
 SEGMENT_HEADER_SIZE = SEGMENT_HEADER.size + 4  # + crc
 
 
-def pack_segment_header(first_seq: int, created_ns: int) -> bytes:
-    body = SEGMENT_HEADER.pack(SEGMENT_MAGIC, FILE_VERSION, 0, first_seq, created_ns, 0)
+def pack_segment_header(first_seq: int, created_ns: int, manifest_gen: int = 0) -> bytes:
+    """`manifest_gen`: the manifest generation the file was made under (format 3; 0 before)."""
+    body = SEGMENT_HEADER.pack(SEGMENT_MAGIC, FILE_VERSION, 0, first_seq, created_ns, manifest_gen)
     return body + struct.pack("<I", crc32c(body))
+
+
+def segment_manifest_gen(data: bytes) -> int:
+    """The manifest generation an intact segment header states (0 when damaged or older)."""
+    if unpack_segment_header(data) is None:
+        return 0
+    return SEGMENT_HEADER.unpack_from(data)[5]
 
 
 def unpack_segment_header(data: bytes) -> tuple[int, int] | None:
@@ -152,12 +166,15 @@ def unpack_segment_header(data: bytes) -> tuple[int, int] | None:
 # -- record --------------------------------------------------------------------------------
 
 RECORD_MAGIC = b"CCLR"
-RECORD_VERSION = 1
+# Version 1: no synced length; version 2 appends `synced_len` (u64) after `meta`.
+RECORD_VERSION = 2
+RECORD_VERSIONS = (1, 2)
+SYNCED = struct.Struct("<Q")
 # magic kind version flags header_len seq start end count codec name_len config_len meta_len
 # raw_len enc_len payload_xxh3
 RECORD_FIXED = struct.Struct("<4sBBHIQqqIHHHIQQQ")
 RECORD_FIXED_SIZE = RECORD_FIXED.size  # 74
-MAX_HEADER = RECORD_FIXED_SIZE + MAX_NAME + MAX_CONFIG + MAX_META + 4
+MAX_HEADER = RECORD_FIXED_SIZE + MAX_NAME + MAX_CONFIG + MAX_META + SYNCED.size + 4
 
 
 @dataclass(frozen=True, slots=True)
@@ -179,6 +196,7 @@ class RecordHeader:
     raw_len: int
     enc_len: int
     payload_xxh3: int
+    synced: int = 0  # version 2: segment bytes made durable by the last sync before this record
 
     @property
     def record_len(self) -> int:
@@ -199,14 +217,18 @@ def pack_record(
     payload: bytes,
     kind: int = RecordKind.WINDOW,
     flags: int = 0,
+    synced: int | None = None,
 ) -> bytes:
-    """The bytes of one record. Callers have validated every field against the limits."""
-    header_len = RECORD_FIXED_SIZE + len(name) + len(config) + len(meta) + 4
+    """The bytes of one record. Callers have validated every field against the limits.
+    `synced` None writes record version 1 (no synced length), else version 2."""
+    tail = b"" if synced is None else SYNCED.pack(synced)
+    version = 1 if synced is None else RECORD_VERSION
+    header_len = RECORD_FIXED_SIZE + len(name) + len(config) + len(meta) + len(tail) + 4
     fixed = RECORD_FIXED.pack(
-        RECORD_MAGIC, kind, RECORD_VERSION, flags, header_len, seq, start_ns, end_ns, count,
+        RECORD_MAGIC, kind, version, flags, header_len, seq, start_ns, end_ns, count,
         codec, len(name), len(config), len(meta), raw_len, len(payload), xxh3(payload),
     )  # fmt: skip
-    head = b"".join((fixed, name, config, meta))
+    head = b"".join((fixed, name, config, meta, tail))
     return b"".join((head, struct.pack("<I", crc32c(head)), payload))
 
 
@@ -218,6 +240,10 @@ class RecordError(Exception):
         super().__init__(f"{reason}{': ' + detail if detail else ''}")
         self.reason = reason
         self.offset = offset
+
+
+# Header bytes each known record version adds after `meta`.
+_EXTRA = {1: 0, 2: SYNCED.size}
 
 
 def check_fixed(fixed: bytes, available: int) -> int:
@@ -243,7 +269,7 @@ def check_fixed(fixed: bytes, available: int) -> int:
         name_len > MAX_NAME
         or config_len > MAX_CONFIG
         or meta_len > MAX_META
-        or (header_len != least if version == RECORD_VERSION else not least <= header_len <= MAX_HEADER)
+        or (header_len != least + _EXTRA[version] if version in _EXTRA else not least <= header_len <= MAX_HEADER)
         or count > MAX_COUNT
         or raw_len > MAX_RAW
         or enc_len > MAX_ENC
@@ -269,9 +295,10 @@ def parse_header(head: bytes) -> RecordHeader:
     pos += name_len
     config = head[pos : pos + config_len]
     meta = head[pos + config_len : pos + config_len + meta_len]
+    synced = SYNCED.unpack_from(head, header_len - 12)[0] if version == 2 else 0
     return RecordHeader(
         kind, version, flags, header_len, seq, start_ns, end_ns, count, codec, name,
-        bytes(config), bytes(meta), raw_len, enc_len, payload_xxh3,
+        bytes(config), bytes(meta), raw_len, enc_len, payload_xxh3, synced,
     )  # fmt: skip
 
 
@@ -286,7 +313,7 @@ def check_fields(header: RecordHeader) -> str | None:
         raise RecordError(Reason.BAD_FIELD, "kind 0 is invalid")
     if header.kind != RecordKind.WINDOW:
         return Reason.UNKNOWN_KIND
-    if header.version != RECORD_VERSION:
+    if header.version not in RECORD_VERSIONS:
         return Reason.UNSUPPORTED_VERSION
     if header.flags & ~KNOWN_FLAGS:
         return Reason.UNKNOWN_FLAGS

@@ -6,12 +6,13 @@ import os
 from dataclasses import dataclass, field
 
 from ..errors import CclogError, UnknownCodecError
-from .format import index_name, parse_seq_name, segment_name
+from .format import LOCK, MANIFEST, QUARANTINE, SIDE_FILE, TMP_SUFFIX, index_name, parse_seq_name, segment_name
+from .records import count_intact
 from .fs import FileSystem
 from .index import SegmentIndex
 from .manifest import SealedSegment
 from .segment import Problem, Segment, open_segment, scan
-from .store import Store, open_store
+from .store import Store, describe_damage, open_store
 
 
 @dataclass
@@ -61,6 +62,12 @@ def check_store(path: str, *, deep: bool = False, fs: FileSystem | None = None) 
             else:
                 report.add("warning", _loc(p), f"{p.reason}: the writer will truncate this torn tail on open "
                                                f"({p.dropped_bytes} bytes of unsynced writes)")  # fmt: skip
+        for d in store.damage():
+            report.add("error", f"{d['segment']}@{d['offset']}",
+                       f"damage below the synced point, kept and not cut: {describe_damage(d)}")  # fmt: skip
+        for name in store.manifest.quarantine:
+            report.add("error", f"{QUARANTINE}/{name}", "bytes cut from the log, kept in quarantine until "
+                                                       "`cclog fsck --repair --discard-damaged`")  # fmt: skip
         for p in store.recovery.skipped:
             report.add("warning", _loc(p), f"{p.reason} (intact; written by a newer cclogfs?), skipped")
         for name in store.recovery.leftovers:
@@ -76,13 +83,29 @@ def check_store(path: str, *, deep: bool = False, fs: FileSystem | None = None) 
             report.messages += sum(w.count for w in windows)
         if deep:
             _decode_all(store, report)
+    _check_names(path, fs, leftovers, report)
+    return report
+
+
+def _check_names(path: str, fs: FileSystem, leftovers: set[str], report: FsckReport) -> None:
+    """Every file in the directory is one the store may hold; side files are evidence."""
     names = set(os.listdir(path))
     for name in sorted(names):
         parsed = parse_seq_name(name)
         if (parsed and parsed[1] == "idx" and name not in leftovers
                 and segment_name(parsed[0], parsed[2]) not in names):  # fmt: skip
             report.add("warning", name, "index of a segment that does not exist")
-    return report
+        elif SIDE_FILE.match(name):
+            data = fs.read_file(os.path.join(path, name))
+            intact = count_intact(b"\0" + data)  # count_intact looks past the first byte
+            if intact:
+                report.add("error", name, f"bytes recovery cut from the log hold {intact} intact records "
+                                          "(perhaps acknowledged): they are not in the store")  # fmt: skip
+            else:
+                report.add("warning", name, "bytes recovery cut from the log (no intact record among them)")
+        elif not parsed and name not in (MANIFEST, LOCK, QUARANTINE) and not name.endswith(TMP_SUFFIX):
+            report.add("warning", name, "not a file a cclogfs store holds")
+
 
 
 def _decode_all(store: Store, report: FsckReport) -> None:
@@ -141,20 +164,24 @@ def _check_sealed(store: Store, fs: FileSystem, report: FsckReport) -> None:
 def _check_segment(store: Store, fs: FileSystem, info: SealedSegment, checked: Segment, report: FsckReport) -> None:
     """Scan one sealed segment and hold it against its manifest entry and its index."""
     name = os.path.basename(checked.path)
-    result = scan(checked)
+    known = _known_damage(store, info.first_seq)  # reported once, from the manifest
+    result = scan(checked, salvage=bool(known))
     for p in result.skipped:
         report.add("warning", _loc(p), f"{p.reason}, skipped")
-    if result.problem:
-        p = result.problem
+    found = [*result.damage, *([result.problem] if result.problem else [])]
+    unknown = [p for p in found if p.offset not in known]
+    if unknown:
+        p = unknown[0]
         report.add("error", _loc(p), f"{p.reason} in a sealed segment")
         _check_past_damage(store, fs, info, checked, p.offset, report)
-    elif result.end != info.size or checked.size != info.size:
+    elif result.end != info.size and not found or checked.size != info.size:
         report.add("error", name, f"is {checked.size} bytes, the manifest says {info.size}")
-    if not result.problem and result.next_seq != info.end_seq:
+    ends_known = result.problem is not None and result.problem.offset in known
+    if not unknown and not ends_known and result.next_seq != info.end_seq:
         report.add("error", name, f"ends at seq {result.next_seq}, the manifest says {info.end_seq}")
     report.records += len(result.rows)
     report.messages += sum(r[1] for r in result.rows)
-    if not result.problem:
+    if not unknown:
         scanned = SegmentIndex.build(result.rows)
         if scanned.stream_stats() != info.streams:
             report.add("error", name, "stream statistics differ from the manifest's")
@@ -163,6 +190,14 @@ def _check_segment(store: Store, fs: FileSystem, info: SealedSegment, checked: S
                                       f"manifest's {info.aged}")  # fmt: skip
         report.aged += sum(result.aged.values())
         _check_index(store, fs, info, checked, scanned, report)
+
+
+def _known_damage(store: Store, first_seq: int) -> set[int]:
+    """Offsets of the damage the manifest names for a sealed segment, or that was discarded."""
+    for info in store.manifest.segments:
+        if info["first_seq"] == first_seq:
+            return {d["offset"] for d in (*info.get("damaged", ()), *info.get("discarded", ()))}
+    return set()
 
 
 def _index_path(store: Store, info: SealedSegment) -> str:

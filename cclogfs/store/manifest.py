@@ -17,7 +17,6 @@ from typing import Any
 
 from ..errors import CorruptionError, StoreError
 from .format import (
-    COMPACTED_FORMAT_VERSION,
     FORMAT_VERSION,
     FORMAT_VERSIONS,
     RecordError,
@@ -111,15 +110,68 @@ class Manifest(Mapping[str, Any]):
         return cls({"format_version": FORMAT_VERSION, "store_id": uuid.uuid4().hex,
                     "created_ns": time.time_ns(), "codec": codec_config, "segments": []})  # fmt: skip
 
+    @property
+    def checkpoint(self) -> dict[str, int]:
+        """What a clean close proved durable of the active segment: {"first_seq", "synced",
+        "next_seq"} (FORMAT.md, "Proof of what was synced"); {} when none."""
+        return self._body.get("checkpoint", {})
+
+    def damage(self) -> list[tuple[dict[str, Any], dict[str, Any]]]:
+        """(segment entry, damage entry) for every damaged stretch not yet discarded."""
+        return [(info, d) for info in self.segments for d in info.get("damaged", ())]
+
+    def _next(self, **changes: Any) -> Manifest:
+        # Whatever this version writes may hold record version 2 and the keys of format
+        # version 3, which an older reader would misread: it must refuse the store.
+        return Manifest(dict(self._body, format_version=FORMAT_VERSION, generation=self.generation + 1, **changes))
+
+    @property
+    def generation(self) -> int:
+        """Counts the manifest's versions; segment files state the one they were made under,
+        so a manifest rolled back to an older copy is detected (FORMAT.md, "MANIFEST")."""
+        return self._body.get("generation", 0)
+
     def with_sealed(self, info: dict[str, Any]) -> Manifest:
-        """A segment sealed: appended to the list (sealing is not compaction: the format
-        version stays)."""
-        return Manifest(dict(self._body, segments=[*self.segments, info]))
+        """A segment sealed: appended to the list."""
+        return self._next(segments=[*self.segments, info])
+
+    def with_checkpoint(self, first_seq: int, synced: int, next_seq: int) -> Manifest:
+        """A clean close: the active segment is durable up to `synced` bytes, `next_seq`."""
+        return self._next(checkpoint={"first_seq": first_seq, "synced": synced, "next_seq": next_seq})
+
+    @property
+    def quarantine(self) -> list[str]:
+        """Files in the store's `quarantine/` directory: bytes cut from the log, kept until
+        `fsck --repair --discard-damaged` drops them."""
+        return self._body.get("quarantine", [])
+
+    def with_quarantined(self, name: str) -> Manifest:
+        return self._next(quarantine=sorted({*self.quarantine, name}))
+
+    def with_damage(self, first_seq: int, damaged: list[dict[str, Any]], streams: dict[str, Any],
+                    aged: dict[str, int]) -> Manifest:  # fmt: skip
+        """The sealed segment at `first_seq` holds these damaged stretches; `streams` and
+        `aged` count only its intact records."""
+        segments = [dict(info, damaged=damaged, streams=streams, aged=aged) if info["first_seq"] == first_seq
+                    else info for info in self.segments]  # fmt: skip
+        return self._next(segments=segments)
+
+    def with_damage_discarded(self) -> Manifest:
+        """Damage dropped on request: each stretch moves from `damaged` to `discarded`, a
+        record of what was lost that no longer stops reads."""
+        segments = []
+        for info in self.segments:
+            info = dict(info)
+            lost = info.pop("damaged", [])
+            if lost:
+                info["discarded"] = [*info.get("discarded", []), *lost]
+            segments.append(info)
+        return self._next(segments=segments, quarantine=[])
 
     def with_replaced(self, infos: Mapping[int, dict[str, Any]]) -> Manifest:
         """Segments rewritten as new generations: `infos` by first_seq."""
         segments = [infos.get(info["first_seq"], info) for info in self.segments]
-        return Manifest(dict(self._body, format_version=COMPACTED_FORMAT_VERSION, segments=segments))
+        return self._next(segments=segments)
 
     def without_oldest(self) -> Manifest:
         """Retention: the oldest sealed segment dropped, its statistics added to `dropped`."""
@@ -127,9 +179,8 @@ class Manifest(Mapping[str, Any]):
         before = self.dropped
         streams = {k: dict(v) for k, v in before["streams"].items()}
         merge_stream_stats(streams, oldest["streams"])
-        return Manifest(dict(self._body, format_version=COMPACTED_FORMAT_VERSION, first_seq=oldest["end_seq"],
-                             segments=self.segments[1:],
-                             dropped={"segments": before["segments"] + 1, "streams": streams}))  # fmt: skip
+        return self._next(first_seq=oldest["end_seq"], segments=self.segments[1:],
+                          dropped={"segments": before["segments"] + 1, "streams": streams})
 
     # -- on disk ---------------------------------------------------------------------------
 

@@ -110,17 +110,22 @@ def records(source: Source, start: int, size: int, first_seq: int) -> Iterator[R
         seq += 1
 
 
-def count_intact(data: bytes) -> int:
-    """How many intact records (framing and checksums hold) lie in `data` past its first
-    byte, found by their magic: `data` starts at the record a scan stopped at."""
-    source = BytesAt(data)
-    found, pos = 0, data.find(RECORD_MAGIC, 1)
+def intact_records(data: bytes, base: int = 0) -> Iterator[tuple[int, RecordHeader, bytes]]:
+    """(offset, header, payload) of every intact record (framing and checksums hold) in
+    `data` past its first byte, found by their magic; `base` is the file offset of `data`."""
+    source = BytesAt(data, base)
+    pos = data.find(RECORD_MAGIC, 1)
     while pos >= 0:
         try:
-            header, _payload = read_record(source, pos, len(data) - pos)
+            header, payload = read_record(source, base + pos, len(data) - pos)
         except RecordError:
             pos = data.find(RECORD_MAGIC, pos + 1)
             continue
-        found += 1
+        yield base + pos, header, payload
         pos = data.find(RECORD_MAGIC, pos + header.record_len)
-    return found
+
+
+def count_intact(data: bytes) -> int:
+    """How many intact records lie in `data` past its first byte: `data` starts at the
+    record a scan stopped at."""
+    return sum(1 for _ in intact_records(data))

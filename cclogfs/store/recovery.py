@@ -13,9 +13,11 @@ import threading
 from dataclasses import dataclass, field
 
 from ..errors import CorruptionError
-from .format import MANIFEST, Reason, parse_seq_name, segment_name
+from .format import MANIFEST, SEGMENT_HEADER_SIZE, Reason, parse_seq_name, segment_manifest_gen, segment_name
 from .fs import FileSystem
+from . import planted
 from .manifest import Manifest
+from .records import count_intact
 from .segment import Problem, Segment, intact_after, open_segment, scan
 
 
@@ -24,6 +26,8 @@ class Recovery:
     """What opening the store found and did."""
 
     problems: list[Problem] = field(default_factory=list)  # truncated or dropped tails
+    # Damage below the synced point found in the tail: kept, declared, never cut.
+    damage: list[Problem] = field(default_factory=list)
     skipped: list[Problem] = field(default_factory=list)  # intact records of unknown kind
     sealed_on_open: list[str] = field(default_factory=list)
     removed_files: list[str] = field(default_factory=list)
@@ -33,7 +37,7 @@ class Recovery:
 
     @property
     def clean(self) -> bool:
-        return not (self.problems or self.skipped)
+        return not (self.problems or self.skipped or self.damage)
 
 
 @dataclass
@@ -87,15 +91,49 @@ class SegmentOpener:
         """Fill `sealed` and `tail` (the tail's valid prefix); on failure close what was opened."""
         try:
             files = _sort_files(self.fs.listdir(self.path), manifest)
+            self._refuse_rolled_back(manifest, files)
             self._open_sealed(manifest, files)
             self._remove_leftovers(files)
-            self._recover_tail(manifest.end_seq, [files.tail[s] for s in sorted(files.tail)])
+            self._refuse_missing_active(manifest, files)
+            self._recover_tail(manifest.end_seq, [files.tail[s] for s in sorted(files.tail)], manifest.checkpoint)
         except BaseException:
             for seg in (*self.sealed, *self.tail):
                 if seg.fd >= 0:
                     self.fs.close(seg.fd)
                     seg.fd = -1
             raise
+
+    def _refuse_rolled_back(self, manifest: Manifest, files: _Files) -> None:
+        """A segment file made under a later manifest generation than this manifest's means
+        the manifest was rolled back to an older copy: acting on it (removing what it does not
+        name) would delete data. Refuse, touching nothing. A compaction's new generation is
+        stamped one ahead of the manifest that was to commit it, so its leftover may be too."""
+        later = [(n, 0) for n in files.tail.values()] + [(n, 1) for n in files.leftovers if n.endswith(".seg")]
+        for name, ahead in later:
+            fd = self.fs.open(self._file(name))
+            try:
+                gen = segment_manifest_gen(self.fs.pread(fd, SEGMENT_HEADER_SIZE, 0))
+            finally:
+                self.fs.close(fd)
+            if gen > manifest.generation + ahead:
+                raise CorruptionError(
+                    f"{self.path}: {name} was made under manifest generation {gen}, but {MANIFEST} is "
+                    f"generation {manifest.generation}: the manifest was rolled back to an older copy; "
+                    "nothing was changed (restore the current MANIFEST)",
+                    path=self._file(MANIFEST), reason=Reason.ROLLED_BACK,
+                )  # fmt: skip
+
+    def _refuse_missing_active(self, manifest: Manifest, files: _Files) -> None:
+        """The active segment a clean close proved to hold records must be there: without
+        this, a deleted active segment would pass for an empty tail."""
+        mark = manifest.checkpoint
+        if (mark and mark["next_seq"] > mark["first_seq"] >= manifest.end_seq
+                and mark["first_seq"] not in files.tail):  # fmt: skip
+            raise CorruptionError(
+                f"{self.path}: {segment_name(mark['first_seq'])}, the active segment holding seqs "
+                f"{mark['first_seq']}..{mark['next_seq'] - 1} at the last clean close, is missing",
+                path=self._file(segment_name(mark["first_seq"])), reason=Reason.MISSING_SEGMENT,
+            )  # fmt: skip
 
     def _open_sealed(self, manifest: Manifest, files: _Files) -> None:
         for info in manifest.segments:
@@ -109,6 +147,9 @@ class SegmentOpener:
             seg, _ok = open_segment(self.fs, self._file(name), write=False, lock=self.lock)
             seg.first_seq, seg.next_seq = info["first_seq"], info["end_seq"]
             seg.sealed_size, seg.gen = info["size"], gen
+            seg.damage = [Problem(seg.path, d["offset"], d["reason"], "", d["length"],
+                                  seqs=(d["first_seq"], d["end_seq"])) for d in info.get("damaged", ())]  # fmt: skip
+            seg.known_damage = {d["offset"] for d in (*info.get("damaged", ()), *info.get("discarded", ()))}
             self.sealed.append(seg)
 
     def _remove_leftovers(self, files: _Files) -> None:
@@ -123,7 +164,7 @@ class SegmentOpener:
                 self.recovery.removed_files.append(name)
             self.fs.fsync_dir(self.path)
 
-    def _recover_tail(self, next_seq: int, names: list[str]) -> None:
+    def _recover_tail(self, next_seq: int, names: list[str], checkpoint: dict) -> None:
         """Scan the unsealed segments; keep exactly their valid prefix (see FORMAT.md)."""
         broken = False
         for name in names:
@@ -134,36 +175,63 @@ class SegmentOpener:
                 continue
             seg, header_ok = open_segment(self.fs, path, write=not self.readonly, lock=self.lock)
             reason = None
+            header_damage = None
             if broken or first_seq != next_seq:
                 reason = Reason.DROPPED_SEGMENT if broken else Reason.SEQ_GAP
-            elif not header_ok or seg.first_seq != first_seq:
+            elif (not header_ok or seg.first_seq != first_seq) and not _holds_records(seg):
                 # Created but its header never reached the disk: it cannot hold synced data.
                 reason = Reason.BAD_SEGMENT_HEADER
+            elif not header_ok or seg.first_seq != first_seq:
+                # The header is fsynced before any record is written: records after a damaged
+                # header mean damage to synced data, kept like any other (issue 11, item 6).
+                seg.first_seq, seg.next_seq = first_seq, first_seq
+                header_damage = Problem(path, 0, Reason.BAD_SEGMENT_HEADER, "", SEGMENT_HEADER_SIZE,
+                                        seqs=(first_seq, first_seq))  # fmt: skip
             if reason is not None:
                 self.recovery.problems.append(Problem(path, 0, reason, "", seg.size))
                 self._drop_segment(seg)
                 broken = True
                 continue
-            broken = self._keep_prefix(seg)
+            broken = self._keep_prefix(seg, checkpoint)
+            if header_damage is not None:
+                seg.damage.insert(0, header_damage)
+                self.recovery.damage.insert(0, header_damage)
             self.tail.append(seg)
             next_seq = seg.next_seq
 
-    def _keep_prefix(self, seg: Segment) -> bool:
-        """Scan one tail segment and cut it to its valid prefix; True when it had to be cut."""
-        result = scan(seg)
+    def _keep_prefix(self, seg: Segment, checkpoint: dict) -> bool:
+        """Scan one tail segment; keep every intact record below the synced point (damage
+        there is declared in `seg.damage`, never cut) and cut an unsynced torn tail. True
+        when it had to be cut."""
+        result = scan(seg, salvage=True)
         self.recovery.skipped.extend(result.skipped)
-        seg.rows, seg.next_seq = result.rows, result.next_seq
-        problem = result.problem
-        if problem is None:
+        seg.synced = max(result.synced, SEGMENT_HEADER_SIZE)
+        if checkpoint.get("first_seq") == seg.first_seq:
+            seg.synced = max(seg.synced, checkpoint["synced"])
+        if "torn-tail" in planted.BUGS:
+            seg.synced = SEGMENT_HEADER_SIZE
+        problems = [*result.damage, *([result.problem] if result.problem else [])]
+        cut = next((p for p in problems if p.offset >= seg.synced), None)
+        seg.damage = [p for p in problems if p.offset < seg.synced]
+        ours = checkpoint if checkpoint.get("first_seq") == seg.first_seq else {}
+        for problem in seg.damage:
+            if problem.seqs is None:  # damage up to the end: only the checkpoint knows the seqs lost
+                problem.seqs = (result.next_seq, max(ours.get("next_seq", 0), result.next_seq + 1))
+        self.recovery.damage.extend(seg.damage)
+        end = cut.offset if cut is not None else seg.fs.size(seg.fd)
+        seg.rows = [r for r in result.rows if r[5] < end]
+        seg.next_seq = max([r[2] + 1 for r in seg.rows] + [p.seqs[1] for p in seg.damage] + [seg.first_seq])
+        if cut is None:
+            seg.size = end
             return False
-        problem.intact_after = intact_after(seg, problem.offset)
-        self.recovery.problems.append(problem)
+        cut.intact_after = intact_after(seg, cut.offset)
+        self.recovery.problems.append(cut)
         if not self.readonly:
-            if problem.intact_after:
-                problem.kept_in = self._keep_tail(seg, problem.offset)
-            self.fs.truncate(seg.fd, result.end)
+            if cut.intact_after:
+                cut.kept_in = self._keep_tail(seg, cut.offset)
+            self.fs.truncate(seg.fd, cut.offset)
             self.fs.fsync(seg.fd)
-        seg.size = result.end
+        seg.size = cut.offset
         return True
 
     def _keep_tail(self, seg: Segment, offset: int) -> str:
@@ -183,3 +251,9 @@ class SegmentOpener:
             self.fs.unlink(seg.path)
             self.fs.fsync_dir(self.path)
             self.recovery.removed_files.append(os.path.basename(seg.path))
+
+
+def _holds_records(seg: Segment) -> bool:
+    """Whether any intact record lies past the segment header."""
+    size = seg.fs.size(seg.fd)
+    return size > SEGMENT_HEADER_SIZE and count_intact(seg.fs.pread(seg.fd, size, 0)) > 0

@@ -6,7 +6,16 @@ import threading
 from dataclasses import dataclass, field
 
 from ..errors import CorruptionError
-from .format import SEGMENT_HEADER_SIZE, Reason, RecordError, RecordFlag, RecordHeader, unpack_segment_header
+from .format import (
+    RECORD_MAGIC,
+    SEGMENT_HEADER_SIZE,
+    Reason,
+    RecordError,
+    RecordFlag,
+    RecordHeader,
+    check_fields,
+    unpack_segment_header,
+)
 from .fs import FileSystem
 from .index import SegmentIndex
 from .records import BytesAt, ChunkReader, count_intact, read_record, records
@@ -27,13 +36,25 @@ class Problem:
     dropped_bytes: int = 0
     intact_after: int = 0  # intact records found past the problem (0 for a plain torn tail)
     kept_in: str = ""  # side file holding the dropped bytes, when intact records were among them
+    # Damage below the synced point (never cut): the sequence numbers it lost, [first, end).
+    seqs: tuple[int, int] | None = None
 
     def __str__(self) -> str:
         dropped = f", {self.dropped_bytes} bytes dropped" if self.dropped_bytes else ""
         detail = f" ({self.detail})" if self.detail else ""
         intact = f", {self.intact_after} intact records among them" if self.intact_after else ""
         kept = f", kept in {self.kept_in}" if self.kept_in else ""
+        if self.seqs is not None:
+            lost = f"seq {self.seqs[0]}" if self.seqs[1] == self.seqs[0] + 1 else f"seqs {self.seqs[0]}..{self.seqs[1] - 1}"
+            return (f"{self.path} at offset {self.offset}: {self.reason}{detail}: {self.dropped_bytes} bytes "
+                    f"below the synced point damaged ({lost})")  # fmt: skip
         return f"{self.path} at offset {self.offset}: {self.reason}{detail}{dropped}{intact}{kept}"
+
+    def damage_info(self) -> dict:
+        """The manifest's entry for damage below the synced point (FORMAT.md, "Damage")."""
+        first, end = self.seqs
+        return {"offset": self.offset, "length": self.dropped_bytes, "first_seq": first, "end_seq": end,
+                "reason": self.reason}  # fmt: skip
 
 
 @dataclass
@@ -46,6 +67,9 @@ class ScanResult:
     problem: Problem | None = None
     skipped: list[Problem] = field(default_factory=list)
     aged: dict[str, int] = field(default_factory=dict)  # per stream: records flagged AGED
+    synced: int = 0  # the largest synced length an intact record states
+    # With salvage: damaged stretches that intact records follow, each with the seqs it lost.
+    damage: list[Problem] = field(default_factory=list)
 
 
 class Segment:
@@ -63,6 +87,10 @@ class Segment:
         self.next_seq = first_seq
         self.sealed_size = -1  # for a sealed segment: its size in the manifest
         self.gen = 0  # for a sealed segment: how often compaction rewrote it (names its files)
+        self.synced = 0  # bytes proven durable: the size at the last completed fsync
+        self.damage: list[Problem] = []  # damage below the synced point (recovery, the manifest)
+        self.known_damage: set[int] = set()  # offsets of damage the manifest names or discarded
+        self.index_untrusted = False  # set when a read found a record its index entry misdescribes
         self._index: SegmentIndex | None = None
 
     @property
@@ -95,6 +123,11 @@ class Segment:
             self._index = SegmentIndex.build(self.rows)
         return self._index
 
+    def distrust_index(self) -> None:
+        """A record did not match its index entry: the index (checksum valid, content
+        stale or forged) is rebuilt from the segment on next use, and written back."""
+        self._index, self.index_untrusted = None, True
+
     def set_index(self, index: SegmentIndex) -> None:
         """Adopt an index built elsewhere (compaction has one for the generation it wrote)."""
         self._index = index
@@ -112,11 +145,17 @@ class Segment:
                                   path=self.path, offset=min(self.size, self.sealed_size),
                                   reason=Reason.SIZE_MISMATCH)  # fmt: skip
         try:
+            if self.index_untrusted:
+                raise ValueError("a record did not match its index entry")
             self._index = SegmentIndex.decode(self.fs.read_file(index_path), self.first_seq, self.size)
         except (OSError, RecordError, ValueError, TypeError):
-            result = scan(self)
-            problem = result.problem
-            if problem is None and result.next_seq != self.next_seq:
+            # Damage the manifest declares is known and skipped; any other is corruption.
+            result = scan(self, salvage=bool(self.known_damage))
+            declared = self.known_damage
+            found = [*result.damage, *([result.problem] if result.problem else [])]
+            problem = next((p for p in found if p.offset not in declared), None)
+            ends_damaged = result.problem is not None and result.problem.offset in declared
+            if problem is None and result.next_seq != self.next_seq and not ends_damaged:
                 problem = Problem(self.path, result.end, Reason.SEQ_GAP,
                                   f"ends at seq {result.next_seq}, the manifest says {self.next_seq}")  # fmt: skip
             if problem:
@@ -153,33 +192,66 @@ def open_segment(fs: FileSystem, path: str, *, write: bool,
     return Segment(fs, path, first_seq, created_ns, fd, size, lock=lock), parsed is not None
 
 
-def scan(segment: Segment) -> ScanResult:
+def scan(segment: Segment, *, salvage: bool = False) -> ScanResult:
     """Read every record from the start, checking all of it, up to the first that fails.
 
     Records of unknown kind or version whose checksums hold are skipped and reported;
     the first record that fails a check ends the valid prefix (recovery truncates there).
+    With `salvage`, a failure that intact records of later seqs follow is noted in
+    `damage` and the scan goes on from the first of them: only the end stops it.
     """
-    fs, fd, path = segment.fs, segment.fd, segment.path
+    fs, fd = segment.fs, segment.fd
     size = fs.size(fd)
     result = ScanResult(next_seq=segment.first_seq)
-    try:
-        for rec in records(ChunkReader(fs, fd), SEGMENT_HEADER_SIZE, size, segment.first_seq):
-            header = rec.header
-            if rec.skip:
-                result.skipped.append(Problem(path, rec.offset, rec.skip, f"kind {header.kind} version "
-                                              f"{header.version} flags {header.flags}"))  # fmt: skip
-            else:
-                if header.flags & RecordFlag.AGED:
-                    result.aged[header.name] = result.aged.get(header.name, 0) + 1
-                result.rows.append(
-                    (header.name, header.count, header.seq, header.start_ns, header.end_ns, rec.offset,
-                     header.record_len, header.raw_len)
-                )  # fmt: skip
-            result.next_seq, result.end = header.seq + 1, rec.end
-    except RecordError as err:
-        result.problem = Problem(path, err.offset, err.reason, str(err), size - err.offset)
-        result.end = err.offset
-    return result
+    pos, seq = SEGMENT_HEADER_SIZE, segment.first_seq
+    while True:
+        try:
+            for rec in records(ChunkReader(fs, fd), pos, size, seq):
+                _add(result, segment.path, rec)
+            return result
+        except RecordError as err:
+            problem = Problem(segment.path, err.offset, err.reason, str(err), size - err.offset)
+            result.end = err.offset
+            found = next_intact(fs, fd, err.offset, size, result.next_seq) if salvage else None
+            if found is None:
+                result.problem = problem
+                return result
+            pos, seq = found
+            problem.dropped_bytes, problem.seqs = pos - err.offset, (result.next_seq, seq)
+            result.damage.append(problem)
+
+
+def _add(result: ScanResult, path: str, rec) -> None:
+    header = rec.header
+    if rec.skip:
+        result.skipped.append(Problem(path, rec.offset, rec.skip, f"kind {header.kind} version "
+                                      f"{header.version} flags {header.flags}"))  # fmt: skip
+    else:
+        if header.flags & RecordFlag.AGED:
+            result.aged[header.name] = result.aged.get(header.name, 0) + 1
+        result.rows.append(
+            (header.name, header.count, header.seq, header.start_ns, header.end_ns, rec.offset,
+             header.record_len, header.raw_len)
+        )  # fmt: skip
+    result.synced = max(result.synced, header.synced)
+    result.next_seq, result.end = header.seq + 1, rec.end
+
+
+def next_intact(fs: FileSystem, fd: int, offset: int, size: int, seq: int) -> tuple[int, int] | None:
+    """(offset, seq) of the first intact record past `offset` whose seq is `seq` or later:
+    where a salvaging scan resumes after damage. None when there is none."""
+    data = fs.pread(fd, size - offset, offset)
+    source = BytesAt(data, offset)
+    pos = data.find(RECORD_MAGIC, 1)
+    while pos >= 0:
+        try:
+            header, _payload = read_record(source, offset + pos, len(data) - pos)
+            if header.seq >= seq and check_fields(header) is None:
+                return offset + pos, header.seq
+        except RecordError:
+            pass
+        pos = data.find(RECORD_MAGIC, pos + 1)
+    return None
 
 
 def intact_after(segment: Segment, offset: int) -> int:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import heapq
 import json
 import os
+import shutil
 import signal
 import socket
 import threading
@@ -19,12 +20,13 @@ from .._signals import signals_deferred as _signals_deferred
 from ..codecs import codec_from_config
 from ..errors import (
     CorruptionError,
+    DamagedError,
     InvalidInputError,
     StoreError,
     StoreFailedError,
     StoreLockedError,
 )
-from . import compaction
+from . import compaction, planted
 from .check import check_stream_name
 from .compaction import Dropped, Replacement, RewriteReport
 from .encode import Codecs, encode_window
@@ -87,6 +89,7 @@ class Store:
         self._unsynced_since: float | None = None
         self._flusher: threading.Thread | None = None
         self._sealed_spans: SegmentSpans | None = None
+        self._dirty = False  # this writer changed the active segment: close writes a checkpoint
 
     # -- context manager -------------------------------------------------------------------
 
@@ -140,21 +143,9 @@ class Store:
     def _open(self, create: bool) -> None:
         manifest_path = self.file_path(MANIFEST)
         if not self.fs.exists(manifest_path):
-            # Only a lock and temporary files: a crash while the store was being created.
-            leftovers = [n for n in self.fs.listdir(self.path)] if self.fs.exists(self.path) else []
-            if all(n == LOCK or n.endswith(TMP_SUFFIX) for n in leftovers):
-                if not create or self.readonly:
-                    raise StoreError(f"{self.path} is not a cclogfs store (no {MANIFEST}); "
-                                     "pass create=True to make one")  # fmt: skip
-            else:
-                raise StoreError(f"{self.path} holds files but no {MANIFEST}: not a cclogfs store, "
-                                 "or one whose manifest was lost (run `cclog fsck`)")  # fmt: skip
-        if not self.readonly:
-            self.fs.mkdir(self.path)
+            self._create_or_finish(create)
+        if not self.readonly and self._lock_fd is None:
             self._take_lock()
-        if not self.fs.exists(manifest_path):
-            self.fs.mkdir(self.path)
-            Manifest.new(self.codecs.default.get_config()).commit(self.fs, manifest_path)
         self.manifest, _raw = Manifest.load(self.fs, manifest_path)
         if not self.readonly:
             for name in self.fs.listdir(self.path):
@@ -164,6 +155,37 @@ class Store:
         self._open_segments_retrying()
         if not self.readonly:
             self._start_flusher()
+
+    def _create_or_finish(self, create: bool) -> None:
+        """A store exists complete or not at all: it is made in a hidden sibling directory
+        and renamed into place once its manifest is durable. A directory an older version
+        left half made (only LOCK and temporary files) is finished by the next writer."""
+        names = self.fs.listdir(self.path) if self.fs.exists(self.path) else []
+        if any(n != LOCK and not n.endswith(TMP_SUFFIX) for n in names):
+            raise StoreError(f"{self.path} holds files but no {MANIFEST}: not a cclogfs store, "
+                             "or one whose manifest was lost (run `cclog fsck`)")  # fmt: skip
+        half_made = LOCK in names
+        if self.readonly or not (create or half_made):
+            what = ("its creation was interrupted; open it for writing to finish it" if half_made
+                    else "pass create=True to make one")  # fmt: skip
+            raise StoreError(f"{self.path} is not a cclogfs store (no {MANIFEST}): {what}")
+        manifest = Manifest.new(self.codecs.default.get_config())
+        if half_made:
+            self._take_lock()
+            manifest.commit(self.fs, self.file_path(MANIFEST))
+            return
+        parent, base = os.path.split(os.path.abspath(self.path))
+        self.fs.mkdir(parent)  # as before: a store's parent directories are made with it
+        _remove_stale_creations(parent, base)
+        tmp = os.path.join(parent, f".{base}.creating-{os.getpid()}")
+        self.fs.mkdir(tmp)
+        try:
+            manifest.commit(self.fs, os.path.join(tmp, MANIFEST))
+            self.fs.rename(tmp, self.path)  # the commit point; onto an empty directory too
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+        self.fs.fsync_dir(parent)
 
     def _take_lock(self) -> None:
         path = self.file_path(LOCK)
@@ -192,7 +214,10 @@ class Store:
                 if not self.readonly or self.fs.read_file(self.file_path(MANIFEST)) == raw:
                     return
             except (CorruptionError, FileNotFoundError) as err:
-                retry = isinstance(err, FileNotFoundError) or err.reason == Reason.MISSING_SEGMENT
+                # A reader that read the manifest before a writer's commit sees later files:
+                # missing ones, or ones made under a later generation. It reads again.
+                retry = isinstance(err, FileNotFoundError) or err.reason in (Reason.MISSING_SEGMENT,
+                                                                             Reason.ROLLED_BACK)
                 if not (self.readonly and retry and attempt < 4):
                     raise
             if attempt == 4:
@@ -215,10 +240,27 @@ class Store:
         if self.readonly:
             self.unsealed = opener.tail
             return
-        for seg in opener.tail[:-1]:  # a crash while sealing left it complete but unsealed
+        for seg in opener.tail:
+            self._make_durable(seg)
+        # The newest tail segment stays active unless it holds damage: that is sealed with
+        # the damage named in the manifest, so no later write can hide it.
+        keep = len(opener.tail) - 1 if opener.tail and not opener.tail[-1].damage else len(opener.tail)
+        for seg in opener.tail[:keep]:  # a crash while sealing left it complete but unsealed
             self._seal(seg)
             self.recovery.sealed_on_open.append(os.path.basename(seg.path))
-        self.active = opener.tail[-1] if opener.tail else self._new_segment(self.manifest.end_seq)
+        tail = opener.tail[keep:]
+        self.active = tail[0] if tail else self._new_segment(self.manifest.end_seq)
+
+    def _make_durable(self, seg: Segment) -> None:
+        """Write again, and fsync, what recovery kept but cannot prove durable: a crash may
+        have left it only in the page cache, and after a failed fsync the kernel may have
+        marked pages clean that never reached the disk (FORMAT.md, "Durability contract")."""
+        if seg.size > seg.synced and "seal-no-fsync" not in planted.BUGS:
+            self.fs.pwrite(seg.fd, self.fs.pread(seg.fd, seg.size - seg.synced, seg.synced), seg.synced)
+            self.fs.fsync(seg.fd)
+            seg.synced = seg.size
+            # An older store's records carry no synced length: it stays as it is until written.
+            self._dirty = self._dirty or self.manifest.format_version >= 3
 
     def _index_path(self, seg: Segment) -> str:
         return self.file_path(index_name(seg.first_seq, seg.gen))
@@ -227,7 +269,7 @@ class Store:
         path = self.file_path(segment_name(first_seq))
         created = time.time_ns()
         fd = self.fs.open(path, write=True, create=True)
-        self.fs.pwrite(fd, pack_segment_header(first_seq, created), 0)
+        self.fs.pwrite(fd, pack_segment_header(first_seq, created, self.manifest.generation), 0)
         self.fs.fsync(fd)
         self.fs.fsync_dir(self.path)
         return Segment(self.fs, path, first_seq, created, fd, SEGMENT_HEADER_SIZE, lock=self.lock)
@@ -265,7 +307,7 @@ class Store:
             self.check_writable()
             seg = self.active
             seq = seg.next_seq
-            record = enc.pack(seq)
+            record = enc.pack(seq, synced=seg.synced)
             row = (name, len(stamps), seq, stamps[0], stamps[-1], seg.end, len(record), raw_len)
             if self._unsynced_since is None:  # before the append: a commit must never skip its fsync
                 self._unsynced_since = time.monotonic()
@@ -275,6 +317,7 @@ class Store:
                 self._failed = err
                 raise StoreFailedError(f"{seg.path}: write failed: {err}") from err
             self._unsynced_bytes += len(record)
+            self._dirty = True
             # A full segment is committed (and so sealed) at once, not at the next group
             # commit: the limits bound what recovery must scan.
             if self._commit_due() or seg.end >= self.segment_bytes or len(seg.rows) >= self.segment_records:
@@ -301,6 +344,7 @@ class Store:
             seg.flush()
             if self._unsynced_since is not None:
                 self.fs.fsync(seg.fd)
+                seg.synced = seg.size
         except OSError as err:
             self._failed = err
             raise StoreFailedError(f"{seg.path}: fsync failed: {err}; the store refuses further "
@@ -356,6 +400,8 @@ class Store:
         self.fs.write_file_atomic(self._index_path(seg), index.encode(seg.first_seq, seg.size))
         info = {"first_seq": seg.first_seq, "end_seq": seg.next_seq, "size": seg.size,
                 "streams": index.stream_stats()}  # fmt: skip
+        if seg.damage:
+            info["damaged"] = [p.damage_info() for p in seg.damage]
         self.commit_manifest(self.manifest.with_sealed(info))
         seg.sealed_size = seg.size
         self.sealed.append(seg)
@@ -370,6 +416,14 @@ class Store:
     def fail(self, err: BaseException) -> None:
         """Refuse further writes: what reached the disk is unknown (package-internal)."""
         self._failed = err
+
+    def _checkpoint(self) -> None:
+        """A clean close proves the whole active segment durable (FORMAT.md, "Proof of
+        what was synced"), so recovery can tell damage in its last group from a torn tail."""
+        seg = self.active
+        mark = {"first_seq": seg.first_seq, "synced": seg.synced, "next_seq": seg.next_seq}
+        if self._dirty and self.manifest.checkpoint != mark:
+            self.commit_manifest(self.manifest.with_checkpoint(**mark))
 
     def _start_flusher(self) -> None:
         if self.sync_every_ms:
@@ -405,6 +459,7 @@ class Store:
             try:
                 if not self.readonly and self._failed is None:
                     self._commit()
+                    self._checkpoint()
             finally:
                 self._closed = True
                 self._wake.notify_all()
@@ -468,15 +523,41 @@ class Store:
             t["aged"] = sum(info.get("aged", {}).get(name, 0) for info in infos)
         return dict(sorted(total.items()))
 
+    def damage(self) -> list[dict[str, Any]]:
+        """Damage below the synced point that the store knows of and that was not
+        discarded: per stretch its `segment` file, `offset`, `length`, the seqs it lost
+        [`first_seq`, `end_seq`) and `reason` (FORMAT.md, "Damage")."""
+        with self.lock:
+            found = [dict(d, segment=segment_name(info["first_seq"], info.get("gen", 0)))
+                     for info, d in self.manifest.damage()]  # fmt: skip
+            if self.readonly:  # a writer has named the tail's damage in the manifest already
+                found += [dict(p.damage_info(), segment=os.path.basename(p.path)) for p in self.recovery.damage]
+        return found
+
+    def _refuse_damaged(self) -> None:
+        damage = self.damage()
+        if damage:
+            where = "; ".join(describe_damage(d) for d in damage)
+            raise DamagedError(f"{self.path}: windows lost to damage below the synced point ({where}); a "
+                               "query could miss them, so it refuses: run `cclog fsck --repair`, or read "
+                               "the intact windows with --skip-damaged", damage, path=self.path,
+                               reason=damage[0]["reason"])  # fmt: skip
+
     def query(self, name: str | None = None, start_ns: int | None = None,
-              end_ns: int | None = None) -> Iterator[Window]:  # fmt: skip
+              end_ns: int | None = None, *, skip_damaged: bool = False) -> Iterator[Window]:  # fmt: skip
         """Windows of stream `name` (all streams when None) overlapping [start_ns, end_ns],
-        in (start_ns, seq) order. Includes this writer's puts not yet synced."""
+        in (start_ns, seq) order. Includes this writer's puts not yet synced.
+
+        Raises DamagedError when the store knows of damaged windows (their stream and time
+        are lost with them, so any query may miss one), unless `skip_damaged`: then only
+        the intact windows come back and `damage()` says what is missing."""
         t0 = MIN_NS if start_ns is None else int(start_ns)
         t1 = MAX_NS if end_ns is None else int(end_ns)
         with self.lock:
             if self._closed:
                 raise StoreError(f"{self.path}: the store is closed")
+            if not skip_damaged:
+                self._refuse_damaged()
             names = [name] if name is not None else list(self.streams())
             runs = []
             for stream in names:
@@ -531,6 +612,27 @@ class Store:
         return total
 
 
+def _remove_stale_creations(parent: str, base: str) -> None:
+    """Hidden directories of creations of this store whose process is gone (killed)."""
+    prefix = f".{base}.creating-"
+    for name in os.listdir(parent):
+        if name.startswith(prefix) and name[len(prefix):].isdigit():
+            try:
+                os.kill(int(name[len(prefix):]), 0)
+                continue  # still running: another process creating the same store
+            except ProcessLookupError:
+                shutil.rmtree(os.path.join(parent, name), ignore_errors=True)
+            except PermissionError:
+                continue
+
+
+def describe_damage(d: Mapping[str, Any]) -> str:
+    """One damaged stretch as reports print it."""
+    first, end = d["first_seq"], d["end_seq"]
+    seqs = "no seq" if end <= first else f"seq {first}" if end == first + 1 else f"seqs {first}..{end - 1}"
+    return f"{d['segment']} at offset {d['offset']}, {d['length']} bytes, {seqs}: {d['reason']}"
+
+
 def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: bool = False,
                codec: Any = "columnar", stream_codecs: Mapping[str, Any] | None = None,
                sync_every_ms: float | None = 200, sync_every_bytes: int | None = 4 << 20,
@@ -555,11 +657,14 @@ def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: 
         check_stream_name(name)
     try:
         store._open(create)
-    except BaseException:
+    except BaseException as err:
         store._closed = True
         store._close_segments()
         if store._lock_fd is not None:
             store.fs.unlock(store._lock_fd)
+        if isinstance(err, OSError):  # a path that is a file, unwritable, gone: one line, no traceback
+            where = err.filename or store.path
+            raise StoreError(f"{store.path}: cannot open the store: {err.strerror or err} ({where})") from err
         raise
     return store
 

@@ -9,6 +9,7 @@ from typing import Any
 
 from ..codecs import codec_for_record, codec_numeric_id
 from ..errors import CodecError, CorruptionError, StoreError
+from . import planted
 from .format import AGED_META_KEY, Reason, RecordFlag, RecordHeader
 from .segment import Segment
 
@@ -46,8 +47,32 @@ class Window:
                 if self._segment.fd < 0:
                     raise StoreError(f"{self._segment.path} is closed: the store was closed, or compaction "
                                      "replaced or dropped this segment; query again")  # fmt: skip
-                self._record = self._segment.read_record(self._offset, self._length)
+                header, payload = self._segment.read_record(self._offset, self._length)
+                self._check_entry(header)
+                self._record = header, payload
         return self._record
+
+    def _check_entry(self, header: RecordHeader) -> None:
+        """The record must be the one the index entry describes: a stale or forged index
+        whose checksum holds would otherwise hand out another window's messages."""
+        if "trust-index" in planted.BUGS:
+            return
+        said = (self.name, self.seq, self.start_ns, self.end_ns, self.count)
+        found = (header.name, header.seq, header.start_ns, header.end_ns, header.count)
+        if said != found:
+            if self._segment.sealed_size >= 0:
+                self._segment.distrust_index()
+            raise CorruptionError(
+                f"{self._segment.path}: record at offset {self._offset} is seq {header.seq} of "
+                f"{header.name!r}, but the time index says seq {self.seq} of {self.name!r}; the index "
+                "is rebuilt from the segment: query again",
+                path=self._segment.path, offset=self._offset, reason=Reason.INDEX_MISMATCH,
+            )  # fmt: skip
+
+    def check(self) -> None:
+        """Read and check the record now (framing, checksums, its index entry); raises
+        CorruptionError naming the file, offset and reason. The record is kept for reading."""
+        self._read()
 
     @property
     def offset(self) -> int:

@@ -22,6 +22,9 @@ class Inode:
     durable: bytearray = field(default_factory=bytearray)
     current: bytearray = field(default_factory=bytearray)
     pending: list[tuple] = field(default_factory=list)  # ("write", off, data) | ("truncate", size)
+    # Ranges a failed fsync left marked clean but never written ("fsyncgate"): a later
+    # fsync does not write them; only a new write of the whole range does.
+    lost: list[tuple[int, int]] = field(default_factory=list)
 
 
 def _apply(buf: bytearray, op: tuple) -> None:
@@ -56,10 +59,26 @@ class DiskModel:
             pop = ("write", op[2], op[3]) if kind == "write" else ("truncate", op[2])
             _apply(inode.current, pop)
             inode.pending.append(pop)
+            if kind == "write":
+                end = op[2] + len(op[3])
+                inode.lost = [(a, b) for a, b in inode.lost if not (op[2] <= a and b <= end)]
         elif kind == "fsync" and name in self.names:
             inode = self.inodes[self.names[name]]
-            inode.durable = bytearray(inode.current)
+            durable = bytearray(inode.current)
+            for a, b in inode.lost:
+                if a < len(durable):
+                    old = bytes(inode.durable[a:b]).ljust(b - a, b"\0")
+                    durable[a : min(b, len(durable))] = old[: min(b, len(durable)) - a]
+            inode.durable = durable
             inode.pending.clear()
+        elif kind == "fsync_failed" and name in self.names:
+            inode = self.inodes[self.names[name]]
+            inode.lost += [(op[1], op[1] + len(op[2])) for op in inode.pending if op[0] == "write"]
+            inode.pending.clear()
+        elif kind == "rename" and name not in self.names:
+            # A directory renamed (a store created in a hidden sibling, then moved into place):
+            # the model's namespace is flat, so the files it holds are already in it.
+            pass
         elif kind == "rename":
             dst = os.path.basename(op[2])
             self.names[dst] = self.names.pop(name)

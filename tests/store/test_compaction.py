@@ -44,7 +44,7 @@ def test_seal_on_demand(tmp_path):
         store.put_window("/a", [(1, "1")])
         assert store.seal() is True
         assert [s.first_seq for s in store.sealed] == [0] and store.active.first_seq == 1
-        assert store.manifest["format_version"] == 1  # sealing is not compaction
+        assert store.manifest["format_version"] == 3  # written by this version (records carry a synced length)
     with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
         assert store.recovery.clean and [w.seq for w in store.query()] == [0]
 
@@ -57,7 +57,7 @@ def test_rewrite_replaces_downsamples_and_keeps(tmp_path):
         assert report.before["/odom"]["messages"] == 25 and report.after["/odom"]["messages"] == 15
         assert report.before["/tf"] == report.after["/tf"]
         new = state(store)
-        assert store.manifest["format_version"] == 2
+        assert store.manifest["format_version"] == 3  # written by this version
         assert [s.get("gen") for s in store.manifest["segments"]] == [1, 1, 1, 1]
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
         assert state(store) == new
@@ -274,7 +274,7 @@ def test_a_reader_racing_a_compaction_rereads_the_manifest(tmp_path):
             assert not steps  # every compaction ran between a manifest read and the files' opening
 
 
-def test_a_never_compacted_store_stays_version_1_byte_for_byte(tmp_path):
+def test_a_version_1_store_opened_and_closed_stays_byte_for_byte(tmp_path):
     shutil.copytree(GOLDEN / "store_v1", tmp_path / "s")
     before = files(tmp_path / "s")
     with cclogfs.open_store(tmp_path / "s", sync_every_ms=None, segment_age_s=1e12):
@@ -285,17 +285,16 @@ def test_a_never_compacted_store_stays_version_1_byte_for_byte(tmp_path):
     with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
         store.put_window("/a", [(1, "1")])
         store.seal()
-        assert unpack_manifest((tmp_path / "s" / MANIFEST).read_bytes())["format_version"] == 1
-        store.rewrite(lambda w: None)  # nothing replaced: still version 1
-        assert unpack_manifest((tmp_path / "s" / MANIFEST).read_bytes())["format_version"] == 1
+        # Its new record carries a synced length (record version 2): older readers must refuse.
+        assert unpack_manifest((tmp_path / "s" / MANIFEST).read_bytes())["format_version"] == 3
 
 
 def test_an_unknown_format_version_is_refused_naming_file_and_field(tmp_path):
     make(tmp_path / "s").close()
     path = tmp_path / "s" / MANIFEST
-    path.write_bytes(pack_manifest(unpack_manifest(path.read_bytes()) | {"format_version": 3}))
+    path.write_bytes(pack_manifest(unpack_manifest(path.read_bytes()) | {"format_version": 4}))
     for opts in ({"readonly": True}, {}):
-        with pytest.raises(StoreError, match=r"MANIFEST: field format_version is 3"):
+        with pytest.raises(StoreError, match=r"MANIFEST: field format_version is 4"):
             cclogfs.open_store(tmp_path / "s", **opts)
 
 

@@ -9,10 +9,11 @@ import pytest
 import cclogfs
 from cclogfs.errors import CorruptionError, UnknownCodecError
 from cclogfs.store.format import RECORD_FIXED, RECORD_FIXED_SIZE, crc32c
-from helpers import SEG, append, cut, flip, make_store, patch_header, segment_files, seqs, unseal, zero
+from helpers import SEG, append, cut, drop_checkpoint, flip, make_store, patch_header, segment_files, seqs, unseal, zero
 
 def test_torn_tail_is_truncated_and_reported(tmp_path):
     recs = make_store(tmp_path / "s")
+    drop_checkpoint(tmp_path / "s")  # a crash after the last put: its tail is unsynced
     seg = tmp_path / "s" / SEG
     size = recs[3][1] + recs[3][2] // 2
     cut(seg, size)
@@ -27,6 +28,7 @@ def test_torn_tail_is_truncated_and_reported(tmp_path):
                                            ("header", "header checksum mismatch")])  # fmt: skip
 def test_checksum_mismatch_ends_the_tail(tmp_path, where, reason):
     recs = make_store(tmp_path / "s")
+    drop_checkpoint(tmp_path / "s")  # a crash after the last put: its tail is unsynced
     seq, off, length = recs[1]
     flip(tmp_path / "s" / SEG, off + (length - 5 if where == "payload" else RECORD_FIXED_SIZE + 1))
     with cclogfs.open_store(tmp_path / "s") as store:
@@ -37,6 +39,7 @@ def test_checksum_mismatch_ends_the_tail(tmp_path, where, reason):
 
 def test_bad_length_is_caught_before_allocating(tmp_path):
     recs = make_store(tmp_path / "s")
+    drop_checkpoint(tmp_path / "s")  # a crash after the last put: its tail is unsynced
     patch_header(tmp_path / "s" / SEG, recs[2][1], enc_len=1 << 40)
     with cclogfs.open_store(tmp_path / "s") as store:
         assert seqs(store) == [0, 1]
@@ -45,6 +48,7 @@ def test_bad_length_is_caught_before_allocating(tmp_path):
 
 def test_zero_fill(tmp_path):
     recs = make_store(tmp_path / "s")
+    drop_checkpoint(tmp_path / "s")  # a crash after the last put: its tail is unsynced
     append(tmp_path / "s" / SEG, b"\0" * 4096)
     with cclogfs.open_store(tmp_path / "s") as store:
         assert seqs(store) == [0, 1, 2, 3]
@@ -137,6 +141,7 @@ def test_missing_sealed_segment_is_named(tmp_path):
 
 def test_reader_does_not_repair(tmp_path):
     recs = make_store(tmp_path / "s")
+    drop_checkpoint(tmp_path / "s")  # a crash after the last put: its tail is unsynced
     seg = tmp_path / "s" / SEG
     cut(seg, recs[3][1] + 10)
     before = seg.read_bytes()
@@ -166,18 +171,19 @@ def test_sealed_segment_cut_at_a_record_boundary_is_not_a_silent_hole(tmp_path):
 
 
 def test_record_of_a_newer_version_with_a_longer_header_is_skipped(tmp_path):
-    # Version 2 appends 8 bytes to the header (allowed by the extension rules): a version 1
+    # A version 9 that appends 8 bytes to the header (allowed by the extension rules): this
     # reader frames it by header_len, skips it, and keeps every later record.
     from cclogfs.store.format import RECORD_FIXED, crc32c, pack_record, xxh3
 
     recs = make_store(tmp_path / "s", n=3)
+    drop_checkpoint(tmp_path / "s")  # a crash after the last put: its tail is unsynced
     seg = tmp_path / "s" / SEG
     data = seg.read_bytes()
     seq1 = data[recs[1][1] : recs[1][1] + recs[1][2]]
     fields = list(RECORD_FIXED.unpack_from(seq1))
     header_len = fields[4]
     head = bytearray(seq1[: header_len - 4]) + b"NEWFIELD"
-    fields[2], fields[4] = 2, header_len + 8  # version, header_len
+    fields[2], fields[4] = 9, header_len + 8  # version, header_len
     RECORD_FIXED.pack_into(head, 0, *fields)
     newer = bytes(head) + struct.pack("<I", crc32c(bytes(head))) + seq1[header_len:]
     seg.write_bytes(data[: recs[1][1]] + newer + data[recs[1][1] + recs[1][2] :])
@@ -193,6 +199,7 @@ def test_record_of_a_newer_version_with_a_longer_header_is_skipped(tmp_path):
                                             ({"flags": 4}, None)])  # fmt: skip
 def test_intact_records_with_impossible_fields(tmp_path, fields, reason):
     recs = make_store(tmp_path / "s")
+    drop_checkpoint(tmp_path / "s")  # a crash after the last put: its tail is unsynced
     patch_header(tmp_path / "s" / SEG, recs[2][1], **fields)
     with cclogfs.open_store(tmp_path / "s") as store:
         if reason:  # no writer makes these: damage, the tail ends there
@@ -201,24 +208,43 @@ def test_intact_records_with_impossible_fields(tmp_path, fields, reason):
             assert seqs(store) == [0, 1, 3] and store.recovery.skipped[0].reason == "unknown record flags"
 
 
-def test_damage_mid_active_segment_keeps_the_bytes_and_fsck_says_error(tmp_path):
-    from cclogfs.store import check_store
+def test_damage_below_the_synced_point_is_kept_declared_and_never_hidden(tmp_path):
+    # Issue 11, item 1: a clean close, one flipped byte mid-segment. Recovery must not cut the
+    # intact records after it, and a second write must not hide the damage.
+    from cclogfs.errors import DamagedError
 
-    recs = make_store(tmp_path / "s", n=5, sync_every_ms=0)  # every put synced
+    recs = make_store(tmp_path / "s", n=5)
     seq, off, length = recs[1]
     flip(tmp_path / "s" / SEG, off + length - 5)  # bit rot in a synced record
-    report = check_store(str(tmp_path / "s"))
-    assert [f.severity for f in report.findings] == ["error"] and "3 intact records" in str(report.findings[0])
-    tail = (tmp_path / "s" / SEG).read_bytes()[off:]
+    for _ in range(2):  # the second open (after a further put) still sees and names it
+        with cclogfs.open_store(tmp_path / "s") as store:
+            (d,) = store.damage()
+            assert (d["segment"], d["offset"], d["first_seq"], d["end_seq"]) == (SEG, off, 1, 2)
+            assert d["reason"] == "payload checksum mismatch" and d["length"] == length
+            with pytest.raises(DamagedError, match="seq 1: payload checksum mismatch"):
+                list(store.query())
+            got = [w.seq for w in store.query(skip_damaged=True)]
+            assert got[:4] == [0, 2, 3, 4]  # every intact window, none cut
+            store.put_window("/a", [(999, "1")])
+    assert not list((tmp_path / "s").glob("*.tail-*"))
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        assert [w.seq for w in store.query(skip_damaged=True)] == [0, 2, 3, 4, 5, 6]
+
+
+def test_damage_in_the_last_synced_group_is_not_a_torn_tail(tmp_path):
+    # The checkpoint of a clean close proves the last group durable: damage there is kept.
+    recs = make_store(tmp_path / "s", n=4)
+    seq, off, length = recs[3]
+    flip(tmp_path / "s" / SEG, off + length - 5)
     with cclogfs.open_store(tmp_path / "s") as store:
-        assert seqs(store) == [0]  # still a prefix: no hole
-        (p,) = store.recovery.problems
-        assert p.intact_after == 3 and p.kept_in == f"{SEG}.tail-{off}"
-    assert (tmp_path / "s" / f"{SEG}.tail-{off}").read_bytes() == tail  # nothing destroyed
+        assert [(d["first_seq"], d["end_seq"]) for d in store.damage()] == [(3, 4)]
+        assert store.put_window("/a", [(999, "1")]).seq == 4  # seq 3 is never reused
+    assert (tmp_path / "s" / SEG).stat().st_size == off + length  # nothing cut
 
 
 def test_plain_torn_tail_keeps_no_side_file(tmp_path):
     recs = make_store(tmp_path / "s")
+    drop_checkpoint(tmp_path / "s")  # a crash after the last put: its tail is unsynced
     cut(tmp_path / "s" / SEG, recs[3][1] + 30)
     with cclogfs.open_store(tmp_path / "s") as store:
         assert store.recovery.problems[0].intact_after == 0 and not store.recovery.problems[0].kept_in
@@ -265,6 +291,7 @@ def test_windows_of_a_closed_store_refuse_to_read(tmp_path):
 
 def test_bad_magic_ends_the_tail(tmp_path):
     recs = make_store(tmp_path / "s")
+    drop_checkpoint(tmp_path / "s")  # a crash after the last put: its tail is unsynced
     flip(tmp_path / "s" / SEG, recs[2][1])  # first byte of the record's magic
     with cclogfs.open_store(tmp_path / "s") as store:
         assert seqs(store) == [0, 1]
@@ -274,6 +301,7 @@ def test_bad_magic_ends_the_tail(tmp_path):
 
 def test_sequence_gap_inside_a_segment_ends_the_tail(tmp_path):
     recs = make_store(tmp_path / "s")
+    drop_checkpoint(tmp_path / "s")  # a crash after the last put: its tail is unsynced
     patch_header(tmp_path / "s" / SEG, recs[2][1], seq=7)  # intact, but not the next seq
     with cclogfs.open_store(tmp_path / "s") as store:
         assert seqs(store) == [0, 1]
@@ -303,13 +331,24 @@ def test_tail_segment_that_does_not_start_where_the_log_ends_is_a_gap(tmp_path):
 
 def test_bad_segment_header_drops_the_segment_and_all_after_it(tmp_path):
     files = _three_segments(tmp_path / "s")
-    zero(files[1], 0, 8)  # the header of the tail's first segment never reached the disk
+    files[1].write_bytes(b"\0" * 32)  # created, its header never reached the disk, no record
     with cclogfs.open_store(tmp_path / "s") as store:
         got = [(p.path.rsplit("/", 1)[1], p.reason) for p in store.recovery.problems]
         assert got[0] == (files[1].name, Reason.BAD_SEGMENT_HEADER)
         assert got[1:] == [(f.name, Reason.DROPPED_SEGMENT) for f in files[2:]]
         assert seqs(store) == list(range(10)) and store.active_first_seq == 10  # a new, empty segment 10
     assert not files[2].exists() and not files[3].exists()
+
+
+def test_a_damaged_header_before_synced_records_is_damage_not_an_empty_tail(tmp_path):
+    # Issue 11, item 6: one flipped bit in the active header used to delete the segment.
+    files = _three_segments(tmp_path / "s")
+    flip(files[1], 9)
+    with cclogfs.open_store(tmp_path / "s") as store:
+        (d,) = store.damage()
+        assert (d["segment"], d["offset"], d["reason"]) == (files[1].name, 0, Reason.BAD_SEGMENT_HEADER)
+        assert [w.seq for w in store.query(skip_damaged=True)] == list(range(30))
+    assert files[1].exists()
 
 
 def test_segment_after_the_torn_tail_is_dropped(tmp_path):
@@ -398,3 +437,45 @@ def test_message_that_is_not_utf8_is_an_error_on_read_and_in_fsck(tmp_path):
             list(w.messages())
     report = check_store(str(path), deep=True)
     assert any("not valid UTF-8" in f.what for f in report.errors)
+
+
+def test_a_forged_index_is_caught_on_read(tmp_path):
+    # Issue 11, item 10, at the library: an index with a valid checksum naming the wrong
+    # records must not hand out another window's messages.
+    from cclogfs.store.index import SegmentIndex
+
+    make_store(tmp_path / "s", n=6, segment_records=3)
+    idx = tmp_path / "s" / "00000000000000000000.idx"
+    size = (tmp_path / "s" / SEG).stat().st_size
+    index = SegmentIndex.decode(idx.read_bytes(), 0, size)
+    e = index.entries
+    rows = [(index.names[int(x["stream"])], int(x["count"]), int(x["seq"]), int(x["start"]), int(x["end"]),
+             int(y["offset"]), int(y["length"]), int(x["raw_len"])) for x, y in zip(e, e[::-1])]  # fmt: skip
+    idx.write_bytes(SegmentIndex.build(rows).encode(0, size))
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        w = next(w for w in store.query() if w.seq == 0)
+        with pytest.raises(CorruptionError, match="the time index says") as err:
+            list(w.messages())
+        assert err.value.reason == Reason.INDEX_MISMATCH
+        # The mismatch rebuilt the index: the next query answers right.
+        assert [(w.seq, list(w.messages())[0][0]) for w in store.query()] == [(i, i * 10) for i in range(6)]
+    with cclogfs.open_store(tmp_path / "s") as store:  # a writer writes the rebuilt index back
+        with pytest.raises(CorruptionError, match="the time index says"):
+            [list(w.messages()) for w in store.query()]
+        assert [(w.seq, list(w.messages())[0][0]) for w in store.query()] == [(i, i * 10) for i in range(6)]
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        assert [(w.seq, list(w.messages())[0][0]) for w in store.query()] == [(i, i * 10) for i in range(6)]
+
+
+def test_a_deleted_active_segment_is_missing_not_an_empty_tail(tmp_path):
+    # Issue 11, item 11: the active segment's file could be deleted without anyone noticing.
+    from cclogfs.store import check_store
+
+    make_store(tmp_path / "s", n=3)
+    (tmp_path / "s" / SEG).unlink()
+    for opts in ({}, {"readonly": True}):
+        with pytest.raises(CorruptionError, match="seqs 0..2 at the last clean close, is missing") as err:
+            cclogfs.open_store(tmp_path / "s", **opts)
+        assert err.value.reason == Reason.MISSING_SEGMENT
+    assert check_store(str(tmp_path / "s")).errors
+    assert sorted(p.name for p in (tmp_path / "s").iterdir()) == ["LOCK", "MANIFEST"]

@@ -4,6 +4,8 @@ crash could leave opens to exactly a prefix of the puts, holding every synced pu
 import json
 import random
 
+import pytest
+
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -121,3 +123,78 @@ def test_reordered_writes_do_not_leave_a_hole(tmp_path):
         assert [w.seq for w in store.query()] == [0]
         (problem,) = store.recovery.problems
         assert problem.reason == "zero fill"
+
+
+def _killed_writer_then(tmp_path, then):
+    """A writer killed with records handed to the OS but never fsynced; a second process
+    opens the same store (same page cache) and runs `then(store)`; then the power fails.
+    Returns the store the power loss leaves, opened."""
+    fs = RecordingFileSystem()
+    opts = dict(fs=fs, sync_every_ms=None, sync_every_bytes=None)
+    first = cclogfs.open_store(tmp_path / "s", create=True, **opts)
+    first.put_window("/a", [(0, "0")])
+    first.sync()  # acknowledged
+    for i in range(1, 4):
+        first.put_window("/a", [(i, str(i))])
+    first.active.flush()  # in the page cache only
+    first._closed = True  # kill -9: nothing more of it runs
+    fs.unlock(first._lock_fd)
+    with cclogfs.open_store(tmp_path / "s", **opts) as second:
+        assert [w.seq for w in second.query()] == [0, 1, 2, 3]
+        then(second)
+    model = DiskModel()
+    for op in fs.ops:
+        model.apply(op)
+    img = tmp_path / "img"
+    img.mkdir()
+    for name, data in model.image(random.Random(0), "lost").items():  # only what was fsynced
+        (img / name).write_bytes(data)
+    return cclogfs.open_store(img, sync_every_ms=None)
+
+
+def test_seal_after_a_crash_seals_only_durable_data(tmp_path):
+    # Issue 11, item 5: the second process seals before any put; a power loss must not
+    # leave a sealed segment whose tail lived only in the page cache.
+    with _killed_writer_then(tmp_path, lambda store: store.seal()) as store:
+        assert [w.seq for w in store.query()] == [0, 1, 2, 3]
+        assert [list(w.messages()) for w in store.query()][0] == [(0, "0")]
+
+
+def test_records_recovered_after_a_crash_are_made_durable_by_the_next_sync(tmp_path):
+    # Issue 11, item 11: what the second process recovered and answered is durable.
+    with _killed_writer_then(tmp_path, lambda store: store.sync()) as store:
+        assert [w.seq for w in store.query()] == [0, 1, 2, 3]
+
+
+def test_a_reopen_after_a_failed_fsync_rewrites_what_it_cannot_prove_durable(tmp_path):
+    # Issue 11, item 8 ("fsyncgate"): after a failed fsync the kernel may mark the pages
+    # clean without writing them. The reopened store must write them again, or a put
+    # acknowledged after the reopen survives a power loss only in a side file.
+    from cclogfs.errors import StoreFailedError
+
+    fs = RecordingFileSystem()
+    opts = dict(fs=fs, sync_every_ms=None, sync_every_bytes=None)
+    store = cclogfs.open_store(tmp_path / "s", create=True, **opts)
+    store.put_window("/a", [(0, "0")])
+    store.sync()
+    for i in (1, 2):
+        store.put_window("/a", [(i, str(i))])
+    seg = store.active.path
+    fs.fail_fsync = True
+    with pytest.raises(StoreFailedError):
+        store.sync()
+    fs.ops.append(("fsync_failed", seg))  # the kernel dropped the dirty pages' state
+    fs.fail_fsync = False
+    store.close()
+    with cclogfs.open_store(tmp_path / "s", **opts) as store:  # "reopen to recover"
+        store.put_window("/a", [(3, "3")])
+        store.sync()  # acknowledged
+    model = DiskModel()
+    for op in fs.ops:
+        model.apply(op)
+    img = tmp_path / "img"
+    img.mkdir()
+    for name, data in model.image(random.Random(0), "lost").items():
+        (img / name).write_bytes(data)
+    with cclogfs.open_store(img, sync_every_ms=None) as store:
+        assert [w.seq for w in store.query()] == [0, 1, 2, 3]

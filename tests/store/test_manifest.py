@@ -32,7 +32,7 @@ def test_versions_are_built_never_changed():
     assert m0.segments == [] and len(m1.segments) == 1 and m2.end_seq == 20
     assert m2.format_version == FORMAT_VERSION  # sealing is not compaction
     m3 = m2.with_replaced({10: info(10, 20, gen=1, a=1)})
-    assert m3.format_version == COMPACTED_FORMAT_VERSION and m3.segments[1]["gen"] == 1
+    assert m3.format_version == FORMAT_VERSION and m3.segments[1]["gen"] == 1
     assert m2.segments[1].get("gen") is None and m3.segments[0] is m2.segments[0]
     m4 = m3.without_oldest()
     assert m4.first_seq == 10 and [s["first_seq"] for s in m4.segments] == [10]
@@ -71,3 +71,28 @@ def test_load_names_damage_and_unknown_versions(tmp_path):
     path.write_bytes(pack_manifest({"format_version": 9, "segments": []}))
     with pytest.raises(StoreError, match="format_version is 9"):
         Manifest.load(fs, str(path))
+
+
+def test_a_rolled_back_manifest_is_refused_and_nothing_is_deleted(tmp_path):
+    # Issue 11, item 7: an older valid MANIFEST after a compaction used to make the writer
+    # remove every later segment as 'after a gap'.
+    import cclogfs
+    from cclogfs.errors import CorruptionError
+    from cclogfs.store import Replacement
+    from cclogfs.store.format import Reason
+
+    path = tmp_path / "s"
+    with cclogfs.open_store(path, create=True, segment_records=3, sync_every_ms=None) as store:
+        for i in range(6):
+            store.put_window("/a", [(i, str(i))])
+        old = (path / "MANIFEST").read_bytes()
+        store.rewrite(lambda w: Replacement([(w.start_ns, '"x"')], {}) if w.seq == 1 else None)
+        for i in range(6, 14):
+            store.put_window("/a", [(i, str(i))])
+    (path / "MANIFEST").write_bytes(old)
+    before = {p.name: p.read_bytes() for p in path.iterdir()}
+    for opts in ({}, {"readonly": True}):
+        with pytest.raises(CorruptionError, match="rolled back") as err:
+            cclogfs.open_store(path, **opts)
+        assert err.value.reason == Reason.ROLLED_BACK
+    assert {p.name: p.read_bytes() for p in path.iterdir()} == before

@@ -216,9 +216,40 @@ def test_public_catalogue_api(tmp_path):
         assert store.segment_first_seqs() == [0, 3, 6]
         assert [w.seq for w in store.segment_windows(6)] == [6]
         assert sorted(w.seq for w in store.segment_windows(3)) == [3, 4, 5]
-        assert store.format_version == 1 and len(store.store_id) == 32
+        assert store.format_version == 3 and len(store.store_id) == 32
         store_id = store.store_id
     with cclogfs.open_store(path, readonly=True) as reader:
         assert reader.active_first_seq is None and reader.segment_count() == 3
         assert reader.store_id == store_id and reader.sealed_segments() == sealed
         assert [w.offset for w in reader.segment_windows(6)] == [32]
+
+
+def test_a_store_is_created_complete_or_not_at_all(tmp_path, monkeypatch):
+    # Issue 11, item 3: a creation killed before its manifest was durable.
+    from cclogfs.store.fs import FileSystem
+
+    def killed(self, src, dst):
+        raise KeyboardInterrupt  # the process dies before the commit point
+
+    monkeypatch.setattr(FileSystem, "rename", killed)
+    with pytest.raises(KeyboardInterrupt):
+        cclogfs.open_store(tmp_path / "s", create=True)
+    monkeypatch.undo()
+    assert not (tmp_path / "s").exists() and os.listdir(tmp_path) == []
+    (tmp_path / "s").mkdir()  # a directory the user made first is fine too
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        store.put_window("/a", [(1, "1")])
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        assert [w.seq for w in store.query()] == [0]
+
+
+def test_a_half_made_store_is_finished_by_the_next_writer(tmp_path):
+    # What an older version's killed creation left: a directory with only LOCK.
+    (tmp_path / "s").mkdir()
+    (tmp_path / "s" / "LOCK").write_text("")
+    with pytest.raises(StoreError, match="creation was interrupted"):
+        cclogfs.open_store(tmp_path / "s", readonly=True)
+    with cclogfs.open_store(tmp_path / "s") as store:  # no create=True needed
+        store.put_window("/a", [(1, "1")])
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        assert [w.seq for w in store.query()] == [0]

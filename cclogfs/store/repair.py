@@ -1,0 +1,180 @@
+"""`fsck --repair`: bring a store back to clean, losing nothing that can be read.
+
+Steps, each safe to repeat after a crash (FORMAT.md, "Repair"): open as the writer (recovery
+cuts an unsynced torn tail and names damage below the synced point in the manifest); rebuild
+every index that is missing, damaged or wrong; put every intact record of a side file back
+into the store (marked salvaged, never twice) and then move the side file into quarantine;
+with `discard_damaged`, forget the named damage and delete the quarantine.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import types
+from dataclasses import dataclass, field
+
+from ..codecs import codec_from_config
+from ..errors import CclogError, CorruptionError
+from .format import AGED_META_KEY, MANIFEST, QUARANTINE, SIDE_FILE, check_fields
+from .fs import FileSystem
+from .records import intact_records
+from .index import SegmentIndex
+from .manifest import Manifest
+from .rebuild import rebuild_manifest
+from .segment import scan
+from .store import Store, describe_damage, open_store
+from .window import Window
+
+SALVAGED_META_KEY = "salvaged"
+
+
+@dataclass
+class RepairReport:
+    path: str
+    actions: list[str] = field(default_factory=list)  # what was changed
+    damage_left: list[str] = field(default_factory=list)  # named damage and quarantined files
+
+    @property
+    def exit_code(self) -> int:
+        """e2fsck's: 0 clean, 1 repaired, 4 damage left (8, an operational error, is the CLI's)."""
+        return 4 if self.damage_left else 1 if self.actions else 0
+
+
+def repair_store(path: str, *, discard_damaged: bool = False, fs: FileSystem | None = None) -> RepairReport:
+    report = RepairReport(path)
+    fs = fs or FileSystem()
+    _rebuild_manifest_if_damaged(path, fs, report)
+    with open_store(path, sync_every_ms=None, sync_every_bytes=None, fs=fs) as store:
+        rec = store.recovery
+        report.actions += [f"cut torn tail: {p}" for p in rec.problems]
+        report.actions += [f"sealed with damage named in the manifest: {p}" for p in rec.damage]
+        report.actions += [f"removed {n}" for n in rec.removed_files]
+        _declare_sealed_damage(store, report)
+        _rebuild_indexes(store, report)
+        _adopt_quarantine(store, report)
+        for name in sorted(n for n in store.fs.listdir(path) if SIDE_FILE.match(n)):
+            _salvage(store, name, report)
+        if discard_damaged:
+            _discard(store, report)
+        report.damage_left = [describe_damage(d) for d in store.damage()]
+        report.damage_left += [f"{QUARANTINE}/{n}: bytes cut from the log" for n in store.manifest.quarantine]
+    return report
+
+
+def _rebuild_manifest_if_damaged(path: str, fs: FileSystem, report: RepairReport) -> None:
+    """A MANIFEST that fails its checks (not a missing one: that is no store) is derived
+    again from the segment files."""
+    manifest = os.path.join(path, MANIFEST)
+    if not fs.exists(manifest):
+        return
+    try:
+        Manifest.load(fs, manifest)
+    except CorruptionError:
+        report.actions += rebuild_manifest(fs, path, codec_from_config("columnar").get_config())
+
+
+def _rebuild_indexes(store: Store, report: RepairReport) -> None:
+    """Write every sealed segment's index again from a scan when it differs from its file."""
+    for seg in list(store.sealed):
+        path = store.file_path(os.path.basename(store._index_path(seg)))
+        try:
+            before = store.fs.read_file(path)
+        except FileNotFoundError:
+            before = None
+        seg.set_index(None)
+        if before is not None:
+            store.fs.unlink(path)
+        index = store._sealed_index(seg)  # rebuilt from the segment and written back
+        if index.encode(seg.first_seq, seg.size) != before:
+            report.actions.append(f"rebuilt index {os.path.basename(path)}")
+
+
+def _declare_sealed_damage(store: Store, report: RepairReport) -> None:
+    """Name in the manifest every damaged stretch of a sealed segment (all of it was
+    synced), so that reads know what they miss and the index can be rebuilt around it."""
+    for seg, info in zip(store.sealed, store.manifest.segments):
+        if seg.size != seg.sealed_size:
+            continue  # cut or grown since sealing: left for fsck to report, never guessed at
+        result = scan(seg, salvage=True)
+        declared = seg.known_damage
+        found = [*result.damage, *([result.problem] if result.problem else [])]
+        new = [p for p in found if p.offset not in declared]
+        for p in new:
+            if p.seqs is None:  # up to the end: the manifest knows where the segment ended
+                p.seqs = (result.next_seq, max(info["end_seq"], result.next_seq + 1))
+        if new:
+            seg.damage = sorted([*seg.damage, *new], key=lambda p: p.offset)
+            seg.known_damage |= {p.offset for p in new}
+            # The lost windows leave the statistics: they are no longer in the store.
+            stats = SegmentIndex.build(result.rows).stream_stats()
+            damaged = [p.damage_info() for p in seg.damage]
+            store.commit_manifest(store.manifest.with_damage(seg.first_seq, damaged, stats, result.aged))
+            report.actions += [f"named damage in a sealed segment in the manifest: {p}" for p in new]
+
+
+def _salvage(store: Store, name: str, report: RepairReport) -> None:
+    """Put the intact records of side file `name` back (each once), then quarantine it."""
+    data = store.fs.read_file(store.file_path(name))
+    done = _salvaged_already(store, name)
+    put = 0
+    for offset, header, payload in intact_records(b"\0" + data, -1):
+        try:
+            if check_fields(header) is not None or (header.seq, offset) in done:
+                continue
+        except CclogError:
+            continue
+        window = Window(header.name, header.seq, header.start_ns, header.end_ns, header.count,
+                        types.SimpleNamespace(path=store.file_path(name)), offset, header.record_len,
+                        (header, payload))  # fmt: skip
+        meta = json.loads(header.meta)
+        aged = meta.pop(AGED_META_KEY, None)
+        mark = {"from": name, "offset": offset, "seq": header.seq}
+        meta[SALVAGED_META_KEY] = mark if aged is None else dict(mark, aged=aged)
+        store.put_window(header.name, list(window.messages()), meta, codec=json.loads(header.config))
+        put += 1
+    store.sync()
+    _quarantine(store, name)
+    report.actions.append(f"salvaged {put} intact records of {name} into the store; {name} moved to {QUARANTINE}/")
+
+
+def _salvaged_already(store: Store, name: str) -> set[tuple[int, int]]:
+    """(seq, offset) of the records of `name` a repair put back before (it may have crashed)."""
+    done = set()
+    for w in store.query(skip_damaged=True):
+        mark = w.meta.get(SALVAGED_META_KEY)
+        if isinstance(mark, dict) and mark.get("from") == name:
+            done.add((mark.get("seq"), mark.get("offset")))
+    return done
+
+
+def _quarantine(store: Store, name: str) -> None:
+    qdir = store.file_path(QUARANTINE)
+    store.fs.mkdir(qdir)
+    store.fs.rename(store.file_path(name), os.path.join(qdir, name))
+    store.fs.fsync_dir(qdir)
+    store.fs.fsync_dir(store.path)
+    store.commit_manifest(store.manifest.with_quarantined(name))
+
+
+def _adopt_quarantine(store: Store, report: RepairReport) -> None:
+    """Files a crashed repair moved into quarantine before naming them in the manifest."""
+    qdir = store.file_path(QUARANTINE)
+    if store.fs.exists(qdir):
+        for name in sorted(set(store.fs.listdir(qdir)) - set(store.manifest.quarantine)):
+            store.commit_manifest(store.manifest.with_quarantined(name))
+            report.actions.append(f"named {QUARANTINE}/{name} in the manifest")
+
+
+def _discard(store: Store, report: RepairReport) -> None:
+    """Drop named damage and quarantined bytes: asked for explicitly, never by default."""
+    gone = [describe_damage(d) for d in store.damage()] + [f"{QUARANTINE}/{n}" for n in store.manifest.quarantine]
+    if not gone:
+        return
+    names = list(store.manifest.quarantine)
+    store.commit_manifest(store.manifest.with_damage_discarded())
+    for n in names:
+        store.fs.unlink(os.path.join(store.file_path(QUARANTINE), n))
+    if names:
+        store.fs.fsync_dir(store.file_path(QUARANTINE))
+    report.actions += [f"discarded {g}" for g in gone]
