@@ -6,8 +6,6 @@ import argparse
 import os
 import sys
 
-from ..export import export_mcap, export_parquet
-from ..store import open_store
 from .common import Progress, add_selection, selected_windows
 
 EXAMPLES = """\
@@ -39,6 +37,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # Imported here, not at the top: `cclog --help` imports every subcommand module.
+    from ..export import export_mcap, export_parquet
+    from ..store import open_store
+
     with open_store(args.store, readonly=True) as store, Progress("export") as progress:
         windows = selected_windows(store, args)
         if args.mcap:

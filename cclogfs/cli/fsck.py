@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 
-from ..store import check_store
 
 EXAMPLES = """examples:
   cclog fsck out/demo/store
@@ -29,6 +28,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # Imported here, not at the top: `cclog --help` imports every subcommand module.
+    from ..store import check_store
+
     report = check_store(args.store, deep=args.deep)
     if args.json:
         print(json.dumps({"path": report.path, "segments": report.segments, "records": report.records,

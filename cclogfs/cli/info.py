@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 
-from ..classifier.summary import SUMMARY_TOPIC
-from ..store import open_store
 from .common import human_bytes, iso_ns, table
 
 EXAMPLES = """examples:
@@ -29,6 +27,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def store_info(path: str) -> dict:
     """Everything `cclog info` prints, as a dict."""
+    # Imported here, not at the top: `cclog --help` imports every subcommand module.
+    from ..classifier.summary import SUMMARY_TOPIC
+    from ..store import open_store
+
     with open_store(path, readonly=True) as store:
         streams = store.streams()
         for name, st in streams.items():
@@ -54,6 +56,8 @@ def store_info(path: str) -> dict:
 
 def summary_totals(store) -> dict:
     """Totals of the smart-logging summary stream: what the robot did while nothing was stored."""
+    from ..classifier.summary import SUMMARY_TOPIC
+
     total = {"minutes": 0, "messages": 0, "distance_m": 0.0, "moving_s": 0.0, "anomalies": 0,
              "peak_speed": 0.0, "peak_accel": 0.0}  # fmt: skip
     for w in store.query(SUMMARY_TOPIC):
@@ -68,6 +72,8 @@ def summary_totals(store) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..classifier.summary import SUMMARY_TOPIC
+
     info = store_info(args.store)
     if args.json:
         print(json.dumps(info, indent=2))
