@@ -12,7 +12,7 @@ TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
 git -C "$ROOT" archive "$REV" cclogfs | tar -x -C "$TMP" && mkdir "$TMP/s"
 head -30000 "$D/odom.jsonl" > "$TMP/odom30k.jsonl"
-read -r start end _ < "$D/one_s"
+read -r start end _ < "$D/one_s" || true  # the file has no final newline
 A="env PYTHONPATH=$ROOT $PY -m cclogfs"
 B="env PYTHONPATH=$TMP $PY -m cclogfs"
 show() { grep -E "cpu s|wall s|peak MiB|A/B (cpu|wall)|exit"; }
