@@ -10,11 +10,12 @@ D=$ROOT/out/speed-data-300000-1000000-5
 PY=$ROOT/.venv/bin/python
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
-git -C "$ROOT" archive "$REV" cclogfs | tar -x -C "$TMP" && mkdir "$TMP/s"
+# B in a subdirectory: `python -m` puts the working directory first on sys.path.
+mkdir "$TMP/old" "$TMP/s" && git -C "$ROOT" archive "$REV" cclogfs | tar -x -C "$TMP/old"
 head -30000 "$D/odom.jsonl" > "$TMP/odom30k.jsonl"
 read -r start end _ < "$D/one_s" || true  # the file has no final newline
 A="env PYTHONPATH=$ROOT $PY -m cclogfs"
-B="env PYTHONPATH=$TMP $PY -m cclogfs"
+B="env PYTHONPATH=$TMP/old $PY -m cclogfs"
 show() { grep -E "cpu s|wall s|peak MiB|A/B (cpu|wall)|exit"; }
 cd "$TMP"
 echo "=== cclog --help"; farm-bench -n 9 --vs "$B --help" -- $A --help 2>&1 | show
@@ -26,6 +27,6 @@ farm-bench -n 3 --timeout 400 --vs "$B cat $D/small.store" -- $A cat "$D/small.s
 for args in "odom30k.jsonl" "$D/sim.bag" "odom30k.jsonl --model $D/model"; do
   echo "=== record $args"
   farm-bench -n 5 --timeout 600 \
-    --vs "sh -c 'rm -rf s/b; PYTHONPATH=$TMP exec $PY -m cclogfs record $args --store s/b'" -- \
+    --vs "sh -c 'rm -rf s/b; PYTHONPATH=$TMP/old exec $PY -m cclogfs record $args --store s/b'" -- \
     sh -c "rm -rf s/a; PYTHONPATH=$ROOT exec $PY -m cclogfs record $args --store s/a" 2>&1 | show
 done
