@@ -1,6 +1,10 @@
 """The `cclog` command line. Each subcommand is a module in this package that defines
 HELP, DESCRIPTION, EXAMPLES, `add_arguments(parser)` and `run(args)`; the module list
-below is the only place that names them."""
+below is the only place that names them.
+
+Start-up time is part of every command (a one-second `cclog cat` is mostly start-up), so
+a subcommand module imports only light modules at its top and its engine, sources or
+classifier inside `run`; `main` gives arguments only to the subcommand being run."""
 
 from __future__ import annotations
 
@@ -14,7 +18,9 @@ from ..errors import CclogError
 COMMANDS: list[str] = ["demo", "record", "play", "plot", "cat", "info", "fsck", "compact", "export", "convert", "simulate", "train", "eval"]
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The whole parser; with `command`, only that subcommand gets its arguments (the
+    others are listed, which is all `cclog --help` shows of them)."""
     parser = argparse.ArgumentParser(
         prog="cclog",
         description="cclogfs: keep the robot log data that matters, compressed and checksummed.",
@@ -25,13 +31,17 @@ def build_parser() -> argparse.ArgumentParser:
         mod = importlib.import_module(f"{__name__}.{name}")
         p = sub.add_parser(name, help=mod.HELP, description=mod.DESCRIPTION, epilog=mod.EXAMPLES,
                            formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-        mod.add_arguments(p)
-        p.set_defaults(func=mod.run)
+        if command is None or name == command:
+            mod.add_arguments(p)
+            p.set_defaults(func=mod.run)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else argv
+    # The top-level parser has no options but --help, so a command comes first or not at all.
+    command = argv[0] if argv and argv[0] in COMMANDS else ""
+    args = build_parser(command).parse_args(argv)
     try:
         return int(args.func(args) or 0)
     except CclogError as err:

@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..export import write_jsonl
-from ..store import open_store
 from .common import Progress, Skipped, add_selection, selected_windows
 
 EXAMPLES = """\
@@ -31,6 +29,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # Imported here, not at the top: `cclog --help` imports every subcommand module.
+    from ..export.jsonl import write_jsonl
+    from ..store import open_store
+
     aged = [0, 0]  # windows aged, windows in all
 
     def counted(windows):

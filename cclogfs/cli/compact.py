@@ -6,9 +6,7 @@ import argparse
 import json
 
 from ..errors import InvalidInputError, StoreLockedError
-from ..store import open_store
 from ..times import parse_duration, parse_time
-from ..upkeep import DEFAULT_EXCLUDE, Policy, compact, parse_rule, preview
 from .common import human_bytes, iso_ns, parse_size, table
 
 EXAMPLES = """examples:
@@ -42,6 +40,8 @@ DESCRIPTION = (
 )
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from ..upkeep import DEFAULT_EXCLUDE
+
     p.add_argument("store", help="store directory (opened as its writer: stop the recorder first)")
     when = p.add_mutually_exclusive_group()
     when.add_argument("--older-than", metavar="DURATION",
@@ -59,6 +59,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # Imported here, not at the top: `cclog --help` imports every subcommand module.
+    from ..store import open_store
+    from ..upkeep import Policy, compact, parse_rule, preview
+
     rules = [parse_rule(r) for r in args.error]
     policy = Policy(rules, args.max_rate) if rules or args.max_rate is not None else None
     budget = parse_size(args.budget) if args.budget else None

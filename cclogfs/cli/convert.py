@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..ingest import format_line, open_source
+from ..jsontext.lines import format_line
 from .common import Progress
 
 EXAMPLES = """\
@@ -37,6 +37,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # Imported here, not at the top: `cclog --help` imports every subcommand module.
+    from ..ingest import open_source
+
     def warn(err: Exception) -> None:
         print(f"cclog convert: skipped: {err}", file=sys.stderr)
 

@@ -4,9 +4,6 @@ from __future__ import annotations
 
 import argparse
 
-from ..classifier import format_event_table, format_message_table
-from ..ingest import open_source
-from ..pipeline import WINDOW_AFTER, WINDOW_BEFORE, evaluate_run
 from .common import human_bytes, load_labels
 
 EXAMPLES = """\
@@ -25,6 +22,8 @@ DESCRIPTION = (
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from ..pipeline import WINDOW_AFTER, WINDOW_BEFORE
+
     p.add_argument("source", help="bag, MCAP or JSONL file")
     p.add_argument("--model", required=True, help="model directory")
     p.add_argument("--labels", required=True, help='{"events": [{"start_ns", "end_ns", "kind"}]}')
@@ -34,6 +33,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # Imported here, not at the top: `cclog --help` imports every subcommand module.
+    from ..classifier import format_event_table, format_message_table
+    from ..ingest import open_source
+    from ..pipeline import evaluate_run
+
     with open_source(args.source, topics=args.topic) as source:
         messages = [(m.topic, m.stamp_ns, m.text) for m in source]
     result = evaluate_run(messages, args.model, load_labels(args.labels), before=args.before, after=args.after)

@@ -6,10 +6,8 @@ import argparse
 import os
 import sys
 
-from ..export import export_mcap, export_parquet
 from ..errors import InvalidInputError
-from ..store import open_store
-from .common import Progress, add_selection, selected_windows, Skipped
+from .common import Progress, Skipped, add_selection, selected_windows
 
 EXAMPLES = """\
 examples:
@@ -53,6 +51,10 @@ def check_output(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     check_output(args)
+    # Imported here, not at the top: `cclog --help` imports every subcommand module.
+    from ..export import export_mcap, export_parquet
+    from ..store import open_store
+
     with open_store(args.store, readonly=True) as store, Progress("export") as progress:
         skipped = Skipped(store, args)
         windows = selected_windows(store, args, skipped)

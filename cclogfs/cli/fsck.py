@@ -6,7 +6,6 @@ import argparse
 import json
 import sys
 
-from ..store import check_store
 
 EXAMPLES = """examples:
   cclog fsck out/demo/store
@@ -65,6 +64,9 @@ def run(args: argparse.Namespace) -> int:
         return 2
     if args.repair:
         return repair(args)
+    # Imported here, not at the top: `cclog --help` imports every subcommand module.
+    from ..store import check_store
+
     report = check_store(args.store, deep=args.deep)
     if args.json:
         print(json.dumps({"path": report.path, "segments": report.segments, "records": report.records,

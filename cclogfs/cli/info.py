@@ -5,9 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 
-from ..classifier.summary import SUMMARY_TOPIC
-from ..store import open_store
-from ..store.store import describe_damage
 from .common import EXIT_SKIPPED, human_bytes, iso_ns, table
 
 EXAMPLES = """examples:
@@ -30,6 +27,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def store_info(path: str) -> dict:
     """Everything `cclog info` prints, as a dict."""
+    # Imported here, not at the top: `cclog --help` imports every subcommand module.
+    from ..classifier.summary import SUMMARY_TOPIC
+    from ..store import open_store
+    from ..store.store import describe_damage
+
     with open_store(path, readonly=True) as store:
         streams = store.streams()
         for name, st in streams.items():
@@ -56,6 +58,8 @@ def store_info(path: str) -> dict:
 
 def summary_totals(store) -> dict:
     """Totals of the smart-logging summary stream: what the robot did while nothing was stored."""
+    from ..classifier.summary import SUMMARY_TOPIC
+
     total = {"minutes": 0, "messages": 0, "distance_m": 0.0, "moving_s": 0.0, "anomalies": 0,
              "peak_speed": 0.0, "peak_accel": 0.0}  # fmt: skip
     for w in store.query(SUMMARY_TOPIC, skip_damaged=True):  # damage is reported beside the totals
@@ -70,6 +74,8 @@ def summary_totals(store) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..classifier.summary import SUMMARY_TOPIC
+
     info = store_info(args.store)
     if args.json:
         print(json.dumps(info, indent=2))

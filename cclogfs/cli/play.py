@@ -7,10 +7,10 @@ import sys
 import time
 
 from ..errors import InvalidInputError
-from ..jsontext.lines import format_line
-from ..play.pace import paced, store_messages, stream_types
-from ..store import open_store
 from .common import time_arg
+
+# The engine and the players are imported where they are used, not here: `cclog --help`
+# imports every subcommand module.
 
 EXAMPLES = """\
 examples:
@@ -50,6 +50,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..play.pace import paced, store_messages, stream_types
+    from ..store import open_store
+
     if not args.rate > 0:
         raise InvalidInputError(f"--rate must be positive, not {args.rate}")
     if args.foxglove is not None and args.to != "-":
@@ -95,6 +98,8 @@ def _sink(args: argparse.Namespace, store, names: list[str], types: dict):
             server.wait_for_subscribers()
         return server.publish, server.close
     if args.to == "-":
+        from ..jsontext.lines import format_line
+
         out = sys.stdout
 
         def send(name: str, stamp: int, text: str) -> None:

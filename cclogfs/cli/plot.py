@@ -6,8 +6,6 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..store import open_store
-from ..plot.store import plot_data, plot_store
 
 EXAMPLES = """\
 examples:
@@ -32,6 +30,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # Imported here, not at the top: `cclog --help` imports every subcommand module.
+    from ..plot.store import plot_data, plot_store
+    from ..store import open_store
+
     with open_store(args.store, readonly=True) as store:
         data = plot_data(store, args.topic)
     paths = plot_store(data, Path(args.out))

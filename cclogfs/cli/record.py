@@ -5,15 +5,17 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+from typing import TYPE_CHECKING
 
 from ..errors import InvalidInputError
-from ..ingest import open_source
-from ..jsontext.rostypes import StreamTypes
-from ..pipeline import WINDOW_AFTER, WINDOW_BEFORE, KeepAll, RecordStats, interrupt_handler, record, smart_policy
-from ..store import open_store
 from ..times import parse_duration
-from ..upkeep import Policy, Upkeep, compact, parse_rule
 from .common import Progress, human_bytes, load_labels, parse_size
+
+# The engine, sources and classifier are imported where they are used, not here:
+# `cclog --help` imports every subcommand module.
+if TYPE_CHECKING:
+    from ..pipeline import RecordStats
+    from ..upkeep import Upkeep
 
 EXAMPLES = """\
 examples:
@@ -55,6 +57,8 @@ DESCRIPTION = (
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from ..pipeline import WINDOW_AFTER, WINDOW_BEFORE
+
     p.add_argument("source", help="ROS 1/2 bag, MCAP file, JSONL file, - for JSONL on stdin, "
                                   "or ros1:// (ros1://HOST:PORT) for live ROS 1 topics")
     p.add_argument("--exclude", action="append", default=[], metavar="RE",
@@ -116,6 +120,8 @@ def _write_dataset(args: argparse.Namespace, rows: list) -> None:
 
 def _upkeep(args: argparse.Namespace) -> Upkeep | None:
     """The Upkeep the flags ask for (None for none)."""
+    from ..upkeep import Policy, Upkeep, parse_rule
+
     rules = [parse_rule(r) for r in args.age_error]
     aging = bool(rules) or args.age_max_rate is not None
     if args.age_older_than and not aging:
@@ -140,6 +146,8 @@ def _open(args: argparse.Namespace, topics: list[str] | None):
         from ..ingest.ros1live import Ros1LiveSource
 
         return Ros1LiveSource(args.source, topics=topics, exclude=args.exclude)
+    from ..ingest import open_source
+
     if args.exclude:
         raise InvalidInputError("--exclude goes with a live source (ros1://); name the topics to read with --topic")
     return open_source(args.source, topics=topics, on_error=args.on_error, report=_skipped)
@@ -147,6 +155,8 @@ def _open(args: argparse.Namespace, topics: list[str] | None):
 
 def _logging_policy(args: argparse.Namespace):
     """The logging policy the flags ask for, and the topics to read for it (None: all)."""
+    from ..pipeline import KeepAll, smart_policy
+
     topics = args.topic
     if args.labels and not args.features_out:
         raise InvalidInputError("--labels goes with --features-out")
@@ -172,6 +182,11 @@ def _warn_damage(store) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..jsontext.rostypes import StreamTypes
+    from ..pipeline import RecordStats, interrupt_handler, record
+    from ..store import open_store
+    from ..upkeep import compact
+
     policy, read_topics = _logging_policy(args)
     upkeep = _upkeep(args)
     store_options = upkeep.store_options() if upkeep is not None else {}

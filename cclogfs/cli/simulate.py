@@ -6,7 +6,6 @@ import argparse
 import time
 
 from ..errors import InvalidInputError
-from ..sim import KINDS
 
 EXAMPLES = """\
 examples:
@@ -33,13 +32,13 @@ def _severity(text: str) -> tuple[float, float]:
 
 
 HELP = "simulate a robot run with labelled anomalies"
-DESCRIPTION = (
-    "Simulate a BWIBot-like robot driving a building, with injected, labelled "
-    f"anomalies. Kinds: {', '.join(KINDS)}."
-)
+DESCRIPTION = "Simulate a BWIBot-like robot driving a building, with injected, labelled anomalies."
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from ..sim import KINDS
+
+    p.description += f" Kinds: {', '.join(KINDS)}."
     p.add_argument("--out", required=True, help="output directory (created; must not hold a run)")
     p.add_argument("--seed", type=int, default=0,
                    help="random seed (default 0); same seed, same bytes")

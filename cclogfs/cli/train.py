@@ -6,9 +6,7 @@ import argparse
 import time
 from pathlib import Path
 
-from ..classifier import OneClassModel, format_message_table, load_dataset, message_table, train
 from ..errors import InvalidInputError
-from ..pipeline import read_topic
 from .common import load_labels
 
 EXAMPLES = """\
@@ -41,6 +39,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # Imported here, not at the top: `cclog --help` imports every subcommand module.
+    from ..classifier import OneClassModel, format_message_table, load_dataset, message_table, train
+    from ..pipeline import read_topic
+
     if args.labels and len(args.labels) != len(args.sources):
         raise InvalidInputError(f"--labels was given {len(args.labels)} times for {len(args.sources)} sources")
     if bool(args.validate) != bool(args.validate_labels):

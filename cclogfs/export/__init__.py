@@ -2,26 +2,34 @@
 
 Exporters take any iterable of windows (`StoredWindow`: what the store's `query()` returns)
 and know nothing of how they were chosen or stored.
+
+Each name is imported from its module on first use: `cclog cat` needs only the JSONL
+writer, and importing pyarrow for Parquet took longer than the rest of a short `cat`.
 """
 
 from __future__ import annotations
 
-from .base import ExportStats, Progress, StoredWindow
-from .jsonl import merged_messages, write_jsonl
-from .jsonschema import message_schema, schema_of
-from .mcap import WINDOW_METADATA, export_mcap
-from .parquet import export_parquet, flatten
+from importlib import import_module
 
-__all__ = [
-    "WINDOW_METADATA",
-    "ExportStats",
-    "Progress",
-    "StoredWindow",
-    "export_mcap",
-    "export_parquet",
-    "flatten",
-    "merged_messages",
-    "message_schema",
-    "schema_of",
-    "write_jsonl",
-]
+# name -> the module of this package that defines it
+_MODULES = {
+    "ExportStats": "base",
+    "Progress": "base",
+    "StoredWindow": "base",
+    "merged_messages": "jsonl",
+    "write_jsonl": "jsonl",
+    "message_schema": "jsonschema",
+    "schema_of": "jsonschema",
+    "WINDOW_METADATA": "mcap",
+    "export_mcap": "mcap",
+    "export_parquet": "parquet",
+    "flatten": "parquet",
+}
+
+__all__ = sorted(_MODULES)
+
+
+def __getattr__(name: str):
+    if name in _MODULES:
+        return getattr(import_module(f".{_MODULES[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -8,14 +8,13 @@ class from `FORMATS`; every class follows the `Source` protocol. Parsing is left
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
+from importlib import import_module
 from pathlib import Path
 
 from ..errors import SourceError
-from .base import Source, SourceMessage
 from ..jsontext.lines import format_line, parse_line
+from .base import Source, SourceMessage
 from .jsonl import JsonlSource, OnError
-from .mcapjson import McapJsonSource, mcap_encodings
-from .rosbag import RosbagSource
 
 __all__ = [
     "FORMATS",
@@ -30,12 +29,27 @@ __all__ = [
     "parse_line",
 ]
 
-FORMATS: dict[str, type[Source]] = {
-    "rosbag1": RosbagSource,
-    "rosbag2": RosbagSource,
-    "mcap-json": McapJsonSource,
-    "jsonl": JsonlSource,
+# format -> (module, class). A reader is imported when a source of its format is opened:
+# rosbags and mcap take longer to import than recording a short JSONL stream.
+_READERS = {
+    "rosbag1": ("rosbag", "RosbagSource"),
+    "rosbag2": ("rosbag", "RosbagSource"),
+    "mcap-json": ("mcapjson", "McapJsonSource"),
+    "jsonl": ("jsonl", "JsonlSource"),
 }
+
+
+def _reader(fmt: str) -> type[Source]:
+    module, name = _READERS[fmt]
+    return getattr(import_module(f".{module}", __name__), name)
+
+
+def __getattr__(name: str):
+    if name == "FORMATS":  # {format: reader class}, importing every reader
+        return {fmt: _reader(fmt) for fmt in _READERS}
+    if name in ("RosbagSource", "McapJsonSource"):
+        return _reader("rosbag1" if name == "RosbagSource" else "mcap-json")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 _MAGIC_ROSBAG1 = b"#ROSBAG V2.0\n"
 _MAGIC_MCAP = b"\x89MCAP0\r\n"
@@ -74,6 +88,8 @@ def detect_format(path: str | Path) -> str:
 
 
 def _mcap_format(p: Path) -> str:
+    from .mcapjson import mcap_encodings
+
     encodings = mcap_encodings(p)
     if encodings <= {"json"}:
         return "mcap-json"
@@ -104,12 +120,11 @@ def open_source(
 ) -> Source:
     """Open a log for reading, choosing the reader by file type (or by `format`)."""
     fmt = format or detect_format(path)
-    try:
-        cls = FORMATS[fmt]
-    except KeyError:
+    if fmt not in _READERS:
         raise SourceError(
-            f"Unknown source format {fmt!r} for {path}; known: {', '.join(sorted(FORMATS))}."
-        ) from None
+            f"Unknown source format {fmt!r} for {path}; known: {', '.join(sorted(_READERS))}."
+        )
+    cls = _reader(fmt)
     if cls is JsonlSource:
         return JsonlSource(path, topics=topics, on_error=on_error, report=report)
     if not Path(path).exists():

@@ -1,0 +1,47 @@
+"""Start-up: `cclog --help` loads no engine, and each subcommand only what it runs on.
+
+A one-second `cclog cat` was mostly imports (pyarrow, rosbags, the classifier); these
+tests hold each command to the packages it needs, in a fresh interpreter.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+HEAVY = ["numpy", "pyarrow", "rosbags", "mcap", "sklearn", "zstandard", "cclogfs.store", "cclogfs.classifier",
+         "cclogfs.ingest", "cclogfs.export.parquet", "cclogfs.export.mcap", "cclogfs.sim", "cclogfs.pipeline"]  # fmt: skip
+
+PROBE = """
+import json, sys
+from cclogfs.cli import main
+try:
+    main(sys.argv[1:])
+except SystemExit:
+    pass
+heavy = json.loads(sys.stdin.read())
+print(json.dumps(sorted(h for h in heavy if h in sys.modules)), file=sys.stderr)
+"""
+
+
+def loaded(*argv: str) -> set[str]:
+    """The HEAVY modules in sys.modules after `cclog ARGV` ran in a fresh interpreter."""
+    out = subprocess.run([sys.executable, "-c", PROBE, *argv], input=json.dumps(HEAVY), capture_output=True,
+                         text=True, timeout=120)  # fmt: skip
+    return set(json.loads(out.stderr.strip().splitlines()[-1]))
+
+
+def test_help_loads_nothing_heavy():
+    assert loaded("--help") == set()
+
+
+def test_cat_loads_the_store_and_no_exporter_or_source(tmp_path):
+    from cclogfs.store import open_store
+
+    with open_store(tmp_path / "s", create=True) as store:
+        store.put_window("/odom", [(1, '{"x": 1.5}')])
+    got = loaded("cat", str(tmp_path / "s"))
+    assert "cclogfs.store" in got
+    assert not got & {"pyarrow", "rosbags", "mcap", "sklearn", "cclogfs.classifier", "cclogfs.ingest",
+                      "cclogfs.export.parquet", "cclogfs.export.mcap", "cclogfs.sim", "cclogfs.pipeline"}
