@@ -15,10 +15,10 @@ from typing import TextIO
 
 from ..errors import InvalidInputError
 from ..textfmt import human_bytes, iso_ns, table
-from ..times import parse_time
+from ..times import TIME_RULE, parse_time
 
-__all__ = ["Progress", "add_selection", "human_bytes", "iso_ns", "load_labels", "parse_size", "selected_windows",
-           "table", "time_arg"]  # fmt: skip
+__all__ = ["Progress", "TIME_RULE", "add_selection", "check_range", "human_bytes", "iso_ns", "load_labels",
+           "nothing_matched", "parse_size", "selected_windows", "table", "time_arg"]  # fmt: skip
 
 _SIZE = re.compile(r"(\d+(?:\.\d*)?)\s*(B|KB|MB|GB|TB|KiB|MiB|GiB|TiB)?", re.IGNORECASE)
 _SIZE_UNIT = {"b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12,
@@ -45,12 +45,37 @@ def add_selection(p: argparse.ArgumentParser) -> None:
     """STORE, --topic, --start, --end: the arguments cat and export share."""
     p.add_argument("store", help="store directory")
     p.add_argument("--topic", action="append", metavar="T", help="only stream T (repeatable)")
-    p.add_argument("--start", type=time_arg, metavar="TIME", help="from this time on")
+    p.add_argument("--start", type=time_arg, metavar="TIME", help=f"from this time on ({TIME_RULE})")
     p.add_argument("--end", type=time_arg, metavar="TIME", help="up to this time (inclusive)")
+
+
+def check_range(args: argparse.Namespace) -> None:
+    """A backwards --start/--end is a mistake, not an empty answer."""
+    if args.start is not None and args.end is not None and args.start > args.end:
+        raise InvalidInputError(f"--start {iso_ns(args.start)} is after --end {iso_ns(args.end)}; "
+                                "swap them.")  # fmt: skip
+
+
+def what_exists(streams: dict[str, dict]) -> str:
+    """The topics present and their time spans, for an error that a filter matched nothing."""
+    if not streams:
+        return "it holds no messages"
+    spans = [f"{name} ({iso_ns(t['start_ns'])} to {iso_ns(t['end_ns'])})" if "start_ns" in t else name
+             for name, t in sorted(streams.items())]  # fmt: skip
+    return "it holds " + ", ".join(spans)
+
+
+def nothing_matched(store, args: argparse.Namespace) -> InvalidInputError:
+    """The error for a --topic/--start/--end selection that matched no message."""
+    wanted = " or ".join(args.topic or ["any topic"])
+    times = f" between {args.start if args.start is None else iso_ns(args.start)} and " \
+            f"{args.end if args.end is None else iso_ns(args.end)}" if args.start is not None or args.end is not None else ""
+    return InvalidInputError(f"There is no message of {wanted}{times} in {store.path}; {what_exists(store.streams())}.")
 
 
 def selected_windows(store, args: argparse.Namespace):
     """The store's windows for the chosen topics and times, in start order."""
+    check_range(args)
     topics = set(args.topic or ())
     name = next(iter(topics)) if len(topics) == 1 else None
     for w in store.query(name, start_ns=args.start, end_ns=args.end):
@@ -107,3 +132,30 @@ class Progress:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def source_topics(path: str) -> str:
+    """The topics a source holds, as an error message lists them (reads a JSONL file through)."""
+    if path == "-" or "://" in path:
+        return "its topics are not known up front"
+    from ..errors import CclogError
+    from ..ingest import open_source
+
+    try:
+        with open_source(path, on_error="skip", report=lambda err: None) as src:
+            topics = set(src.topics()) or {m.topic for m in src}
+    except CclogError as err:
+        return f"its topics cannot be listed ({err})"
+    return "it holds " + (", ".join(sorted(topics)) or "no messages")
+
+
+def check_topics_exist(src, path: str, topics: list[str] | None) -> None:
+    """Refuse a --topic selection of which the source (when it knows its topics) has none."""
+    if topics and not src.topics():
+        raise InvalidInputError(f"{path} has no topic {' or '.join(topics)}; {source_topics(path)}.")
+
+
+def no_source_message(path: str, topics: list[str] | None) -> InvalidInputError:
+    """The error for a source that yielded no message of the selection."""
+    what = f"topic {' or '.join(topics)}" if topics else "message"
+    return InvalidInputError(f"{path} yielded no {what}; {source_topics(path)}.")

@@ -6,7 +6,8 @@ import argparse
 import sys
 
 from ..ingest import format_line, open_source
-from .common import Progress
+from .common import Progress, check_topics_exist, no_source_message
+from .outputs import add_force, atomic_output, check_output
 
 EXAMPLES = """\
 examples:
@@ -28,6 +29,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("source", help="bag file, ROS 2 bag directory, .mcap, .jsonl, or - (stdin)")
     p.add_argument("-o", "--output", required=True, help="output .jsonl file, or - for stdout")
     p.add_argument("--topic", action="append", metavar="T", help="keep only topic T (repeatable)")
+    add_force(p)
     p.add_argument(
         "--on-error",
         choices=("stop", "skip"),
@@ -40,14 +42,22 @@ def run(args: argparse.Namespace) -> int:
     def warn(err: Exception) -> None:
         print(f"cclog convert: skipped: {err}", file=sys.stderr)
 
+    if args.output != "-":
+        check_output(args.output, [args.source], force=args.force)
     with open_source(args.source, args.topic, on_error=args.on_error, report=warn) as src:
-        out = sys.stdout if args.output == "-" else open(args.output, "w", encoding="utf-8")
-        try:
-            with Progress("convert") as progress:
-                for m in src:
-                    out.write(format_line(m.topic, m.stamp_ns, m.text))
-                    progress()
-        finally:
-            if out is not sys.stdout:
-                out.close()
+        check_topics_exist(src, args.source, args.topic)
+        if args.output == "-":
+            _write(src, sys.stdout, args)
+        else:
+            with atomic_output(args.output) as out:
+                _write(src, out, args)
     return 0
+
+
+def _write(src, out, args: argparse.Namespace) -> None:
+    with Progress("convert") as progress:
+        for m in src:
+            out.write(format_line(m.topic, m.stamp_ns, m.text))
+            progress()
+    if progress.count == 0:  # raised inside the output's block: no empty output is left
+        raise no_source_message(args.source, args.topic)

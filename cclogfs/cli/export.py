@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import sys
 
 from ..export import export_mcap, export_parquet
 from ..store import open_store
-from .common import Progress, add_selection, selected_windows
+from .common import Progress, add_selection, nothing_matched, selected_windows
+from .outputs import add_force, check_output
 
 EXAMPLES = """\
 examples:
@@ -33,20 +35,24 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     to.add_argument("--mcap", metavar="OUT.mcap", help="write one MCAP file (JSON channels)")
     to.add_argument("--parquet", metavar="DIR", help="write Hive-partitioned Parquet under DIR")
     p.add_argument("--robot", help="robot name for the Parquet partition (default: store name)")
-    p.add_argument(
-        "--replace", action="store_true", help="replace this robot's earlier Parquet export"
-    )
+    add_force(p, "--replace")  # --replace: the Parquet export's earlier spelling
 
 
 def run(args: argparse.Namespace) -> int:
     with open_store(args.store, readonly=True) as store, Progress("export") as progress:
         windows = selected_windows(store, args)
+        first = next(windows, None)
+        if first is None:
+            raise nothing_matched(store, args)
+        windows = itertools.chain([first], windows)
         if args.mcap:
+            check_output(args.mcap, [args.store], force=args.force)
             stats = export_mcap(windows, args.mcap, progress=progress)
         else:
+            check_output(args.parquet, [args.store], force=True)  # the robot's own subdirectory is checked below
             robot = args.robot or os.path.basename(os.path.normpath(args.store))
             stats = export_parquet(
-                windows, args.parquet, robot=robot, replace=args.replace, progress=progress
+                windows, args.parquet, robot=robot, replace=args.force, progress=progress
             )
     print(
         f"exported {stats.windows} windows, {stats.messages} messages of "

@@ -13,7 +13,7 @@ from ..pipeline import WINDOW_AFTER, WINDOW_BEFORE, KeepAll, RecordStats, interr
 from ..store import open_store
 from ..times import parse_duration
 from ..upkeep import Policy, Upkeep, compact, parse_rule
-from .common import Progress, human_bytes, load_labels, parse_size
+from .common import Progress, check_topics_exist, human_bytes, load_labels, no_source_message, parse_size
 
 EXAMPLES = """\
 examples:
@@ -160,6 +160,8 @@ def run(args: argparse.Namespace) -> int:
     store_options = upkeep.store_options() if upkeep is not None else {}
     final_bytes = None  # the store's size once upkeep is done
     source = _open(args, read_topics)
+    if not args.source.startswith("ros1://"):
+        check_topics_exist(source, args.source, read_topics)
     handler = getattr(source, "signal_handler", interrupt_handler)  # live: the first signal ends the input
     previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
@@ -202,6 +204,8 @@ def run(args: argparse.Namespace) -> int:
     if args.features_out:
         _write_dataset(args, rows)
     _print_summary(args, source, stats, upkeep, final_bytes)
+    if stats.messages_in == 0 and not stats.interrupted:
+        raise no_source_message(args.source, read_topics)
     return 130 if stats.interrupted else 0
 
 

@@ -69,7 +69,7 @@ def test_play_jsonl_is_cat_with_types_at_the_recorded_pace(shared_data, tmp_path
 def test_play_refuses_what_it_cannot_do(shared_data, tmp_path):
     subprocess.run([*CCLOG, "record", str(shared_data("tf_example.bag")), "--store", str(tmp_path / "s")],
                    check=True, capture_output=True)  # fmt: skip
-    for args, said in [(["--rate", "0"], "--rate must be positive"), (["--topic", "/nope"], "has no stream /nope"),
+    for args, said in [(["--rate", "0"], "--rate must be positive"), (["--topic", "/nope"], "no message of /nope"),
                        (["--to", "udp://x"], "--to 'udp://x'"), (["--start", "1", "--end", "2"], "no message")]:  # fmt: skip
         r = subprocess.run([*CCLOG, "play", str(tmp_path / "s"), *args], capture_output=True, text=True)
         assert r.returncode == 1 and said in r.stderr and r.stderr.count("\n") == 1, (args, r.stderr)
