@@ -290,11 +290,11 @@ def parse_span(text: str) -> tuple[int, float | None]:
 
 
 def smart_policy(model: Any, *, topics: Iterable[str] | None = None, before: str = WINDOW_BEFORE,
-                 after: str = WINDOW_AFTER, summary: bool = True) -> Any:  # fmt: skip
+                 after: str = WINDOW_AFTER, summary: bool = True, odom_topic: str | None = None) -> Any:  # fmt: skip
     """The classifier's SmartLogger for `model` (a path or a loaded OneClassModel).
 
-    `topics`: the topics to log over each window (None: every topic seen); the model's own
-    odometry topic is always scored and logged.
+    `topics`: the topics to log over each window (None: every topic seen); the odometry
+    topic (`odom_topic`, by default the model's own) is always scored and logged.
     """
     from .classifier import Detector, OneClassModel, SmartLogger
 
@@ -302,7 +302,7 @@ def smart_policy(model: Any, *, topics: Iterable[str] | None = None, before: str
         model = OneClassModel.load(model)
     b_n, b_s = parse_span(before)
     a_n, a_s = parse_span(after)
-    return SmartLogger(Detector(model), odom_topic=model.topic, topics=topics,
+    return SmartLogger(Detector(model), odom_topic=odom_topic or model.topic, topics=topics,
                        before=b_n, after=a_n, before_s=b_s, after_s=a_s, batch=64,
                        summary_period_s=60.0 if summary else None)  # fmt: skip
 
@@ -315,13 +315,13 @@ def read_topic(path: str, topic: str) -> list[tuple[int, str]]:
         return [(m.stamp_ns, m.text) for m in source]
 
 
-def evaluate_run(messages: list[tuple[str, int, str]], model: Any, labels: Any, *,
-                 before: str = WINDOW_BEFORE, after: str = WINDOW_AFTER) -> dict:  # fmt: skip
+def evaluate_run(messages: list[tuple[str, int, str]], model: Any, labels: Any, *, before: str = WINDOW_BEFORE,
+                 after: str = WINDOW_AFTER, odom_topic: str | None = None) -> dict:  # fmt: skip
     """Score a labelled run as smart logging would: the paper's per-message Table 1, the
     per-event figures, and what fraction of messages and JSON bytes would be kept."""
     from .classifier import event_table, message_table, parse_odometry, window_spans
 
-    policy = smart_policy(model, before=before, after=after, summary=False)
+    policy = smart_policy(model, before=before, after=after, summary=False, odom_topic=odom_topic)
     topic = policy.odom_topic
     windows = policy.replay(messages)
     odom = parse_odometry(text for t, _, text in messages if t == topic)

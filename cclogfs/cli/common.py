@@ -159,3 +159,31 @@ def no_source_message(path: str, topics: list[str] | None) -> InvalidInputError:
     """The error for a source that yielded no message of the selection."""
     what = f"topic {' or '.join(topics)}" if topics else "message"
     return InvalidInputError(f"{path} yielded no {what}; {source_topics(path)}.")
+
+
+def model_fits(model, model_path: str, source: str, topic: str, *, force: bool, texts: list | None = None) -> None:
+    """Refuse a source without the model's odometry `topic` (naming what it holds and
+    --odom-topic), and a robot whose rate or motion is far outside the model's training
+    (a warning with --force-model). `texts`: the topic's messages when already read; else up
+    to 3,000 are read from the file (a live source or stdin is checked as it is recorded)."""
+    import itertools
+
+    from ..classifier import parse_odometry
+    from ..classifier.fit import compare, robot_stats
+    from ..ingest import open_source
+
+    if texts is None:
+        if source == "-" or "://" in source:
+            return
+        with open_source(source, topics=[topic], on_error="skip", report=lambda err: None) as src:
+            texts = [m.text for m in itertools.islice(src, 3000)]
+    if not texts:
+        raise InvalidInputError(f"{source} has no topic {topic}, the odometry model {model_path} scores; "
+                                f"{source_topics(source)}; name the odometry topic with --odom-topic T.")  # fmt: skip
+    far = compare(model.training, robot_stats([parse_odometry(texts)]))
+    if far:
+        said = f"model {model_path} was trained on a robot unlike {source}'s {topic}: {'; '.join(far)}"
+        if not force:
+            raise InvalidInputError(f"{said[0].upper()}{said[1:]}; pass --force-model to use it anyway, or train a model "
+                                    "on this robot (`cclog train`).")  # fmt: skip
+        print(f"cclog: warning: {said}", file=sys.stderr)

@@ -7,7 +7,7 @@ import argparse
 from ..classifier import format_event_table, format_message_table
 from ..ingest import open_source
 from ..pipeline import WINDOW_AFTER, WINDOW_BEFORE, evaluate_run
-from .common import human_bytes, load_labels
+from .common import human_bytes, load_labels, model_fits
 
 EXAMPLES = """\
 examples:
@@ -31,12 +31,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--topic", action="append", metavar="T", help="topics logged with the windows (default all)")
     p.add_argument("--before", default=WINDOW_BEFORE, help="N messages or Ds (default %(default)s)")
     p.add_argument("--after", default=WINDOW_AFTER, help="N messages or Ds (default %(default)s)")
+    p.add_argument("--odom-topic", metavar="T", help="the source's odometry topic to score (default: the model's)")
+    p.add_argument("--force-model", action="store_true",
+                   help="use the model even on a robot whose rate or motion is far outside its training")
 
 
 def run(args: argparse.Namespace) -> int:
-    with open_source(args.source, topics=args.topic) as source:
+    from ..classifier import OneClassModel
+
+    model = OneClassModel.load(args.model)
+    odom_topic = args.odom_topic or model.topic
+    topics = None if args.topic is None else sorted({*args.topic, odom_topic})
+    with open_source(args.source, topics=topics) as source:
         messages = [(m.topic, m.stamp_ns, m.text) for m in source]
-    result = evaluate_run(messages, args.model, load_labels(args.labels), before=args.before, after=args.after)
+    model_fits(model, args.model, args.source, odom_topic, force=args.force_model,
+               texts=[text for t, _, text in messages if t == odom_topic])  # fmt: skip
+    result = evaluate_run(messages, model, load_labels(args.labels), before=args.before, after=args.after,
+                          odom_topic=odom_topic)  # fmt: skip
     print("per message (the paper's Table 1):")
     print(format_message_table(result["messages"]))
     print("\nper event:")

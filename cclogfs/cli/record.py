@@ -13,7 +13,7 @@ from ..pipeline import WINDOW_AFTER, WINDOW_BEFORE, KeepAll, RecordStats, interr
 from ..store import open_store
 from ..times import parse_duration
 from ..upkeep import Policy, Upkeep, compact, parse_rule
-from .common import Progress, check_topics_exist, human_bytes, load_labels, no_source_message, parse_size
+from .common import Progress, check_topics_exist, human_bytes, load_labels, model_fits, no_source_message, parse_size
 
 EXAMPLES = """\
 examples:
@@ -70,7 +70,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--labels", metavar="JSON", help="with --features-out: labelled events of the source")
     p.add_argument("--features", default="default", choices=["default", "paper"],
                    help="with --features-out: the feature set")
-    p.add_argument("--odom-topic", default="/odom", help="with --features-out: the odometry topic (default /odom)")
+    p.add_argument("--odom-topic", metavar="T",
+                   help="the odometry topic: with --model, the source's topic to score (default: the model's), "
+                        "with --features-out the topic to learn from (default /odom)")
+    p.add_argument("--force-model", action="store_true",
+                   help="with --model: use it even on a robot whose rate or motion is far outside its training")
     upkeep = p.add_argument_group("upkeep while recording (as `cclog compact`, each time a segment is sealed)")
     upkeep.add_argument("--budget", metavar="SIZE",
                         help="drop the oldest segments while the store is larger (e.g. 20GiB); segments are "
@@ -85,11 +89,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _tee_odometry(messages, topic: str, rows: list):
     """Pass messages on, keeping the odometry as compact rows (not texts) for the dataset."""
-    from ..classifier.features import odom_row
+    from ..classifier.features import TwistFromPoses, odom_row
 
+    twist = TwistFromPoses()  # pose-only robots: twist from consecutive poses
     for m in messages:
         if m.topic == topic:
-            rows.append(odom_row(m.text))
+            stamp, row = odom_row(m.text)
+            rows.append((stamp, twist(stamp, row)))
         yield m
 
 
@@ -141,15 +147,22 @@ def _open(args: argparse.Namespace, topics: list[str] | None):
 def _logging_policy(args: argparse.Namespace):
     """The logging policy the flags ask for, and the topics to read for it (None: all)."""
     topics = args.topic
+    if args.features_out and not args.odom_topic:
+        args.odom_topic = "/odom"
     if args.labels and not args.features_out:
         raise InvalidInputError("--labels goes with --features-out")
     if args.features_out and topics is not None and args.odom_topic not in topics:
         topics = [*topics, args.odom_topic]
     if not args.model:
         return KeepAll(chunk=args.chunk), topics
+    from ..classifier import OneClassModel
+
+    model = OneClassModel.load(args.model)
+    args.odom_topic = args.odom_topic or model.topic
+    model_fits(model, args.model, args.source, args.odom_topic, force=args.force_model)
     live = args.source.startswith("ros1://")  # the live source itself matches names and patterns
-    policy = smart_policy(args.model, topics=None if live else topics, before=args.before, after=args.after,
-                          summary=not args.no_summary)  # fmt: skip
+    policy = smart_policy(model, topics=None if live else topics, before=args.before, after=args.after,
+                          summary=not args.no_summary, odom_topic=args.odom_topic)  # fmt: skip
     # The scored odometry must be read even when --topic does not name it.
     return policy, None if topics is None else sorted({*topics, policy.odom_topic})
 
@@ -206,6 +219,9 @@ def run(args: argparse.Namespace) -> int:
     _print_summary(args, source, stats, upkeep, final_bytes)
     if stats.messages_in == 0 and not stats.interrupted:
         raise no_source_message(args.source, read_topics)
+    if args.model and policy.scored == 0:  # a live source or stdin, checked only now
+        raise InvalidInputError(f"{args.source} sent no message on {args.odom_topic}, the odometry the model scores, "
+                                "so nothing was kept; name the odometry topic with --odom-topic T.")  # fmt: skip
     return 130 if stats.interrupted else 0
 
 
