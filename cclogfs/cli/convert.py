@@ -17,7 +17,8 @@ examples:
   cat raw.jsonl | cclog convert - -o clean.jsonl --on-error skip
 
 Each line is {"topic": ..., "stamp_ns": ..., "msg": {...}}: msg is the message as
-rosbridge JSON (docs/JSON.md), stamp_ns its header.stamp or else its log time.
+rosbridge JSON (docs/JSON.md), stamp_ns its log time (--clock header: its header.stamp,
+else its log time).
 """
 
 
@@ -29,6 +30,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("source", help="bag file, ROS 2 bag directory, .mcap, .jsonl, or - (stdin)")
     p.add_argument("-o", "--output", required=True, help="output .jsonl file, or - for stdout")
     p.add_argument("--topic", action="append", metavar="T", help="keep only topic T (repeatable)")
+    p.add_argument("--clock", choices=["log", "header"], default="log",
+                   help="stamp_ns of a bag's message: its log (receive) time (default) or header.stamp (docs/JSON.md)")
     add_force(p)
     p.add_argument(
         "--on-error",
@@ -44,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.output != "-":
         check_output(args.output, [args.source], force=args.force)
-    with open_source(args.source, args.topic, on_error=args.on_error, report=warn) as src:
+    with open_source(args.source, args.topic, on_error=args.on_error, report=warn, clock=args.clock) as src:
         check_topics_exist(src, args.source, args.topic)
         if args.output == "-":
             _write(src, sys.stdout, args)

@@ -36,13 +36,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="use the model even on a robot whose rate or motion is far outside its training")
 
 
+def _is_bag(path: str) -> bool:
+    from ..ingest import FORMATS, RosbagSource, detect_format
+
+    return path != "-" and FORMATS.get(detect_format(path)) is RosbagSource
+
+
 def run(args: argparse.Namespace) -> int:
     from ..classifier import OneClassModel
 
     model = OneClassModel.load(args.model)
     odom_topic = args.odom_topic or model.topic
     topics = None if args.topic is None else sorted({*args.topic, odom_topic})
-    with open_source(args.source, topics=topics) as source:
+    # Labels are in header stamps (docs/CLASSIFIER.md), so the replay uses that clock.
+    with open_source(args.source, topics=topics, clock="header" if _is_bag(args.source) else "log") as source:
         messages = [(m.topic, m.stamp_ns, m.text) for m in source]
     model_fits(model, args.model, args.source, odom_topic, force=args.force_model,
                texts=[text for t, _, text in messages if t == odom_topic])  # fmt: skip

@@ -35,8 +35,8 @@ stores what was seen and closes the store cleanly.
 
 ros1:// records live from a ROS 1 master until Ctrl-C or SIGTERM (then exit 0): every topic,
 or those whose name is a --topic or fully matches one as a regular expression, minus
---exclude; topics that appear later are picked up. A message's time is its header stamp,
-else its receive time. Needs rospy (Debian: apt-get install ros-core python3-rospy).
+--exclude; topics that appear later are picked up. A message's time is its receive time
+(--clock header: its header stamp, else its receive time). Needs rospy (Debian: apt-get install ros-core python3-rospy).
 """
 
 
@@ -58,6 +58,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--before", default=WINDOW_BEFORE, help="window context before an anomaly: N messages or Ds (default %(default)s)")
     p.add_argument("--after", default=WINDOW_AFTER, help="window context after the last anomaly: N or Ds (default %(default)s)")
     p.add_argument("--chunk", type=int, default=200, help="without --model: messages per stored window")
+    p.add_argument("--clock", choices=["log", "header"], default="log",
+                   help="the time a bag's or live topic's message is stored and queried under: log (receive) time, "
+                        "one clock for every topic (default), or header.stamp, else log time (docs/JSON.md)")
     p.add_argument("--codec", default="columnar",
                    help="codec for new records: columnar (default, smallest), zstd (fastest), lzma, none")
     p.add_argument("--on-error", choices=["stop", "skip"], default="stop",
@@ -138,10 +141,10 @@ def _open(args: argparse.Namespace, topics: list[str] | None):
     if args.source.startswith("ros1://"):
         from ..ingest.ros1live import Ros1LiveSource
 
-        return Ros1LiveSource(args.source, topics=topics, exclude=args.exclude)
+        return Ros1LiveSource(args.source, topics=topics, exclude=args.exclude, clock=args.clock)
     if args.exclude:
         raise InvalidInputError("--exclude goes with a live source (ros1://); name the topics to read with --topic")
-    return open_source(args.source, topics=topics, on_error=args.on_error, report=_skipped)
+    return open_source(args.source, topics=topics, on_error=args.on_error, report=_skipped, clock=args.clock)
 
 
 def _logging_policy(args: argparse.Namespace):

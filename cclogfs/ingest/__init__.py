@@ -11,7 +11,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from ..errors import SourceError
-from .base import Source, SourceMessage
+from .base import Source, SourceMessage, check_clock
 from ..jsontext.lines import format_line, parse_line
 from .jsonl import JsonlSource, OnError
 from .mcapjson import McapJsonSource, mcap_encodings
@@ -101,8 +101,11 @@ def open_source(
     format: str | None = None,
     on_error: OnError = "stop",
     report: Callable[[SourceError], None] | None = None,
+    clock: str = "log",
 ) -> Source:
-    """Open a log for reading, choosing the reader by file type (or by `format`)."""
+    """Open a log for reading, choosing the reader by file type (or by `format`). `clock`:
+    the time of a bag's messages, "log" or "header" (JSONL lines and JSON MCAP carry their
+    own times, so for them only "log" is accepted)."""
     fmt = format or detect_format(path)
     try:
         cls = FORMATS[fmt]
@@ -110,8 +113,19 @@ def open_source(
         raise SourceError(
             f"Unknown source format {fmt!r} for {path}; known: {', '.join(sorted(FORMATS))}."
         ) from None
+    check_clock(clock)
     if cls is JsonlSource:
+        _log_clock_only(path, clock)
         return JsonlSource(path, topics=topics, on_error=on_error, report=report)
     if not Path(path).exists():
         raise SourceError(f"{path} does not exist.")
+    if cls is RosbagSource:
+        return cls(path, topics=topics, clock=clock)
+    _log_clock_only(path, clock)
     return cls(path, topics=topics)
+
+
+def _log_clock_only(path: str | Path, clock: str) -> None:
+    if clock != "log":
+        raise SourceError(f"{path}: --clock {clock} needs a ROS bag or ROS 2 MCAP; this source carries its own "
+                          "times (JSONL stamp_ns, JSON MCAP log time).")  # fmt: skip
