@@ -9,6 +9,7 @@ keeps only logging windows around anomalies (smart mode).
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
@@ -38,6 +39,8 @@ WINDOW_AFTER = "2s"
 class WindowPolicy(Protocol):
     def push(self, topic: str, stamp_ns: int, text: str) -> list[PendingWindow]: ...
 
+    def cut(self) -> list[PendingWindow]: ...
+
     def flush(self) -> list[PendingWindow]: ...
 
 
@@ -64,6 +67,10 @@ class KeepAll:
 
     def _close(self, topic: str) -> PendingWindow:
         return PendingWindow(topic, self.open.pop(topic), {"kind": "all"})
+
+    def cut(self) -> list[PendingWindow]:
+        """Every open window now, however short: a bound on what a hard kill loses."""
+        return self.flush()
 
     def flush(self) -> list[PendingWindow]:
         return [self._close(t) for t in list(self.open) if self.open[t]]
@@ -130,7 +137,7 @@ def store_window(store: Store, window: PendingWindow, stats: RecordStats, types:
 def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
            check_json: bool = True, progress: Callable[[RecordStats], None] | None = None,
            stats: RecordStats | None = None, upkeep: Upkeep | None = None,
-           types: StreamTypes | None = None) -> RecordStats:  # fmt: skip
+           types: StreamTypes | None = None, window_s: float | None = None) -> RecordStats:  # fmt: skip
     """Feed messages (objects with .topic, .stamp_ns, .text) through `policy` into `store`.
 
     On any exit, Ctrl-C included, the policy's open windows are flushed into the store, so
@@ -140,10 +147,13 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
     good messages it holds).
     `upkeep`: retention and aging as segments are sealed (`compact.Upkeep`); the caller
     closes it before the store. `types`: keep each stream's message type (`m.msgtype`) in
-    its windows' metadata (`jsontext.rostypes.StreamTypes`).
+    its windows' metadata (`jsontext.rostypes.StreamTypes`). `window_s`: every this many
+    seconds of wall time the policy's open windows are cut and stored (`policy.cut()`), so a
+    hard kill loses at most that much plus the store's sync interval.
     """
     stats = stats or RecordStats()
     started = time.perf_counter()
+    cut_at = time.monotonic() + window_s if window_s else math.inf
     try:
         for m in messages:
             check_message(m.topic, m.stamp_ns, m.text, check_json=check_json)
@@ -156,6 +166,10 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
             try:
                 for window in policy.push(m.topic, m.stamp_ns, m.text):
                     store_window(store, window, stats, types)
+                if (now := time.monotonic()) >= cut_at:
+                    cut_at = now + window_s
+                    for window in policy.cut():
+                        store_window(store, window, stats, types)
             finally:
                 INTERRUPTS.critical = False
             if upkeep is not None:  # after the critical section: windows taken are stored

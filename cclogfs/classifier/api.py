@@ -248,6 +248,11 @@ class SmartLogger:
             out += [self._summary_window(r) for r in recs]
         return out
 
+    def cut(self) -> list[PendingWindow]:
+        """What the open window holds so far, as parts (`WindowBuilder.cut`): a bound on
+        what a hard kill loses. Held odometry is scored first."""
+        return self._drain() + self.windows.cut()
+
     def flush(self) -> list[PendingWindow]:
         """End of input: close the open window and the current summary period."""
         out = self._drain() + self.windows.flush()

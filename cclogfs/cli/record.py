@@ -58,6 +58,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--before", default=WINDOW_BEFORE, help="window context before an anomaly: N messages or Ds (default %(default)s)")
     p.add_argument("--after", default=WINDOW_AFTER, help="window context after the last anomaly: N or Ds (default %(default)s)")
     p.add_argument("--chunk", type=int, default=200, help="without --model: messages per stored window")
+    p.add_argument("--window-max-s", type=float, default=5.0, metavar="S",
+                   help="store the open windows at least every S seconds of wall time (default %(default)s), "
+                        "so a hard kill loses at most S plus --sync-ms")
     p.add_argument("--clock", choices=["log", "header"], default="log",
                    help="the time a bag's or live topic's message is stored and queried under: log (receive) time, "
                         "one clock for every topic (default), or header.stamp, else log time (docs/JSON.md)")
@@ -173,6 +176,8 @@ def _logging_policy(args: argparse.Namespace):
 def run(args: argparse.Namespace) -> int:
     policy, read_topics = _logging_policy(args)
     upkeep = _upkeep(args)
+    if not args.window_max_s > 0:
+        raise InvalidInputError(f"--window-max-s must be positive, not {args.window_max_s}")
     store_options = upkeep.store_options() if upkeep is not None else {}
     final_bytes = None  # the store's size once upkeep is done
     source = _open(args, read_topics)
@@ -196,7 +201,7 @@ def run(args: argparse.Namespace) -> int:
             ended = False  # the input ran out, with no error or interrupt
             try:
                 record(messages, store, policy, check_json=False, progress=tick, stats=stats, upkeep=upkeep,
-                       types=StreamTypes(getattr(source, "describe", None)))
+                       types=StreamTypes(getattr(source, "describe", None)), window_s=args.window_max_s)
                 ended = not stats.interrupted
                 tick(stats)  # the last count (progress is told every 4,096 messages)
             except KeyboardInterrupt:  # arrived once the input had ended: all was stored
