@@ -187,3 +187,15 @@ def model_fits(model, model_path: str, source: str, topic: str, *, force: bool, 
             raise InvalidInputError(f"{said[0].upper()}{said[1:]}; pass --force-model to use it anyway, or train a model "
                                     "on this robot (`cclog train`).")  # fmt: skip
         print(f"cclog: warning: {said}", file=sys.stderr)
+
+
+DAMAGED_EXIT = 4  # the input was damaged: what could be read was kept
+
+
+def damaged_exit(source) -> int:
+    """0, or DAMAGED_EXIT after saying what a damaged input lost (`ingest.salvage`)."""
+    lost = getattr(source, "lost", None)
+    if lost is None:
+        return 0
+    print(f"cclog: input damaged, kept what could be read: {lost}", file=sys.stderr)
+    return DAMAGED_EXIT

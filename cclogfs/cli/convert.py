@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from ..ingest import format_line, open_source
-from .common import Progress, check_topics_exist, no_source_message
+from .common import Progress, check_topics_exist, damaged_exit, no_source_message
 from .outputs import add_force, atomic_output, check_output
 
 EXAMPLES = """\
@@ -15,6 +15,9 @@ examples:
   cclog convert run.bag -o odom.jsonl --topic /odom   # one topic of a ROS 1 bag
   cclog convert rosbag2_dir/ -o - | head              # a ROS 2 bag directory, to stdout
   cat raw.jsonl | cclog convert - -o clean.jsonl --on-error skip
+
+A damaged ROS 1 bag or MCAP file (cut short, index lost) is read as far as it can be: every
+readable message is written, stderr says what was lost, and the exit code is 4.
 
 Each line is {"topic": ..., "stamp_ns": ..., "msg": {...}}: msg is the message as
 rosbridge JSON (docs/JSON.md), stamp_ns its log time (--clock header: its header.stamp,
@@ -54,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
         else:
             with atomic_output(args.output) as out:
                 _write(src, out, args)
-    return 0
+    return damaged_exit(src)
 
 
 def _write(src, out, args: argparse.Namespace) -> None:

@@ -3,17 +3,19 @@
 from __future__ import annotations
 
 import argparse
+import os
+import shutil
 import signal
 import sys
 
-from ..errors import InvalidInputError
+from ..errors import CclogError, InvalidInputError
 from ..ingest import open_source
 from ..jsontext.rostypes import StreamTypes
 from ..pipeline import WINDOW_AFTER, WINDOW_BEFORE, KeepAll, RecordStats, interrupt_handler, record, smart_policy
 from ..store import open_store
 from ..times import parse_duration
 from ..upkeep import Policy, Upkeep, compact, parse_rule
-from .common import Progress, check_topics_exist, human_bytes, load_labels, model_fits, no_source_message, parse_size
+from .common import Progress, check_topics_exist, damaged_exit, human_bytes, load_labels, model_fits, no_source_message, parse_size
 
 EXAMPLES = """\
 examples:
@@ -28,6 +30,8 @@ examples:
       --age-older-than 7d --age-error 1e-3      # the disk never fills; old windows shrink
 
 JSON Lines: one message per line, {"topic": "/odom", "stamp_ns": 1432235695834049087, "msg": {...}}.
+A damaged ROS 1 bag or MCAP file (cut short, index lost) is recorded as far as it can be
+read; stderr says what was lost and the exit code is 4.
 With --model, odometry on the model's topic is scored; each anomaly opens a window of
 --before messages (or seconds, "4s") before it and --after after the last anomaly, over
 the odometry and the --topic topics (all topics when none is given). Ctrl-C or SIGTERM
@@ -174,6 +178,27 @@ def _logging_policy(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
+    """Record; a run that fails before storing anything leaves no store it created."""
+    existed = os.path.exists(args.store)
+    try:
+        return _run(args)
+    except BaseException:
+        if not existed:
+            _remove_if_empty(args.store)
+        raise
+
+
+def _remove_if_empty(path: str) -> None:
+    try:
+        with open_store(path, readonly=True) as store:
+            if store.streams():
+                return
+    except CclogError:
+        return  # not a store we can read: leave it for the user to look at
+    shutil.rmtree(path, ignore_errors=True)
+
+
+def _run(args: argparse.Namespace) -> int:
     policy, read_topics = _logging_policy(args)
     upkeep = _upkeep(args)
     if not args.window_max_s > 0:
@@ -230,7 +255,7 @@ def run(args: argparse.Namespace) -> int:
     if args.model and policy.scored == 0:  # a live source or stdin, checked only now
         raise InvalidInputError(f"{args.source} sent no message on {args.odom_topic}, the odometry the model scores, "
                                 "so nothing was kept; name the odometry topic with --odom-topic T.")  # fmt: skip
-    return 130 if stats.interrupted else 0
+    return 130 if stats.interrupted else damaged_exit(source)
 
 
 def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep: Upkeep | None, final_bytes: int | None) -> None:

@@ -74,7 +74,12 @@ def detect_format(path: str | Path) -> str:
 
 
 def _mcap_format(p: Path) -> str:
-    encodings = mcap_encodings(p)
+    try:
+        encodings = mcap_encodings(p)
+    except SourceError:
+        if p.suffix != _SUFFIX["mcap"]:
+            raise
+        return "rosbag2"  # damaged: the bag reader refuses it, then ingest.salvage reads what it can
     if encodings <= {"json"}:
         return "mcap-json"
     if encodings == {"cdr"}:
@@ -120,9 +125,26 @@ def open_source(
     if not Path(path).exists():
         raise SourceError(f"{path} does not exist.")
     if cls is RosbagSource:
-        return cls(path, topics=topics, clock=clock)
+        try:
+            return cls(path, topics=topics, clock=clock)
+        except SourceError as err:
+            salvage = _salvage_class(fmt, Path(path))
+            if salvage is None:
+                raise
+            return salvage(path, topics=topics, clock=clock, why=str(err))
     _log_clock_only(path, clock)
     return cls(path, topics=topics)
+
+
+def _salvage_class(fmt: str, p: Path):
+    """The reader of what can be read of a damaged file of this kind (None: none)."""
+    from .salvage import McapSalvage, Ros1Salvage
+
+    if fmt == "rosbag1":
+        return Ros1Salvage
+    if p.is_file() and p.suffix == _SUFFIX["mcap"]:
+        return McapSalvage
+    return None
 
 
 def _log_clock_only(path: str | Path, clock: str) -> None:
