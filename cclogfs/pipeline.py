@@ -128,6 +128,8 @@ def store_window(store: Store, window: PendingWindow, stats: RecordStats, types:
         store.put_window(window.topic, part, meta, check_json=False)
         stats.records += 1
     stats.windows += 1
+    if window.meta.get("kind") == "summary":  # made by the recorder, not a message that came in
+        return
     n = len(window.messages)
     stats.messages_kept += n
     stats.json_bytes_kept += sum(len(t) for _, t in window.messages)

@@ -209,7 +209,13 @@ def _run(args: argparse.Namespace) -> int:
     if not args.source.startswith("ros1://"):
         check_topics_exist(source, args.source, read_topics)
     handler = getattr(source, "signal_handler", interrupt_handler)  # live: the first signal ends the input
-    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    received: list[int] = []  # the signal that stopped the run: exit 128 + its number, as shells expect
+
+    def noted(signum, frame):
+        received.append(signum)
+        handler(signum, frame)
+
+    previous = {sig: signal.signal(sig, noted) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         with source, open_store(args.store, create=True, codec=args.codec, sync_every_ms=args.sync_ms,
                                 **store_options) as store, \
@@ -255,7 +261,9 @@ def _run(args: argparse.Namespace) -> int:
     if args.model and policy.scored == 0:  # a live source or stdin, checked only now
         raise InvalidInputError(f"{args.source} sent no message on {args.odom_topic}, the odometry the model scores, "
                                 "so nothing was kept; name the odometry topic with --odom-topic T.")  # fmt: skip
-    return 130 if stats.interrupted else damaged_exit(source)
+    if stats.interrupted:
+        return 128 + (received[0] if received else signal.SIGINT)
+    return damaged_exit(source)
 
 
 def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep: Upkeep | None, final_bytes: int | None) -> None:
