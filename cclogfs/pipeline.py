@@ -9,6 +9,7 @@ keeps only logging windows around anomalies (smart mode).
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
@@ -38,6 +39,8 @@ WINDOW_AFTER = "2s"
 class WindowPolicy(Protocol):
     def push(self, topic: str, stamp_ns: int, text: str) -> list[PendingWindow]: ...
 
+    def cut(self) -> list[PendingWindow]: ...
+
     def flush(self) -> list[PendingWindow]: ...
 
 
@@ -64,6 +67,10 @@ class KeepAll:
 
     def _close(self, topic: str) -> PendingWindow:
         return PendingWindow(topic, self.open.pop(topic), {"kind": "all"})
+
+    def cut(self) -> list[PendingWindow]:
+        """Every open window now, however short: a bound on what a hard kill loses."""
+        return self.flush()
 
     def flush(self) -> list[PendingWindow]:
         return [self._close(t) for t in list(self.open) if self.open[t]]
@@ -121,6 +128,8 @@ def store_window(store: Store, window: PendingWindow, stats: RecordStats, types:
         store.put_window(window.topic, part, meta, check_json=False)
         stats.records += 1
     stats.windows += 1
+    if window.meta.get("kind") == "summary":  # made by the recorder, not a message that came in
+        return
     n = len(window.messages)
     stats.messages_kept += n
     stats.json_bytes_kept += sum(len(t) for _, t in window.messages)
@@ -130,7 +139,7 @@ def store_window(store: Store, window: PendingWindow, stats: RecordStats, types:
 def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
            check_json: bool = True, progress: Callable[[RecordStats], None] | None = None,
            stats: RecordStats | None = None, upkeep: Upkeep | None = None,
-           types: StreamTypes | None = None) -> RecordStats:  # fmt: skip
+           types: StreamTypes | None = None, window_s: float | None = None) -> RecordStats:  # fmt: skip
     """Feed messages (objects with .topic, .stamp_ns, .text) through `policy` into `store`.
 
     On any exit, Ctrl-C included, the policy's open windows are flushed into the store, so
@@ -140,10 +149,13 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
     good messages it holds).
     `upkeep`: retention and aging as segments are sealed (`compact.Upkeep`); the caller
     closes it before the store. `types`: keep each stream's message type (`m.msgtype`) in
-    its windows' metadata (`jsontext.rostypes.StreamTypes`).
+    its windows' metadata (`jsontext.rostypes.StreamTypes`). `window_s`: every this many
+    seconds of wall time the policy's open windows are cut and stored (`policy.cut()`), so a
+    hard kill loses at most that much plus the store's sync interval.
     """
     stats = stats or RecordStats()
     started = time.perf_counter()
+    cut_at = time.monotonic() + window_s if window_s else math.inf
     try:
         for m in messages:
             check_message(m.topic, m.stamp_ns, m.text, check_json=check_json)
@@ -156,6 +168,10 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
             try:
                 for window in policy.push(m.topic, m.stamp_ns, m.text):
                     store_window(store, window, stats, types)
+                if (now := time.monotonic()) >= cut_at:
+                    cut_at = now + window_s
+                    for window in policy.cut():
+                        store_window(store, window, stats, types)
             finally:
                 INTERRUPTS.critical = False
             if upkeep is not None:  # after the critical section: windows taken are stored
@@ -290,11 +306,11 @@ def parse_span(text: str) -> tuple[int, float | None]:
 
 
 def smart_policy(model: Any, *, topics: Iterable[str] | None = None, before: str = WINDOW_BEFORE,
-                 after: str = WINDOW_AFTER, summary: bool = True) -> Any:  # fmt: skip
+                 after: str = WINDOW_AFTER, summary: bool = True, odom_topic: str | None = None) -> Any:  # fmt: skip
     """The classifier's SmartLogger for `model` (a path or a loaded OneClassModel).
 
-    `topics`: the topics to log over each window (None: every topic seen); the model's own
-    odometry topic is always scored and logged.
+    `topics`: the topics to log over each window (None: every topic seen); the odometry
+    topic (`odom_topic`, by default the model's own) is always scored and logged.
     """
     from .classifier import Detector, OneClassModel, SmartLogger
 
@@ -302,7 +318,7 @@ def smart_policy(model: Any, *, topics: Iterable[str] | None = None, before: str
         model = OneClassModel.load(model)
     b_n, b_s = parse_span(before)
     a_n, a_s = parse_span(after)
-    return SmartLogger(Detector(model), odom_topic=model.topic, topics=topics,
+    return SmartLogger(Detector(model), odom_topic=odom_topic or model.topic, topics=topics,
                        before=b_n, after=a_n, before_s=b_s, after_s=a_s, batch=64,
                        summary_period_s=60.0 if summary else None)  # fmt: skip
 
@@ -315,13 +331,13 @@ def read_topic(path: str, topic: str) -> list[tuple[int, str]]:
         return [(m.stamp_ns, m.text) for m in source]
 
 
-def evaluate_run(messages: list[tuple[str, int, str]], model: Any, labels: Any, *,
-                 before: str = WINDOW_BEFORE, after: str = WINDOW_AFTER) -> dict:  # fmt: skip
+def evaluate_run(messages: list[tuple[str, int, str]], model: Any, labels: Any, *, before: str = WINDOW_BEFORE,
+                 after: str = WINDOW_AFTER, odom_topic: str | None = None) -> dict:  # fmt: skip
     """Score a labelled run as smart logging would: the paper's per-message Table 1, the
     per-event figures, and what fraction of messages and JSON bytes would be kept."""
     from .classifier import event_table, message_table, parse_odometry, window_spans
 
-    policy = smart_policy(model, before=before, after=after, summary=False)
+    policy = smart_policy(model, before=before, after=after, summary=False, odom_topic=odom_topic)
     topic = policy.odom_topic
     windows = policy.replay(messages)
     odom = parse_odometry(text for t, _, text in messages if t == topic)

@@ -8,7 +8,15 @@ from decimal import Decimal, InvalidOperation
 
 from .errors import InvalidInputError
 
-_NS = re.compile(r"(\d+)(?:ns)?")
+_NS = re.compile(r"(\d+)ns")
+_BARE = re.compile(r"\d+")
+# A bare integer is read by its magnitude: below this it is seconds (1e11 s is the year
+# 5138), from it on nanoseconds (1e11 ns is 100 s after 1970). `date +%s` and a simulation's
+# 928 are seconds; a bag's 1432235695834049087 is nanoseconds.
+BARE_SECONDS_BELOW = 10**11
+TIME_RULE = ("TIME: ISO-8601 (2015-05-21T19:14:55.83Z, UTC without a zone), seconds (1432235695.83 "
+             "or 12s), nanoseconds (1432235695834049087ns), or a bare integer: seconds below 1e11, "
+             "else nanoseconds")
 _SECONDS = re.compile(r"(\d+\.\d*|\.\d+|\d+(?:\.\d*)?s)")
 # ISO-8601 with up to nanosecond fractions (datetime itself stops at microseconds).
 _ISO = re.compile(
@@ -17,11 +25,15 @@ _ISO = re.compile(
 
 
 def parse_time(text: str) -> int:
-    """Nanoseconds for "1432235695834049087" (ns), "1432235695.834" or "12s" (seconds),
-    or ISO-8601 "2015-05-21T19:14:55.834049087Z" (no zone means UTC)."""
+    """Nanoseconds for "1432235695834049087ns", "1432235695.834" or "12s" (seconds),
+    ISO-8601 "2015-05-21T19:14:55.834049087Z" (no zone means UTC), or a bare integer read
+    by magnitude (seconds below BARE_SECONDS_BELOW, else nanoseconds)."""
     s = text.strip()
     if m := _NS.fullmatch(s):
         return int(m.group(1))
+    if _BARE.fullmatch(s):
+        n = int(s)
+        return n * 1_000_000_000 if n < BARE_SECONDS_BELOW else n
     if _SECONDS.fullmatch(s):
         try:
             return int(Decimal(s.removesuffix("s")) * 1_000_000_000)
@@ -39,7 +51,7 @@ def parse_time(text: str) -> int:
         seconds = whole.days * 86_400 + whole.seconds
         return seconds * 1_000_000_000 + int((frac or "").ljust(9, "0"))
     raise InvalidInputError(
-        f"Time {text!r} is not understood; give nanoseconds (1432235695834049087), seconds "
+        f"Time {text!r} is not understood; give nanoseconds (1432235695834049087ns), seconds "
         "(1432235695.83 or 12s) or ISO-8601 (2015-05-21T19:14:55.83Z)."
     )
 

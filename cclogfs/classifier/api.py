@@ -10,7 +10,8 @@ from typing import Iterable, Iterator
 import numpy as np
 
 from ..errors import InvalidInputError, ModelError
-from .features import OdomArrays, make_features, odom_row, parse_odometry
+from .features import OdomArrays, TwistFromPoses, make_features, odom_row, parse_odometry
+from .fit import robot_stats
 from .model import OneClassModel
 from .summary import SUMMARY_TOPIC, SummaryBuilder
 from .windows import PendingWindow, WindowBuilder
@@ -98,6 +99,7 @@ def train(
         params.setdefault("min_scale", DEFAULT_FLOORS)
         params.setdefault("one_sided", True)
     model = OneClassModel(feature_config=feature_set.get_config(), **params)
+    model.training = robot_stats(sources)
     Xa = np.concatenate(anomalous)
     return model.fit(np.concatenate(nominal), Xa if len(Xa) else None)
 
@@ -121,6 +123,7 @@ class Detector:
 
     def reset(self) -> None:
         self._stream = self.features.stream()
+        self._twist = TwistFromPoses()
 
     def lookback_ns(self, X: np.ndarray) -> np.ndarray:
         """Per vector, how long before its message the anomaly's evidence starts: the
@@ -164,9 +167,14 @@ class Detector:
         score = self.model.score_one(got[0])
         return score, score > 0
 
+    def parse(self, msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
+        """(stamp, 13 raw values) of one live odometry or pose message (twist from poses)."""
+        stamp, row = odom_row(msg)
+        return stamp, self._twist(stamp, row)
+
     def update(self, msg: dict | str | bytes) -> tuple[float, bool]:
         """Score of one live odometry message (rosbridge dict or JSON text)."""
-        return self.update_row(*odom_row(msg))
+        return self.update_row(*self.parse(msg))
 
 
 class SmartLogger:
@@ -201,7 +209,7 @@ class SmartLogger:
                 self._pending.append((topic, stamp_ns, text, None, False))
                 return []
             return self.windows.push(topic, stamp_ns, text)
-        head, row = odom_row(text)
+        head, row = self.detector.parse(text)
         if self.batch == 1:
             score, flag = self.detector.update_row(head, row)
             back = int(self.detector.lookback_ns(self.detector.last_vector)[0]) if flag else 0
@@ -239,6 +247,11 @@ class SmartLogger:
             recs = self.summary.update(stamp_ns, row[0], row[1], math.hypot(row[7], row[8]), flag)
             out += [self._summary_window(r) for r in recs]
         return out
+
+    def cut(self) -> list[PendingWindow]:
+        """What the open window holds so far, as parts (`WindowBuilder.cut`): a bound on
+        what a hard kill loses. Held odometry is scored first."""
+        return self._drain() + self.windows.cut()
 
     def flush(self) -> list[PendingWindow]:
         """End of input: close the open window and the current summary period."""

@@ -93,7 +93,9 @@ def event_table(stamp_ns: np.ndarray, spans: list[tuple[int, int]], labels,
 
 
 def _fmt(v) -> str:
-    return f"{100 * v:.1f}%" if isinstance(v, float) and v <= 1 and v == v else str(v)
+    if isinstance(v, float) and v != v:  # 0 of 0: nothing flagged (or no event to recall)
+        return "n/a"
+    return f"{100 * v:.1f}%" if isinstance(v, float) and v <= 1 else str(v)
 
 
 def format_message_table(t: dict) -> str:

@@ -28,6 +28,7 @@ __all__ = [
     "OdomArrays",
     "PaperFeatures",
     "make_features",
+    "TwistFromPoses",
     "odom_row",
     "parse_odometry",
 ]
@@ -96,8 +97,27 @@ _ODOM_TEXT = re.compile(
 )
 
 
+def _pose_fields(msg: dict) -> tuple[dict, dict, dict, dict | None]:
+    """(stamp, position, orientation, twist or None) of an Odometry, PoseWithCovarianceStamped,
+    PoseStamped, TransformStamped, or a TFMessage holding one transform."""
+    if "transforms" in msg and "header" not in msg:
+        if len(msg["transforms"]) != 1:
+            raise KeyError(f"transforms holds {len(msg['transforms'])} frames, not 1")
+        msg = msg["transforms"][0]
+    stamp = msg["header"]["stamp"]
+    if "transform" in msg:
+        t = msg["transform"]
+        return stamp, t["translation"], t["rotation"], None
+    pose = msg["pose"]
+    pose = pose["pose"] if "pose" in pose else pose
+    twist = msg["twist"]["twist"] if "twist" in msg else None
+    return stamp, pose["position"], pose["orientation"], twist
+
+
 def odom_row(msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
-    """One nav_msgs/Odometry (rosbridge dict or JSON text) as (stamp_ns, 13 floats)."""
+    """One odometry message (rosbridge dict or JSON text) as (stamp_ns, 13 floats): a
+    nav_msgs/Odometry, or a pose without twist (PoseStamped, PoseWithCovarianceStamped,
+    TransformStamped, a one-frame TFMessage) whose twist is NaN until `TwistFromPoses` fills it."""
     if isinstance(msg, str):
         m = _ODOM_TEXT.fullmatch(msg)
         if m is not None:
@@ -106,32 +126,83 @@ def odom_row(msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
     try:
         if not isinstance(msg, dict):
             msg = json.loads(msg)
-        stamp = msg["header"]["stamp"]
-        pose = msg["pose"]["pose"]
-        p, q = pose["position"], pose["orientation"]
-        twist = msg["twist"]["twist"]
-        v, w = twist["linear"], twist["angular"]
-        return int(stamp["sec"]) * NS + int(stamp["nanosec"]), (
-            p["x"], p["y"], p["z"], q["x"], q["y"], q["z"], q["w"],
-            v["x"], v["y"], v["z"], w["x"], w["y"], w["z"],
-        )  # fmt: skip
+        stamp, p, q, twist = _pose_fields(msg)
+        sec = stamp["sec"] if "sec" in stamp else stamp["secs"]
+        nsec = stamp["nanosec"] if "nanosec" in stamp else stamp["nsecs"]
+        v, w = (twist["linear"], twist["angular"]) if twist is not None else (_NAN_XYZ, _NAN_XYZ)
+        row = (p["x"], p["y"], p["z"], q["x"], q["y"], q["z"], q["w"],
+               v["x"], v["y"], v["z"], w["x"], w["y"], w["z"])  # fmt: skip
+        return int(sec) * NS + int(nsec), row if twist is not None else PoseOnly(row)
     except (KeyError, TypeError, ValueError) as err:
         raise InvalidInputError(
-            f"The message is not a nav_msgs/Odometry in rosbridge JSON (missing or bad field: {err})."
+            "The message is not a nav_msgs/Odometry, PoseStamped, PoseWithCovarianceStamped or "
+            f"TransformStamped in rosbridge JSON (missing or bad field: {err})."
         ) from err
 
 
+_NAN_XYZ = {"x": float("nan"), "y": float("nan"), "z": float("nan")}
+
+
+class PoseOnly(tuple):
+    """A raw row read from a message without twist (an odometry's NaN twist is a dropout,
+    kept as NaN; this one's is to be derived)."""
+
+
+def _rotate_back(q: tuple[float, ...], v: tuple[float, float, float]) -> tuple[float, float, float]:
+    """v (world frame) in the body frame of orientation q = (x, y, z, w): R(q)^T v."""
+    x, y, z, w = q
+    vx, vy, vz = v
+    # R^T v = v + 2w(v x u)... written out for u = -(x, y, z), the conjugate rotation.
+    ux, uy, uz = -x, -y, -z
+    tx, ty, tz = 2 * (uy * vz - uz * vy), 2 * (uz * vx - ux * vz), 2 * (ux * vy - uy * vx)
+    return (vx + w * tx + (uy * tz - uz * ty), vy + w * ty + (uz * tx - ux * tz), vz + w * tz + (ux * ty - uy * tx))
+
+
+class TwistFromPoses:
+    """Fills the NaN twist of pose-only rows from the previous pose, as odometry reports it:
+    linear velocity in the body frame, angular velocity as the rotation between the two
+    orientations (body frame) per second. Other rows (with a twist) pass unchanged."""
+
+    def __init__(self) -> None:
+        self._last: tuple[int, tuple[float, ...]] | None = None
+
+    def __call__(self, stamp_ns: int, row: tuple[float, ...]) -> tuple[float, ...]:
+        if not isinstance(row, PoseOnly):
+            return row
+        last, self._last = self._last, (stamp_ns, row)
+        if last is None or stamp_ns <= last[0]:
+            return (*row[:7], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        dt = (stamp_ns - last[0]) / NS
+        p0, p1 = last[1], row
+        q1 = p1[3:7]
+        v = _rotate_back(q1, ((p1[0] - p0[0]) / dt, (p1[1] - p0[1]) / dt, (p1[2] - p0[2]) / dt))
+        # q_rel = conj(q0) * q1, the rotation from the last orientation to this one (body frame).
+        x0, y0, z0, w0 = -p0[3], -p0[4], -p0[5], p0[6]
+        x1, y1, z1, w1 = q1
+        rx = w0 * x1 + x0 * w1 + y0 * z1 - z0 * y1
+        ry = w0 * y1 - x0 * z1 + y0 * w1 + z0 * x1
+        rz = w0 * z1 + x0 * y1 - y0 * x1 + z0 * w1
+        rw = w0 * w1 - x0 * x1 - y0 * y1 - z0 * z1
+        if rw < 0:  # the short way round
+            rx, ry, rz, rw = -rx, -ry, -rz, -rw
+        n = (rx * rx + ry * ry + rz * rz) ** 0.5
+        k = 2 * atan2(n, rw) / n / dt if n > 1e-12 else 2 / dt
+        return (*row[:7], *v, rx * k, ry * k, rz * k)
+
+
 def parse_odometry(messages: Iterable[dict | str | bytes]) -> OdomArrays:
-    """Many odometry messages (dicts or JSON texts) as one OdomArrays."""
+    """Many odometry messages (dicts or JSON texts) as one OdomArrays; pose-only messages
+    get their twist from consecutive poses (`TwistFromPoses`)."""
     stamps: list[int] = []
     rows: list[tuple[float, ...]] = []
+    twist = TwistFromPoses()
     for i, msg in enumerate(messages):
         try:
             stamp, row = odom_row(msg)
         except InvalidInputError as err:
             raise InvalidInputError(f"Odometry message {i}: {err}") from err
         stamps.append(stamp)
-        rows.append(row)
+        rows.append(twist(stamp, row))
     raw = np.array(rows, dtype=np.float64).reshape(len(rows), RAW_WIDTH)
     return OdomArrays(np.array(stamps, dtype=np.int64), raw)
 

@@ -61,6 +61,7 @@ class OneClassModel:
     ):
         self.feature_config = feature_config
         self.topic = topic  # the odometry topic the model watches, kept in the model file
+        self.training: dict | None = None  # classifier.fit.robot_stats of the training runs
         self.nu = nu
         self.gamma = gamma
         self.false_alarm_rate = false_alarm_rate
@@ -195,7 +196,7 @@ class OneClassModel:
             "gamma": self.gamma_, "nu": self.nu_, "threshold": self.threshold_,
             "one_sided": bool(self.one_sided),
             "false_alarm_rate": self.false_alarm_rate, "n_support": len(self.dual_coef_),
-            "n_train": int(self.n_train_), "topic": self.topic,
+            "n_train": int(self.n_train_), "topic": self.topic, "training": self.training,
             "versions": {"cclogfs": __version__, "numpy": np.__version__,
                          "sklearn": sklearn.__version__},
         }  # fmt: skip
@@ -205,7 +206,8 @@ class OneClassModel:
         for name, arr in self._arrays().items():
             h.update(name.encode())
             h.update(np.ascontiguousarray(arr, dtype="<f8").tobytes())
-        h.update(json.dumps({k: v for k, v in self._header().items() if k != "versions"},
+        # "training" (statistics for a warning) does not change what the model computes.
+        h.update(json.dumps({k: v for k, v in self._header().items() if k not in ("versions", "training")},
                             sort_keys=True).encode())  # fmt: skip
         return h.hexdigest()
 
@@ -266,6 +268,7 @@ class OneClassModel:
             model.threshold_ = float(header["threshold"])
             model.n_features_in_, model.n_train_ = int(header["n_features"]), int(header["n_train"])
             model.model_id_ = str(header["model_id"])
+            model.training = header.get("training")  # absent in files written before it was kept
         except (KeyError, ValueError, TypeError) as err:
             raise ModelError(f"Model {path} is malformed: missing or bad field {err}.") from err
         sv = model.support_vectors_

@@ -177,6 +177,18 @@ class WindowBuilder:
                 self._trim_ring(stamp_ns)
         return out
 
+    def cut(self) -> list[PendingWindow]:
+        """The open window's messages so far, as non-final parts, so that a hard kill
+        loses only what came after (the pipeline calls this every few seconds). Each
+        topic's newest message stays, so the window's final part is never empty."""
+        out: list[PendingWindow] = []
+        w = self.window
+        if w is not None:
+            for topic, part in w.parts.items():
+                if len(part) > 1:
+                    out.append(self._emit(topic, final=False, n=len(part) - 1))
+        return out
+
     def flush(self) -> list[PendingWindow]:
         """End of input: emit the open window, if any."""
         out: list[PendingWindow] = []
@@ -291,10 +303,11 @@ class WindowBuilder:
             "peak_ns": w.peak_ns, "model_id": self.model_id,
         }  # fmt: skip
 
-    def _emit(self, topic: str, *, final: bool) -> PendingWindow:
+    def _emit(self, topic: str, *, final: bool, n: int | None = None) -> PendingWindow:
         w = self.window
-        msgs = sorted(w.parts[topic][: self.max_part], key=lambda m: m[0])
-        w.parts[topic] = w.parts[topic][self.max_part :]
+        n = self.max_part if n is None else min(n, self.max_part)
+        msgs = sorted(w.parts[topic][:n], key=lambda m: m[0])
+        w.parts[topic] = w.parts[topic][n:]
         part = w.part_no.get(topic, 0)
         w.part_no[topic] = part + 1
         return PendingWindow(topic, msgs, self._meta(final) | {"part": part})

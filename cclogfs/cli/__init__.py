@@ -26,6 +26,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         description="cclogfs: keep the robot log data that matters, compressed and checksummed.",
         epilog="Start with `cclog demo`; `cclog COMMAND --help` shows examples for each command.",
     )
+    from .. import __version__
+
+    parser.add_argument("--version", action="version", version=f"cclog {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in COMMANDS:
         mod = importlib.import_module(f"{__name__}.{name}")
@@ -45,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except CclogError as err:
-        print(f"cclog: error: {err}", file=sys.stderr)
+        print(f"cclog: error: {_cli_words(str(err))}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("cclog: interrupted", file=sys.stderr)
@@ -56,3 +59,16 @@ def main(argv: list[str] | None = None) -> int:
         where = " -> ".join(str(p) for p in (err.filename, err.filename2) if p is not None)
         print(f"cclog: error: {where + ': ' if where else ''}{err.strerror or err}", file=sys.stderr)
         return 1
+
+
+# The store's errors name its Python API; on the command line they name the command.
+_API_WORDS = {
+    "pass create=True to make one": "`cclog record SOURCE --store PATH` makes one",
+    "open it with readonly=True to read": "commands that only read (info, cat, export, play) work meanwhile",
+}
+
+
+def _cli_words(message: str) -> str:
+    for api, cli in _API_WORDS.items():
+        message = message.replace(api, cli)
+    return message

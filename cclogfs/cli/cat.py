@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import Progress, Skipped, add_selection, selected_windows
+from .common import Progress, Skipped, add_selection, nothing_matched, selected_windows
 
 EXAMPLES = """\
 examples:
@@ -13,8 +13,9 @@ examples:
   cclog cat robot.store --topic /odom --start 928.5 --end 930s
   cclog cat robot.store --start 2015-05-21T19:14:55Z | jq .msg.pose.pose.position
 
-Times: nanoseconds (1432235695834049087), seconds (1432235695.83 or 12s) or ISO-8601
-(UTC when no zone is given). Each msg is printed exactly as it was stored; messages of
+Times: nanoseconds (1432235695834049087ns), seconds (1432235695.83 or 12s), ISO-8601
+(UTC when no zone is given), or a bare integer: seconds below 1e11, else nanoseconds.
+A selection that matches no message is an error (exit 1) naming what the store holds. Each msg is printed exactly as it was stored; messages of
 several streams are merged by stamp. Windows that `cclog compact` aged hold values within
 their stated error bounds; a note on stderr says how many were printed.
 """
@@ -43,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
 
     with open_store(args.store, readonly=True) as store, Progress("cat") as progress:
         skipped = Skipped(store, args)
-        write_jsonl(
+        n = write_jsonl(
             counted(selected_windows(store, args, skipped)),
             sys.stdout,
             start_ns=args.start,
@@ -51,6 +52,8 @@ def run(args: argparse.Namespace) -> int:
             progress=progress,
         )
         sys.stdout.flush()
+        if n == 0 and not (skipped.stretches or skipped.windows):
+            raise nothing_matched(store, args)
     if aged[0]:
         print(f"cclog: note: {aged[0]} of {aged[1]} windows were aged by compaction: their values are "
               "within stated error bounds, not byte-exact (`cclog info` says how)", file=sys.stderr)  # fmt: skip

@@ -16,10 +16,10 @@ from typing import TextIO
 
 from ..errors import CorruptionError, InvalidInputError
 from ..textfmt import human_bytes, iso_ns, table
-from ..times import parse_time
+from ..times import TIME_RULE, parse_time
 
-__all__ = ["Progress", "add_selection", "human_bytes", "iso_ns", "load_labels", "parse_size", "selected_windows",
-           "table", "time_arg"]  # fmt: skip
+__all__ = ["Progress", "TIME_RULE", "add_selection", "check_range", "human_bytes", "iso_ns", "load_labels",
+           "nothing_matched", "parse_size", "selected_windows", "table", "time_arg"]  # fmt: skip
 
 _SIZE = re.compile(r"(\d+(?:\.\d*)?)\s*(B|KB|MB|GB|TB|KiB|MiB|GiB|TiB)?", re.IGNORECASE)
 _SIZE_UNIT = {"b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12,
@@ -46,7 +46,7 @@ def add_selection(p: argparse.ArgumentParser) -> None:
     """STORE, --topic, --start, --end: the arguments cat and export share."""
     p.add_argument("store", help="store directory")
     p.add_argument("--topic", action="append", metavar="T", help="only stream T (repeatable)")
-    p.add_argument("--start", type=time_arg, metavar="TIME", help="from this time on")
+    p.add_argument("--start", type=time_arg, metavar="TIME", help=f"from this time on ({TIME_RULE})")
     p.add_argument("--end", type=time_arg, metavar="TIME", help="up to this time (inclusive)")
     p.add_argument("--skip-damaged", action="store_true",
                    help="read every intact window of a damaged store; say on stderr what was skipped "
@@ -79,9 +79,34 @@ class Skipped:
         return EXIT_SKIPPED
 
 
+def check_range(args: argparse.Namespace) -> None:
+    """A backwards --start/--end is a mistake, not an empty answer."""
+    if args.start is not None and args.end is not None and args.start > args.end:
+        raise InvalidInputError(f"--start {iso_ns(args.start)} is after --end {iso_ns(args.end)}; "
+                                "swap them.")  # fmt: skip
+
+
+def what_exists(streams: dict[str, dict]) -> str:
+    """The topics present and their time spans, for an error that a filter matched nothing."""
+    if not streams:
+        return "it holds no messages"
+    spans = [f"{name} ({iso_ns(t['start_ns'])} to {iso_ns(t['end_ns'])})" if "start_ns" in t else name
+             for name, t in sorted(streams.items())]  # fmt: skip
+    return "it holds " + ", ".join(spans)
+
+
+def nothing_matched(store, args: argparse.Namespace) -> InvalidInputError:
+    """The error for a --topic/--start/--end selection that matched no message."""
+    wanted = " or ".join(args.topic or ["any topic"])
+    times = f" between {args.start if args.start is None else iso_ns(args.start)} and " \
+            f"{args.end if args.end is None else iso_ns(args.end)}" if args.start is not None or args.end is not None else ""
+    return InvalidInputError(f"There is no message of {wanted}{times} in {store.path}; {what_exists(store.streams())}.")
+
+
 def selected_windows(store, args: argparse.Namespace, skipped: Skipped | None = None):
     """The store's windows for the chosen topics and times, in start order. With
     `skipped` collecting (--skip-damaged), damaged windows are left out and noted there."""
+    check_range(args)
     topics = set(args.topic or ())
     name = next(iter(topics)) if len(topics) == 1 else None
     skip = skipped is not None and skipped.skip
@@ -146,3 +171,70 @@ class Progress:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def source_topics(path: str) -> str:
+    """The topics a source holds, as an error message lists them (reads a JSONL file through)."""
+    if path == "-" or "://" in path:
+        return "its topics are not known up front"
+    from ..errors import CclogError
+    from ..ingest import open_source
+
+    try:
+        with open_source(path, on_error="skip", report=lambda err: None) as src:
+            topics = set(src.topics()) or {m.topic for m in src}
+    except CclogError as err:
+        return f"its topics cannot be listed ({err})"
+    return "it holds " + (", ".join(sorted(topics)) or "no messages")
+
+
+def check_topics_exist(src, path: str, topics: list[str] | None) -> None:
+    """Refuse a --topic selection of which the source (when it knows its topics) has none."""
+    if topics and not src.topics():
+        raise InvalidInputError(f"{path} has no topic {' or '.join(topics)}; {source_topics(path)}.")
+
+
+def no_source_message(path: str, topics: list[str] | None) -> InvalidInputError:
+    """The error for a source that yielded no message of the selection."""
+    what = f"topic {' or '.join(topics)}" if topics else "message"
+    return InvalidInputError(f"{path} yielded no {what}; {source_topics(path)}.")
+
+
+def model_fits(model, model_path: str, source: str, topic: str, *, force: bool, texts: list | None = None) -> None:
+    """Refuse a source without the model's odometry `topic` (naming what it holds and
+    --odom-topic), and a robot whose rate or motion is far outside the model's training
+    (a warning with --force-model). `texts`: the topic's messages when already read; else up
+    to 3,000 are read from the file (a live source or stdin is checked as it is recorded)."""
+    import itertools
+
+    from ..classifier import parse_odometry
+    from ..classifier.fit import compare, robot_stats
+    from ..ingest import open_source
+
+    if texts is None:
+        if source == "-" or "://" in source:
+            return
+        with open_source(source, topics=[topic], on_error="skip", report=lambda err: None) as src:
+            texts = [m.text for m in itertools.islice(src, 3000)]
+    if not texts:
+        raise InvalidInputError(f"{source} has no topic {topic}, the odometry model {model_path} scores; "
+                                f"{source_topics(source)}; name the odometry topic with --odom-topic T.")  # fmt: skip
+    far = compare(model.training, robot_stats([parse_odometry(texts)]))
+    if far:
+        said = f"model {model_path} was trained on a robot unlike {source}'s {topic}: {'; '.join(far)}"
+        if not force:
+            raise InvalidInputError(f"{said[0].upper()}{said[1:]}; pass --force-model to use it anyway, or train a model "
+                                    "on this robot (`cclog train`).")  # fmt: skip
+        print(f"cclog: warning: {said}", file=sys.stderr)
+
+
+DAMAGED_EXIT = 4  # the input was damaged: what could be read was kept
+
+
+def damaged_exit(source) -> int:
+    """0, or DAMAGED_EXIT after saying what a damaged input lost (`ingest.salvage`)."""
+    lost = getattr(source, "lost", None)
+    if lost is None:
+        return 0
+    print(f"cclog: input damaged, kept what could be read: {lost}", file=sys.stderr)
+    return DAMAGED_EXIT

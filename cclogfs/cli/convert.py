@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..jsontext.lines import format_line
-from .common import Progress
+from .common import Progress, check_topics_exist, damaged_exit, no_source_message
+from .outputs import add_force, atomic_output, check_output
 
 EXAMPLES = """\
 examples:
@@ -15,8 +15,12 @@ examples:
   cclog convert rosbag2_dir/ -o - | head              # a ROS 2 bag directory, to stdout
   cat raw.jsonl | cclog convert - -o clean.jsonl --on-error skip
 
+A damaged ROS 1 bag or MCAP file (cut short, index lost) is read as far as it can be: every
+readable message is written, stderr says what was lost, and the exit code is 4.
+
 Each line is {"topic": ..., "stamp_ns": ..., "msg": {...}}: msg is the message as
-rosbridge JSON (docs/JSON.md), stamp_ns its header.stamp or else its log time.
+rosbridge JSON (docs/JSON.md), stamp_ns its log time (--clock header: its header.stamp,
+else its log time).
 """
 
 
@@ -28,6 +32,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("source", help="bag file, ROS 2 bag directory, .mcap, .jsonl, or - (stdin)")
     p.add_argument("-o", "--output", required=True, help="output .jsonl file, or - for stdout")
     p.add_argument("--topic", action="append", metavar="T", help="keep only topic T (repeatable)")
+    p.add_argument("--clock", choices=["log", "header"], default="log",
+                   help="stamp_ns of a bag's message: its log (receive) time (default) or header.stamp (docs/JSON.md)")
+    add_force(p)
     p.add_argument(
         "--on-error",
         choices=("stop", "skip"),
@@ -43,14 +50,24 @@ def run(args: argparse.Namespace) -> int:
     def warn(err: Exception) -> None:
         print(f"cclog convert: skipped: {err}", file=sys.stderr)
 
-    with open_source(args.source, args.topic, on_error=args.on_error, report=warn) as src:
-        out = sys.stdout if args.output == "-" else open(args.output, "w", encoding="utf-8")
-        try:
-            with Progress("convert") as progress:
-                for m in src:
-                    out.write(format_line(m.topic, m.stamp_ns, m.text))
-                    progress()
-        finally:
-            if out is not sys.stdout:
-                out.close()
-    return 0
+    if args.output != "-":
+        check_output(args.output, [args.source], force=args.force)
+    with open_source(args.source, args.topic, on_error=args.on_error, report=warn, clock=args.clock) as src:
+        check_topics_exist(src, args.source, args.topic)
+        if args.output == "-":
+            _write(src, sys.stdout, args)
+        else:
+            with atomic_output(args.output) as out:
+                _write(src, out, args)
+    return damaged_exit(src)
+
+
+def _write(src, out, args: argparse.Namespace) -> None:
+    from ..jsontext.lines import format_line
+
+    with Progress("convert") as progress:
+        for m in src:
+            out.write(format_line(m.topic, m.stamp_ns, m.text))
+            progress()
+    if progress.count == 0:  # raised inside the output's block: no empty output is left
+        raise no_source_message(args.source, args.topic)

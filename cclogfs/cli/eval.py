@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from .common import human_bytes, load_labels
+from .common import human_bytes, load_labels, model_fits
 
 EXAMPLES = """\
 examples:
@@ -30,17 +30,33 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--topic", action="append", metavar="T", help="topics logged with the windows (default all)")
     p.add_argument("--before", default=WINDOW_BEFORE, help="N messages or Ds (default %(default)s)")
     p.add_argument("--after", default=WINDOW_AFTER, help="N messages or Ds (default %(default)s)")
+    p.add_argument("--odom-topic", metavar="T", help="the source's odometry topic to score (default: the model's)")
+    p.add_argument("--force-model", action="store_true",
+                   help="use the model even on a robot whose rate or motion is far outside its training")
+
+
+def _is_bag(path: str) -> bool:
+    from ..ingest import FORMATS, RosbagSource, detect_format
+
+    return path != "-" and FORMATS.get(detect_format(path)) is RosbagSource
 
 
 def run(args: argparse.Namespace) -> int:
     # Imported here, not at the top: `cclog --help` imports every subcommand module.
-    from ..classifier import format_event_table, format_message_table
+    from ..classifier import OneClassModel, format_event_table, format_message_table
     from ..ingest import open_source
     from ..pipeline import evaluate_run
 
-    with open_source(args.source, topics=args.topic) as source:
+    model = OneClassModel.load(args.model)
+    odom_topic = args.odom_topic or model.topic
+    topics = None if args.topic is None else sorted({*args.topic, odom_topic})
+    # Labels are in header stamps (docs/CLASSIFIER.md), so the replay uses that clock.
+    with open_source(args.source, topics=topics, clock="header" if _is_bag(args.source) else "log") as source:
         messages = [(m.topic, m.stamp_ns, m.text) for m in source]
-    result = evaluate_run(messages, args.model, load_labels(args.labels), before=args.before, after=args.after)
+    model_fits(model, args.model, args.source, odom_topic, force=args.force_model,
+               texts=[text for t, _, text in messages if t == odom_topic])  # fmt: skip
+    result = evaluate_run(messages, model, load_labels(args.labels), before=args.before, after=args.after,
+                          odom_topic=odom_topic)  # fmt: skip
     print("per message (the paper's Table 1):")
     print(format_message_table(result["messages"]))
     print("\nper event:")

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import sys
 
 from ..errors import InvalidInputError
-from .common import Progress, Skipped, add_selection, selected_windows
+from .common import Progress, Skipped, add_selection, nothing_matched, selected_windows
+from .outputs import add_force, check_output
 
 EXAMPLES = """\
 examples:
@@ -32,12 +34,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     to.add_argument("--mcap", metavar="OUT.mcap", help="write one MCAP file (JSON channels)")
     to.add_argument("--parquet", metavar="DIR", help="write Hive-partitioned Parquet under DIR")
     p.add_argument("--robot", help="robot name for the Parquet partition (default: store name)")
-    p.add_argument(
-        "--replace", action="store_true", help="replace this robot's earlier Parquet export"
-    )
+    add_force(p, "--replace")  # --replace: the Parquet export's earlier spelling
 
 
-def check_output(args: argparse.Namespace) -> None:
+def check_target(args: argparse.Namespace) -> None:
     """Refuse an output that cannot be written before any work (and any temporary file)."""
     if args.mcap:
         parent = os.path.dirname(os.path.abspath(args.mcap))
@@ -50,7 +50,7 @@ def check_output(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    check_output(args)
+    check_target(args)
     # Imported here, not at the top: `cclog --help` imports every subcommand module.
     from ..export import export_mcap, export_parquet
     from ..store import open_store
@@ -58,12 +58,18 @@ def run(args: argparse.Namespace) -> int:
     with open_store(args.store, readonly=True) as store, Progress("export") as progress:
         skipped = Skipped(store, args)
         windows = selected_windows(store, args, skipped)
+        first = next(windows, None)
+        if first is None and not (skipped.stretches or skipped.windows):
+            raise nothing_matched(store, args)
+        windows = itertools.chain([first] if first is not None else [], windows)
         if args.mcap:
+            check_output(args.mcap, [args.store], force=args.force)
             stats = export_mcap(windows, args.mcap, progress=progress)
         else:
+            check_output(args.parquet, [args.store], force=True)  # the robot's own subdirectory is checked below
             robot = args.robot or os.path.basename(os.path.normpath(args.store))
             stats = export_parquet(
-                windows, args.parquet, robot=robot, replace=args.replace, progress=progress
+                windows, args.parquet, robot=robot, replace=args.force, progress=progress
             )
     print(
         f"exported {stats.windows} windows, {stats.messages} messages of "

@@ -39,6 +39,7 @@ def store_info(path: str) -> dict:
             for last in store.query(name, start_ns=st["end_ns"], end_ns=st["end_ns"], skip_damaged=True):
                 pass
             st["codec"] = last.codec_config if last is not None else None
+            st["msgtype"] = (last.meta or {}).get("msgtype", "") if last is not None else ""
             st["ratio"] = st["stored_bytes"] / st["json_bytes"] if st["json_bytes"] else None
         return {
             "summary": summary_totals(store) if SUMMARY_TOPIC in streams else None,
@@ -86,9 +87,9 @@ def run(args: argparse.Namespace) -> int:
         rows.append([name, st["windows"], st["messages"], iso_ns(st["start_ns"]), f"{span:.1f} s",
                      human_bytes(st["json_bytes"]), human_bytes(st["stored_bytes"]),
                      f"{100 * st['ratio']:.2f} %" if st["ratio"] else "-",
-                     (st["codec"] or {}).get("id", "?")])  # fmt: skip
+                     (st["codec"] or {}).get("id", "?"), st["msgtype"] or "-"])  # fmt: skip
     print(f"store {info['path']}  ({info['segments']} segments, {human_bytes(info['disk_bytes'])} on disk)")
-    print(table(rows, ["stream", "windows", "messages", "start (UTC)", "span", "JSON", "stored", "% of JSON", "codec"]))
+    print(table(rows, ["stream", "windows", "messages", "start (UTC)", "span", "JSON", "stored", "% of JSON", "codec", "type"]))
     if info["summary"]:
         t = info["summary"]
         print(f"summary ({SUMMARY_TOPIC}, {t['minutes']} periods): {t['distance_m'] / 1000:.3f} km driven, "

@@ -7,7 +7,7 @@ import sys
 import time
 
 from ..errors import InvalidInputError
-from .common import time_arg
+from .common import TIME_RULE, check_range, nothing_matched, time_arg
 
 # The engine and the players are imported where they are used, not here: `cclog --help`
 # imports every subcommand module.
@@ -34,7 +34,7 @@ DESCRIPTION = "Play a store back: its messages in time order at their recorded p
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("store", help="store directory")
     p.add_argument("--topic", action="append", metavar="T", help="only stream T (repeatable)")
-    p.add_argument("--start", type=time_arg, metavar="TIME", help="from this time on")
+    p.add_argument("--start", type=time_arg, metavar="TIME", help=f"from this time on ({TIME_RULE})")
     p.add_argument("--end", type=time_arg, metavar="TIME", help="up to this time (inclusive)")
     p.add_argument("--rate", type=float, default=1.0, help="speed factor (default 1: the recorded pace)")
     p.add_argument("--loop", action="store_true", help="start again at the end, until Ctrl-C")
@@ -59,10 +59,11 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError("--foxglove and --to ros1:// are two ways to play; choose one")
     if args.to != "-" and not args.to.startswith("ros1://"):
         raise InvalidInputError(f"--to {args.to!r}: write - (stdout) or ros1://[HOST:PORT]")
+    check_range(args)
     with open_store(args.store, readonly=True) as store:
         names = sorted(n for n in store.streams() if args.topic is None or n in args.topic)
         if not names:
-            raise InvalidInputError(f"{args.store} has no stream {' or '.join(args.topic or [])}".rstrip())
+            raise nothing_matched(store, args)
         types = stream_types(store, names)
         _warn_long_span(store.streams(), names, args)
         send, close = _sink(args, store, names, types)
@@ -81,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
             progress.close()
             close()
     if n == 0:
-        raise InvalidInputError("no message of the chosen streams lies between --start and --end")
+        with open_store(args.store, readonly=True) as store:
+            raise nothing_matched(store, args)
     print(f"played {n:,} messages of {len(names)} streams from {args.store}", file=sys.stderr)
     return 0
 

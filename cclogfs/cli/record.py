@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import os
+import shutil
 import signal
 import sys
 from typing import TYPE_CHECKING
 
-from ..errors import InvalidInputError
+from ..errors import CclogError, InvalidInputError
 from ..times import parse_duration
-from .common import Progress, human_bytes, load_labels, parse_size
+from .common import (Progress, check_topics_exist, damaged_exit, human_bytes, load_labels, model_fits,
+                     no_source_message, parse_size)
 
 # The engine, sources and classifier are imported where they are used, not here:
 # `cclog --help` imports every subcommand module.
@@ -30,6 +33,8 @@ examples:
       --age-older-than 7d --age-error 1e-3      # the disk never fills; old windows shrink
 
 JSON Lines: one message per line, {"topic": "/odom", "stamp_ns": 1432235695834049087, "msg": {...}}.
+A damaged ROS 1 bag or MCAP file (cut short, index lost) is recorded as far as it can be
+read; stderr says what was lost and the exit code is 4.
 With --model, odometry on the model's topic is scored; each anomaly opens a window of
 --before messages (or seconds, "4s") before it and --after after the last anomaly, over
 the odometry and the --topic topics (all topics when none is given). Ctrl-C or SIGTERM
@@ -37,8 +42,8 @@ stores what was seen and closes the store cleanly.
 
 ros1:// records live from a ROS 1 master until Ctrl-C or SIGTERM (then exit 0, or 4): every topic,
 or those whose name is a --topic or fully matches one as a regular expression, minus
---exclude; topics that appear later are picked up. A message's time is its header stamp,
-else its receive time. Needs rospy (Debian: apt-get install ros-core python3-rospy).
+--exclude; topics that appear later are picked up. A message's time is its receive time
+(--clock header: its header stamp, else its receive time). Needs rospy (Debian: apt-get install ros-core python3-rospy).
 At the end, stderr says per topic what was received and how many messages were lost, told
 from each publisher's header.seq (a gap means dropped messages); topics whose type has no
 header (tf2_msgs/TFMessage) or whose seq does not count up are listed as not checked.
@@ -69,6 +74,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--before", default=WINDOW_BEFORE, help="window context before an anomaly: N messages or Ds (default %(default)s)")
     p.add_argument("--after", default=WINDOW_AFTER, help="window context after the last anomaly: N or Ds (default %(default)s)")
     p.add_argument("--chunk", type=int, default=200, help="without --model: messages per stored window")
+    p.add_argument("--window-max-s", type=float, default=5.0, metavar="S",
+                   help="store the open windows at least every S seconds of wall time (default %(default)s), "
+                        "so a hard kill loses at most S plus --sync-ms")
+    p.add_argument("--clock", choices=["log", "header"], default="log",
+                   help="the time a bag's or live topic's message is stored and queried under: log (receive) time, "
+                        "one clock for every topic (default), or header.stamp, else log time (docs/JSON.md)")
     p.add_argument("--codec", default="columnar",
                    help="codec for new records: columnar (default, smallest), zstd (fastest), lzma, none")
     p.add_argument("--on-error", choices=["stop", "skip"], default="stop",
@@ -81,7 +92,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--labels", metavar="JSON", help="with --features-out: labelled events of the source")
     p.add_argument("--features", default="default", choices=["default", "paper"],
                    help="with --features-out: the feature set")
-    p.add_argument("--odom-topic", default="/odom", help="with --features-out: the odometry topic (default /odom)")
+    p.add_argument("--odom-topic", metavar="T",
+                   help="the odometry topic: with --model, the source's topic to score (default: the model's), "
+                        "with --features-out the topic to learn from (default /odom)")
+    p.add_argument("--force-model", action="store_true",
+                   help="with --model: use it even on a robot whose rate or motion is far outside its training")
     upkeep = p.add_argument_group("upkeep while recording (as `cclog compact`, each time a segment is sealed)")
     upkeep.add_argument("--budget", metavar="SIZE",
                         help="drop the oldest segments while the store is larger (e.g. 20GiB); segments are "
@@ -96,11 +111,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _tee_odometry(messages, topic: str, rows: list):
     """Pass messages on, keeping the odometry as compact rows (not texts) for the dataset."""
-    from ..classifier.features import odom_row
+    from ..classifier.features import TwistFromPoses, odom_row
 
+    twist = TwistFromPoses()  # pose-only robots: twist from consecutive poses
     for m in messages:
         if m.topic == topic:
-            rows.append(odom_row(m.text))
+            stamp, row = odom_row(m.text)
+            rows.append((stamp, twist(stamp, row)))
         yield m
 
 
@@ -145,12 +162,12 @@ def _open(args: argparse.Namespace, topics: list[str] | None):
     if args.source.startswith("ros1://"):
         from ..ingest.ros1live import Ros1LiveSource
 
-        return Ros1LiveSource(args.source, topics=topics, exclude=args.exclude)
+        return Ros1LiveSource(args.source, topics=topics, exclude=args.exclude, clock=args.clock)
     from ..ingest import open_source
 
     if args.exclude:
         raise InvalidInputError("--exclude goes with a live source (ros1://); name the topics to read with --topic")
-    return open_source(args.source, topics=topics, on_error=args.on_error, report=_skipped)
+    return open_source(args.source, topics=topics, on_error=args.on_error, report=_skipped, clock=args.clock)
 
 
 def _logging_policy(args: argparse.Namespace):
@@ -158,15 +175,22 @@ def _logging_policy(args: argparse.Namespace):
     from ..pipeline import KeepAll, smart_policy
 
     topics = args.topic
+    if args.features_out and not args.odom_topic:
+        args.odom_topic = "/odom"
     if args.labels and not args.features_out:
         raise InvalidInputError("--labels goes with --features-out")
     if args.features_out and topics is not None and args.odom_topic not in topics:
         topics = [*topics, args.odom_topic]
     if not args.model:
         return KeepAll(chunk=args.chunk), topics
+    from ..classifier import OneClassModel
+
+    model = OneClassModel.load(args.model)
+    args.odom_topic = args.odom_topic or model.topic
+    model_fits(model, args.model, args.source, args.odom_topic, force=args.force_model)
     live = args.source.startswith("ros1://")  # the live source itself matches names and patterns
-    policy = smart_policy(args.model, topics=None if live else topics, before=args.before, after=args.after,
-                          summary=not args.no_summary)  # fmt: skip
+    policy = smart_policy(model, topics=None if live else topics, before=args.before, after=args.after,
+                          summary=not args.no_summary, odom_topic=args.odom_topic)  # fmt: skip
     # The scored odometry must be read even when --topic does not name it.
     return policy, None if topics is None else sorted({*topics, policy.odom_topic})
 
@@ -182,6 +206,29 @@ def _warn_damage(store) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Record; a run that fails before storing anything leaves no store it created."""
+    existed = os.path.exists(args.store)
+    try:
+        return _run(args)
+    except BaseException:
+        if not existed:
+            _remove_if_empty(args.store)
+        raise
+
+
+def _remove_if_empty(path: str) -> None:
+    from ..store import open_store
+
+    try:
+        with open_store(path, readonly=True) as store:
+            if store.streams():
+                return
+    except CclogError:
+        return  # not a store we can read: leave it for the user to look at
+    shutil.rmtree(path, ignore_errors=True)
+
+
+def _run(args: argparse.Namespace) -> int:
     from ..jsontext.rostypes import StreamTypes
     from ..pipeline import RecordStats, interrupt_handler, record
     from ..store import open_store
@@ -189,11 +236,21 @@ def run(args: argparse.Namespace) -> int:
 
     policy, read_topics = _logging_policy(args)
     upkeep = _upkeep(args)
+    if not args.window_max_s > 0:
+        raise InvalidInputError(f"--window-max-s must be positive, not {args.window_max_s}")
     store_options = upkeep.store_options() if upkeep is not None else {}
     final_bytes = None  # the store's size once upkeep is done
     source = _open(args, read_topics)
+    if not args.source.startswith("ros1://"):
+        check_topics_exist(source, args.source, read_topics)
     handler = getattr(source, "signal_handler", interrupt_handler)  # live: the first signal ends the input
-    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    received: list[int] = []  # the signal that stopped the run: exit 128 + its number, as shells expect
+
+    def noted(signum, frame):
+        received.append(signum)
+        handler(signum, frame)
+
+    previous = {sig: signal.signal(sig, noted) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         with source, open_store(args.store, create=True, codec=args.codec, sync_every_ms=args.sync_ms,
                                 **store_options) as store, \
@@ -211,7 +268,7 @@ def run(args: argparse.Namespace) -> int:
             ended = False  # the input ran out, with no error or interrupt
             try:
                 record(messages, store, policy, check_json=False, progress=tick, stats=stats, upkeep=upkeep,
-                       types=StreamTypes(getattr(source, "describe", None)))
+                       types=StreamTypes(getattr(source, "describe", None)), window_s=args.window_max_s)
                 ended = not stats.interrupted
                 tick(stats)  # the last count (progress is told every 4,096 messages)
             except KeyboardInterrupt:  # arrived once the input had ended: all was stored
@@ -235,10 +292,17 @@ def run(args: argparse.Namespace) -> int:
     if args.features_out:
         _write_dataset(args, rows)
     _print_summary(args, source, stats, upkeep, final_bytes)
+    if stats.messages_in == 0 and not stats.interrupted:
+        raise no_source_message(args.source, read_topics)
+    if args.model and policy.scored == 0:  # a live source or stdin, checked only now
+        raise InvalidInputError(f"{args.source} sent no message on {args.odom_topic}, the odometry the model scores, "
+                                "so nothing was kept; name the odometry topic with --odom-topic T.")  # fmt: skip
     if stats.interrupted:
-        return 130
+        return 128 + (received[0] if received else signal.SIGINT)
     seq = getattr(source, "seq", None)
-    return LOST if seq is not None and seq.lost else 0
+    if seq is not None and seq.lost:
+        return LOST
+    return damaged_exit(source)
 
 
 def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep: Upkeep | None, final_bytes: int | None) -> None:

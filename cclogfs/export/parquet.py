@@ -84,7 +84,7 @@ def export_parquet(
         if not replace:
             raise InvalidInputError(
                 f"{root} already holds an export for robot {robot!r}; remove it, pass "
-                "replace=True (--replace), or choose another directory."
+                "replace=True (--force), or choose another directory."
             )
         shutil.rmtree(root)
     stats = ExportStats()

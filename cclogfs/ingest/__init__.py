@@ -13,7 +13,7 @@ from pathlib import Path
 
 from ..errors import SourceError
 from ..jsontext.lines import format_line, parse_line
-from .base import Source, SourceMessage
+from .base import Source, SourceMessage, check_clock
 from .jsonl import JsonlSource, OnError
 
 __all__ = [
@@ -90,7 +90,12 @@ def detect_format(path: str | Path) -> str:
 def _mcap_format(p: Path) -> str:
     from .mcapjson import mcap_encodings
 
-    encodings = mcap_encodings(p)
+    try:
+        encodings = mcap_encodings(p)
+    except SourceError:
+        if p.suffix != _SUFFIX["mcap"]:
+            raise
+        return "rosbag2"  # damaged: the bag reader refuses it, then ingest.salvage reads what it can
     if encodings <= {"json"}:
         return "mcap-json"
     if encodings == {"cdr"}:
@@ -117,16 +122,47 @@ def open_source(
     format: str | None = None,
     on_error: OnError = "stop",
     report: Callable[[SourceError], None] | None = None,
+    clock: str = "log",
 ) -> Source:
-    """Open a log for reading, choosing the reader by file type (or by `format`)."""
+    """Open a log for reading, choosing the reader by file type (or by `format`). `clock`:
+    the time of a bag's messages, "log" or "header" (JSONL lines and JSON MCAP carry their
+    own times, so for them only "log" is accepted)."""
     fmt = format or detect_format(path)
     if fmt not in _READERS:
         raise SourceError(
             f"Unknown source format {fmt!r} for {path}; known: {', '.join(sorted(_READERS))}."
-        )
-    cls = _reader(fmt)
-    if cls is JsonlSource:
+        ) from None
+    check_clock(clock)
+    if fmt == "jsonl":
+        _log_clock_only(path, clock)
         return JsonlSource(path, topics=topics, on_error=on_error, report=report)
     if not Path(path).exists():
         raise SourceError(f"{path} does not exist.")
+    cls = _reader(fmt)  # imported only now: rosbags and mcap are slow to import
+    if fmt in ("rosbag1", "rosbag2"):
+        try:
+            return cls(path, topics=topics, clock=clock)
+        except SourceError as err:
+            salvage = _salvage_class(fmt, Path(path))
+            if salvage is None:
+                raise
+            return salvage(path, topics=topics, clock=clock, why=str(err))
+    _log_clock_only(path, clock)
     return cls(path, topics=topics)
+
+
+def _salvage_class(fmt: str, p: Path):
+    """The reader of what can be read of a damaged file of this kind (None: none)."""
+    from .salvage import McapSalvage, Ros1Salvage
+
+    if fmt == "rosbag1":
+        return Ros1Salvage
+    if p.is_file() and p.suffix == _SUFFIX["mcap"]:
+        return McapSalvage
+    return None
+
+
+def _log_clock_only(path: str | Path, clock: str) -> None:
+    if clock != "log":
+        raise SourceError(f"{path}: --clock {clock} needs a ROS bag or ROS 2 MCAP; this source carries its own "
+                          "times (JSONL stamp_ns, JSON MCAP log time).")  # fmt: skip

@@ -36,6 +36,17 @@ class Source(Protocol):
         ...
 
 
+CLOCKS = ("log", "header")
+
+
+def check_clock(clock: str) -> str:
+    """The clock a source stamps messages with: "log" (receive time, the default) or
+    "header" (header.stamp, else the log time); docs/JSON.md states the rule."""
+    if clock not in CLOCKS:
+        raise InvalidInputError(f"Clock {clock!r} is not known; use log (receive time) or header (header.stamp).")
+    return clock
+
+
 def topic_filter(topics: Iterable[str] | None) -> frozenset[str] | None:
     """The selected topics as a set, None meaning all; an empty selection is an error."""
     if topics is None:

@@ -20,7 +20,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from ..errors import InvalidInputError, SourceError
 from ..jsontext.ros import message_stamp_ns
-from .base import SourceMessage
+from .base import SourceMessage, check_clock
 from ..jsontext.ros import MessageConverter
 from ..jsontext.lines import format_line
 
@@ -31,7 +31,8 @@ class LiveSource:
     """Converts live messages to rosbridge JSON and passes each to `sink`, one at a time.
 
     Safe to call from several executor threads: conversion runs in parallel, sink calls
-    are serialized. `stamp_ns` is header.stamp, or `recv_ns` / the clock when it has none.
+    are serialized. `stamp_ns` is `recv_ns` (else the clock at arrival): the log time, one
+    clock for all topics; with clock="header" the header.stamp, else the log time.
     """
 
     def __init__(
@@ -40,8 +41,10 @@ class LiveSource:
         *,
         distro: Stores = Stores.LATEST,
         clock_ns: Callable[[], int] = time.time_ns,
+        clock: str = "log",
     ) -> None:
         self._sink = sink
+        self._header_clock = check_clock(clock) == "header"
         self._clock_ns = clock_ns
         self._typestore = get_typestore(distro)
         self._converter = MessageConverter()
@@ -77,7 +80,8 @@ class LiveSource:
         return self.feed_cdr(topic, ros2_msgtype(type(msg)), serialize_message(msg), recv_ns)
 
     def _emit(self, topic: str, msgtype: str, msg: Any, recv_ns: int | None) -> SourceMessage:
-        stamp = message_stamp_ns(msg) or (recv_ns if recv_ns is not None else self._clock_ns())
+        stamp = message_stamp_ns(msg) if self._header_clock else 0
+        stamp = stamp or (recv_ns if recv_ns is not None else self._clock_ns())
         item = SourceMessage(topic, stamp, self._converter.to_json(msg), msgtype)
         with self._lock:
             self._sink(item)

@@ -7,8 +7,9 @@ definition, as it decodes a ROS 1 bag, so a live recording holds the same JSON a
 recording of the bag. rospy's receive threads only queue the bytes; decoding runs in the
 thread that iterates, so a burst waits in the queue instead of being dropped.
 
-The message's time is its `header.stamp`, else its receive time (what `rosbag record`
-writes as the log time, and so what a bag recording of the same playback would use).
+The message's time is its receive time (what `rosbag record` writes as the log time, and
+so what a bag recording of the same playback would use); with clock="header" its
+`header.stamp`, else its receive time (docs/JSON.md).
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from rosbags.typesys.msg import normalize_msgtype as _normalize
 from ..errors import InvalidInputError, SourceError
 from ..jsontext.rostypes import ros1_description
 from ..jsontext.ros import MessageConverter, message_stamp_ns
-from .base import SourceMessage
+from .base import SourceMessage, check_clock
 from .ros1seq import SeqCheck
 
 INSTALL_HINT = (
@@ -110,8 +111,10 @@ class Ros1LiveSource:
     """
 
     def __init__(self, uri: str = "ros1://", *, topics: Iterable[str] | None = None, exclude: Iterable[str] = (),
-                 node_name: str = "cclog_record", poll_s: float = 0.5, idle_s: float = 0.3) -> None:  # fmt: skip
+                 node_name: str = "cclog_record", poll_s: float = 0.5, idle_s: float = 0.3,
+                 clock: str = "log") -> None:  # fmt: skip
         self.name = uri
+        self._header_clock = check_clock(clock) == "header"
         self.master = master_uri(uri)
         self.matcher = TopicMatcher(topics, exclude)
         self.poll_s, self.idle_s = poll_s, idle_s
@@ -216,7 +219,8 @@ class Ros1LiveSource:
             raise SourceError(f"{self.name}: cannot decode the {msgtype} message on {topic} "
                               f"received at {recv_ns} ns: {err}") from err  # fmt: skip
         self.received[topic] = self.received.get(topic, 0) + 1
-        return SourceMessage(topic, message_stamp_ns(msg) or recv_ns, self._converter.to_json(msg), msgtype)
+        stamp = message_stamp_ns(msg) if self._header_clock else 0
+        return SourceMessage(topic, stamp or recv_ns, self._converter.to_json(msg), msgtype)
 
     def _typestore(self, topic: str, msgtype: str, header: dict[str, str]) -> Any:
         """A type store that knows `msgtype` as this connection defines it (one per MD5: two

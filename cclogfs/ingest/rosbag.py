@@ -15,19 +15,22 @@ from rosbags.interfaces import ConnectionExtRosbag1, MessageDefinitionFormat
 from ..errors import SourceError
 from ..jsontext.ros import message_stamp_ns
 from ..jsontext.rostypes import ros1_description
-from .base import SourceMessage, topic_filter
+from .base import SourceMessage, check_clock, topic_filter
 from ..jsontext.ros import MessageConverter
 
 
 class RosbagSource:
     """Messages of a rosbag (any kind `AnyReader` opens), in log-time order.
 
-    `stamp_ns` is the message's `header.stamp`; messages without a header, or whose
-    stamp is zero (ROS's "not set", common on /tf_static), get the bag's log time.
+    `stamp_ns` is the bag's log (receive) time, one clock for every topic as rosbag2 uses
+    it; with clock="header" it is the message's `header.stamp`, and messages without a
+    header, or whose stamp is zero (ROS's "not set", common on /tf_static), get the log
+    time. The header stamp always stays in the message's JSON.
     """
 
-    def __init__(self, path: str | Path, *, topics: Iterable[str] | None = None) -> None:
+    def __init__(self, path: str | Path, *, topics: Iterable[str] | None = None, clock: str = "log") -> None:
         self.name = str(path)
+        self._header_clock = check_clock(clock) == "header"
         self._wanted = topic_filter(topics)
         try:
             self._reader = AnyReader([Path(path)])
@@ -82,7 +85,7 @@ class RosbagSource:
                         f"{self.name}: cannot decode the {con.msgtype} message on {con.topic} "
                         f"logged at {logtime} ns: {err}"
                     ) from err
-                stamp = message_stamp_ns(msg)
+                stamp = message_stamp_ns(msg) if self._header_clock else 0
                 yield SourceMessage(con.topic, stamp or logtime, to_json(msg), con.msgtype)
         except SourceError:
             raise

@@ -30,7 +30,7 @@ def _cases():
         (["record", "nosuch.jsonl", "--store", "s2"], "nosuch.jsonl"),
         (["convert", "nosuch.jsonl", "-o", "o.jsonl"], "nosuch.jsonl"),
         (["train", "nosuch.jsonl", "--out", "m"], "nosuch.jsonl"),
-        (["eval", "nosuch.jsonl", "--model", "m", "--labels", "l.json"], "nosuch.jsonl"),
+        (["eval", "nosuch.jsonl", "--model", "m", "--labels", "l.json"], "model m"),  # the model is read first
         (["simulate", "--out", "afile/x", "--nominal", "--duration", "5"], "afile"),
         (["demo", "--out", "afile/x", "--no-plots", "--train-minutes", "0.1", "--test-minutes", "0.1"], "afile"),
         (["plot", "good", "--out", "afile"], "afile"),

@@ -31,7 +31,7 @@ def test_convert_store_cat_byte_exact(shared_data, tmp_path, capsys):
         assert main(["cat", str(store), "--topic", "/odom", "--start", start, "--end", end]) == 0
         out = capsys.readouterr().out
         assert out == "".join(lines[150:421])
-    assert main(["cat", str(store), "--topic", "/nothing"]) == 0
+    assert main(["cat", str(store), "--topic", "/nothing"]) == 1  # said, not silent (issue 12)
     assert capsys.readouterr().out == ""
 
 

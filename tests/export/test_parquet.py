@@ -77,12 +77,15 @@ def test_two_robots_sql_matches_messages(shared_data, tmp_path):
     # The date partition is the UTC day of each stamp; the json column is the exact text.
     dates = dict(con.sql(f"SELECT stream, any_value(date) FROM {src} GROUP BY ALL").fetchall())
     day = dt.datetime.fromtimestamp(tf["/tf"][0][0] / 1e9, dt.timezone.utc).date()
-    assert dates == {"/odom": dt.date(1970, 1, 1), "/amcl_pose": dt.date(1970, 1, 1), "/tf": day}
+    # One clock (the log time) for every topic: the bag's day, not 1970 for the sim-time ones (issue 12).
+    nav2_day = dt.datetime.fromtimestamp(odom["/odom"][0][0] / 1e9, dt.timezone.utc).date()
+    assert nav2_day == dt.date(2026, 5, 8)
+    assert dates == {"/odom": nav2_day, "/amcl_pose": nav2_day, "/tf": day}
     texts = con.sql(
         f"SELECT json FROM {src} WHERE robot = 'tb3-b' AND stream = '/odom' ORDER BY stamp_ns"
     ).fetchall()
     assert [t for (t,) in texts] == [t for _, t in robots["tb3-b"]["/odom"]]
-    assert (lake / "robot=tb3-a" / "stream=%2Fodom" / "date=1970-01-01").is_dir()
+    assert (lake / "robot=tb3-a" / "stream=%2Fodom" / f"date={nav2_day.isoformat()}").is_dir()
 
 
 def test_types_partitions_and_refusals(tmp_path):

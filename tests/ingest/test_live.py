@@ -57,7 +57,8 @@ def test_rclpy_objects_are_serialized_with_rclpy(shared_data, monkeypatch):
     fake.serialize_message = lambda msg: raw
     monkeypatch.setitem(sys.modules, "rclpy", types.ModuleType("rclpy"))
     monkeypatch.setitem(sys.modules, "rclpy.serialization", fake)
-    got = LiveSource(lambda m: None).feed("/odom", Odometry(), recv_ns=1)
+    assert LiveSource(lambda m: None).feed("/odom", Odometry(), recv_ns=1).stamp_ns == 1  # the log time
+    got = LiveSource(lambda m: None, clock="header").feed("/odom", Odometry(), recv_ns=1)
     assert got.msgtype == "nav_msgs/msg/Odometry" and got.stamp_ns == 928_800_000_000
     with open_source(path, ["/odom"]) as src:
         assert got.text == next(iter(src)).text

@@ -147,9 +147,11 @@ def windows_of(path, topic):
 
 def test_smart_logging_live_keeps_the_windows_of_the_file(master, sim_bag_and_model, tmp_path):
     bag, model = sim_bag_and_model
-    subprocess.run([*CCLOG, "record", str(bag), "--store", str(tmp_path / "file"), "--model", str(model)],
-                   check=True, capture_output=True)  # fmt: skip
-    rec = recorder(master, tmp_path / "live", "--model", str(model), "--topic", "/odom")
+    # Header stamps: the live receive times are the replay's, not the bag's log times.
+    subprocess.run([*CCLOG, "record", str(bag), "--store", str(tmp_path / "file"), "--model", str(model),
+                    "--clock", "header", "--window-max-s", "1000"], check=True, capture_output=True)  # fmt: skip
+    rec = recorder(master, tmp_path / "live", "--model", str(model), "--topic", "/odom", "--clock", "header",
+                   "--window-max-s", "1000")  # the same parts: no wall-clock cuts
     try:
         wait_subscribed(master, "/odom")
         played(play(master, bag, "--wait-for-subscribers", "--rate", "10"))

@@ -69,16 +69,17 @@ def test_play_jsonl_is_cat_with_types_at_the_recorded_pace(shared_data, tmp_path
 def test_play_refuses_what_it_cannot_do(shared_data, tmp_path):
     subprocess.run([*CCLOG, "record", str(shared_data("tf_example.bag")), "--store", str(tmp_path / "s")],
                    check=True, capture_output=True)  # fmt: skip
-    for args, said in [(["--rate", "0"], "--rate must be positive"), (["--topic", "/nope"], "has no stream /nope"),
+    for args, said in [(["--rate", "0"], "--rate must be positive"), (["--topic", "/nope"], "no message of /nope"),
                        (["--to", "udp://x"], "--to 'udp://x'"), (["--start", "1", "--end", "2"], "no message")]:  # fmt: skip
         r = subprocess.run([*CCLOG, "play", str(tmp_path / "s"), *args], capture_output=True, text=True)
         assert r.returncode == 1 and said in r.stderr and r.stderr.count("\n") == 1, (args, r.stderr)
 
 
 def test_play_of_mixed_clocks_says_so_and_skip_gaps_plays_it(shared_data, tmp_path):
-    # /amcl_pose is in simulation time (924 s after 1970), /tf_static in wall time (2026)
+    # With --clock header /amcl_pose is in simulation time (924 s after 1970), /tf_static in wall time (2026)
     subprocess.run([*CCLOG, "record", str(shared_data("nav2_turtlebot.mcap")), "--store", str(tmp_path / "s"),
-                    "--topic", "/amcl_pose", "--topic", "/tf_static"], check=True, capture_output=True)  # fmt: skip
+                    "--topic", "/amcl_pose", "--topic", "/tf_static", "--clock", "header"], check=True,
+                   capture_output=True)  # fmt: skip
     proc = subprocess.Popen([*CCLOG, "play", str(tmp_path / "s"), "--rate", "100"], stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)  # fmt: skip
     try:

@@ -1,0 +1,64 @@
+"""Output files of the subcommands: never an input, never half-written, replaced only with
+--force. Shared by every subcommand that writes a file (convert, export)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterator
+
+from ..errors import InvalidInputError
+
+
+def add_force(p: argparse.ArgumentParser, *aliases: str) -> None:
+    """--force: the one flag, on every command, that lets an output replace an existing one."""
+    p.add_argument("--force", *aliases, dest="force", action="store_true",
+                   help="replace an existing output (never an input)")  # fmt: skip
+
+
+def _same_file(a: str | Path, b: str | Path) -> bool:
+    """True when a and b are one file: the same path, a hard link or a symlink to it."""
+    try:
+        sa, sb = os.stat(a), os.stat(b)
+    except OSError:
+        return False
+    return (sa.st_dev, sa.st_ino) == (sb.st_dev, sb.st_ino)
+
+
+def _inside(path: Path, directory: str | Path) -> bool:
+    try:
+        return Path(os.path.realpath(path)).is_relative_to(os.path.realpath(directory))
+    except OSError:
+        return False
+
+
+def check_output(path: str | Path, inputs: list[str], *, force: bool) -> None:
+    """Refuse an output that is (or is inside) an input, or that exists without --force."""
+    for src in inputs:
+        if src == "-" or "://" in src:
+            continue
+        if _same_file(path, src) or (os.path.isdir(src) and _inside(Path(path), src)):
+            raise InvalidInputError(f"Output {path} is the input {src} (or inside it); inputs are never written: "
+                                    "choose another output.")  # fmt: skip
+    if os.path.lexists(path) and not force:
+        raise InvalidInputError(f"Output {path} exists; pass --force to replace it, or choose another output.")
+
+
+@contextmanager
+def atomic_output(path: str | Path, mode: str = "w") -> Iterator:
+    """A file object on a temporary name beside `path`, renamed over it only when the block
+    ends without an error (so a failed or interrupted run leaves the old file, or none)."""
+    path = Path(path)
+    if path.is_dir():
+        raise InvalidInputError(f"Output {path} is a directory; give a file name.")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
+    try:
+        with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as f:
+            yield f
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

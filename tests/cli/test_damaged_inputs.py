@@ -1,0 +1,87 @@
+"""Issue 12 item 7: a ROS 1 bag or MCAP file cut short is recorded and converted as far as
+it can be read, what was lost is said, the exit code is 4; a failed run leaves no empty store."""
+
+import json
+
+import pytest
+from mcap.reader import make_reader
+from mcap.writer import Writer as McapWriter
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag1 import Writer as Bag1Writer
+
+import cclogfs
+from cclogfs.cli import main
+
+
+def many_chunk_bag(src, dst):
+    """tf_example.bag rewritten uncompressed in 4 KiB chunks, as `rosbag record` writes long runs."""
+    with AnyReader([src]) as reader, Bag1Writer(dst) as writer:
+        writer.chunk_threshold = 4096
+        conns = {}
+        for con, t, raw in reader.messages():
+            if con.id not in conns:
+                conns[con.id] = writer.add_connection(con.topic, con.msgtype, typestore=reader.typestore)
+            writer.write(conns[con.id], t, raw)
+    return dst
+
+
+def many_chunk_mcap(src, dst):
+    with open(src, "rb") as f, open(dst, "wb") as out:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        w = McapWriter(out, chunk_size=8192)
+        w.start(profile="ros2", library="test")
+        schemas = {sid: w.register_schema(s.name, s.encoding, s.data) for sid, s in summary.schemas.items()}
+        chans = {cid: w.register_channel(c.topic, c.message_encoding, schemas[c.schema_id])
+                 for cid, c in summary.channels.items()}  # fmt: skip
+        for _, ch, m in reader.iter_messages(log_time_order=False):
+            w.add_message(chans[ch.id], m.log_time, m.data, m.publish_time, m.sequence)
+        w.finish()
+    return dst
+
+
+def cut(path, fraction):
+    data = path.read_bytes()
+    path.write_bytes(data[: int(len(data) * fraction)])
+    return path
+
+
+@pytest.mark.parametrize("kind", ["bag", "mcap"])
+def test_truncated_inputs_keep_what_can_be_read(shared_data, tmp_path, capsys, kind):
+    if kind == "bag":
+        whole = many_chunk_bag(shared_data("tf_example.bag"), tmp_path / "whole.bag")
+    else:
+        whole = many_chunk_mcap(shared_data("nav2_turtlebot.mcap"), tmp_path / "whole.mcap")
+    assert main(["convert", str(whole), "-o", str(tmp_path / "whole.jsonl")]) == 0
+    full = (tmp_path / "whole.jsonl").read_text().splitlines(True)
+    damaged = tmp_path / f"cut.{kind}"
+    damaged.write_bytes(whole.read_bytes())
+    cut(damaged, 0.6)
+    capsys.readouterr()
+    assert main(["convert", str(damaged), "-o", str(tmp_path / "cut.jsonl")]) == 4
+    err = capsys.readouterr().err
+    assert "damaged" in err and "could not be read" in err and f"({damaged.stat().st_size:,} bytes)" in err
+    got = (tmp_path / "cut.jsonl").read_text().splitlines(True)
+    # Most of the 60 % kept, and each kept message as the whole file gives it (same stamp, same text).
+    assert 0.3 * len(full) < len(got) < len(full)
+    assert sorted(got) == sorted(set(got) & set(full))
+    assert main(["record", str(damaged), "--store", str(tmp_path / "s")]) == 4
+    assert "damaged" in capsys.readouterr().err
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        assert sum(t["messages"] for t in store.streams().values()) == len(got)
+
+
+def test_a_failed_run_leaves_no_empty_store(tmp_path, capsys):
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text('{oops\n')
+    assert main(["record", str(bad), "--store", str(tmp_path / "s")]) == 1
+    assert not (tmp_path / "s").exists()
+    cut = tmp_path / "cut.bag"
+    cut.write_bytes(b"#ROSBAG V2.0\n" + bytes(10))  # nothing readable at all
+    assert main(["record", str(cut), "--store", str(tmp_path / "s")]) != 0
+    assert not (tmp_path / "s").exists()
+    pre = tmp_path / "existing"
+    with cclogfs.open_store(pre, create=True):
+        pass
+    assert main(["record", str(bad), "--store", str(pre)]) == 1
+    assert pre.exists()  # not ours to remove

@@ -1,0 +1,70 @@
+"""Issue 12 item 1: inputs are never written; outputs appear whole or not at all; --force."""
+
+import json
+import os
+
+import pytest
+
+import cclogfs
+from cclogfs.cli import main
+
+
+def jsonl(path, n=5):
+    path.write_text("".join(json.dumps({"topic": "/odom", "stamp_ns": i, "msg": {"i": i}}) + "\n" for i in range(n)))
+    return path.read_bytes()
+
+
+@pytest.mark.parametrize("how", ["same", "hardlink", "symlink"])
+def test_convert_refuses_its_input_as_output(tmp_path, capsys, how):
+    src = tmp_path / "in.jsonl"
+    before = jsonl(src)
+    out = src
+    if how == "hardlink":
+        out = tmp_path / "link.jsonl"
+        os.link(src, out)
+    elif how == "symlink":
+        out = tmp_path / "sym.jsonl"
+        out.symlink_to(src)
+    for extra in ([], ["--force"]):
+        assert main(["convert", str(src), "-o", str(out), *extra]) == 1
+        assert "is the input" in capsys.readouterr().err
+    assert src.read_bytes() == before
+
+
+def test_convert_needs_force_to_replace_and_leaves_no_temp_file(tmp_path, capsys):
+    src, out = tmp_path / "in.jsonl", tmp_path / "out.jsonl"
+    data = jsonl(src)
+    out.write_text("keep me\n")
+    assert main(["convert", str(src), "-o", str(out)]) == 1
+    assert "--force" in capsys.readouterr().err and out.read_text() == "keep me\n"
+    assert main(["convert", str(src), "-o", str(out), "--force"]) == 0
+    assert out.read_bytes() == data
+    bad = tmp_path / "bad.jsonl"
+    bad.write_bytes(data + b"{not json\n")
+    assert main(["convert", str(bad), "-o", str(out), "--force"]) == 1  # fails half way
+    assert out.read_bytes() == data  # the old output stays whole
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.jsonl", "in.jsonl", "out.jsonl"]
+
+
+def test_export_mcap_and_parquet_need_force(tmp_path, capsys):
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        store.put_window("/odom", [(1, '{"x": 1}'), (2, '{"x": 2}')])
+    mcap = tmp_path / "o.mcap"
+    mcap.write_bytes(b"old")
+    assert main(["export", str(tmp_path / "s"), "--mcap", str(mcap)]) == 1
+    assert "--force" in capsys.readouterr().err and mcap.read_bytes() == b"old"
+    assert main(["export", str(tmp_path / "s"), "--mcap", str(mcap), "--force"]) == 0
+    assert mcap.read_bytes()[:8] == b"\x89MCAP0\r\n"
+    lake = tmp_path / "lake"
+    assert main(["export", str(tmp_path / "s"), "--parquet", str(lake)]) == 0
+    assert main(["export", str(tmp_path / "s"), "--parquet", str(lake)]) == 1
+    assert "--force" in capsys.readouterr().err
+    for flag in ("--force", "--replace"):
+        assert main(["export", str(tmp_path / "s"), "--parquet", str(lake), flag]) == 0
+
+
+def test_export_refuses_an_output_inside_the_store(tmp_path, capsys):
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        store.put_window("/odom", [(1, '{"x": 1}')])
+    assert main(["export", str(tmp_path / "s"), "--mcap", str(tmp_path / "s" / "x.mcap")]) == 1
+    assert "is the input" in capsys.readouterr().err

@@ -1,0 +1,53 @@
+"""Issue 12 item 9: --version, errors in the CLI's words, the summary stream not counted as
+messages kept, stream types in `info`."""
+
+import subprocess
+import sys
+
+import pytest
+
+import cclogfs
+from cclogfs.cli import main
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0 and capsys.readouterr().out == f"cclog {cclogfs.__version__}\n"
+
+
+def test_errors_name_the_cli_not_the_python_api(tmp_path, capsys):
+    assert main(["cat", str(tmp_path / "nothing")]) == 1
+    err = capsys.readouterr().err
+    assert "create=True" not in err and "cclog record" in err
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        store.put_window("/a", [(1, "{}")])
+        assert main(["record", "-", "--store", str(tmp_path / "s")]) == 1
+    err = capsys.readouterr().err
+    assert "readonly=True" not in err and "locked" in err
+
+
+def test_messages_kept_does_not_count_the_summary_stream(shared_data, tmp_path, capsys):
+    from cclogfs.jsontext.lines import format_line
+    from cclogfs.pipeline import read_topic
+
+    odom = read_topic(str(shared_data("nav2_turtlebot.mcap")), "/odom")
+    (tmp_path / "t.jsonl").write_text("".join(format_line("/odom", s, t) for s, t in odom[:400]))
+    assert main(["train", str(tmp_path / "t.jsonl"), "--out", str(tmp_path / "m")]) == 0
+    (tmp_path / "all.jsonl").write_text("".join(format_line("/odom", s, t) for s, t in odom))
+    capsys.readouterr()
+    assert main(["record", str(tmp_path / "all.jsonl"), "--store", str(tmp_path / "s"), "--model",
+                 str(tmp_path / "m"), "--force-model"]) == 0  # fmt: skip
+    line = capsys.readouterr().err
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        streams = store.streams()
+    assert streams["/cclog/summary"]["messages"] > 0
+    assert f"{len(odom):,} messages in, {streams['/odom']['messages']:,} kept" in line
+
+
+def test_info_shows_stream_types(shared_data, tmp_path, capsys):
+    assert main(["record", str(shared_data("tf_example.bag")), "--store", str(tmp_path / "s")]) == 0
+    capsys.readouterr()
+    assert main(["info", str(tmp_path / "s")]) == 0
+    out = capsys.readouterr().out
+    assert "tf2_msgs/msg/TFMessage" in out and " type" in out
