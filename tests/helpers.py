@@ -104,3 +104,18 @@ def drop_checkpoint(path) -> None:
     body = unpack_manifest(manifest.read_bytes())
     body.pop("checkpoint", None)
     manifest.write_bytes(pack_manifest(body))
+
+
+def forge_index_offsets(store_dir, seg_name: str) -> None:
+    """Rewrite a sealed segment's index with a valid checksum but its entries' offsets and
+    lengths reversed: every entry then points at another record (a forged or stale index)."""
+    from cclogfs.store.index import SegmentIndex
+
+    seg = Path(store_dir) / seg_name
+    idx = seg.with_suffix(".idx")
+    size = seg.stat().st_size
+    index = SegmentIndex.decode(idx.read_bytes(), 0, size)
+    e = index.entries
+    rows = [(index.names[int(x["stream"])], int(x["count"]), int(x["seq"]), int(x["start"]), int(x["end"]),
+             int(y["offset"]), int(y["length"]), int(x["raw_len"])) for x, y in zip(e, e[::-1])]  # fmt: skip
+    idx.write_bytes(SegmentIndex.build(rows).encode(0, size))

@@ -9,7 +9,7 @@ import pytest
 import cclogfs
 from cclogfs.errors import CorruptionError, UnknownCodecError
 from cclogfs.store.format import RECORD_FIXED, RECORD_FIXED_SIZE, crc32c
-from helpers import SEG, append, cut, drop_checkpoint, flip, make_store, patch_header, segment_files, seqs, unseal, zero
+from helpers import SEG, append, cut, drop_checkpoint, flip, forge_index_offsets, make_store, patch_header, segment_files, seqs, unseal, zero
 
 def test_torn_tail_is_truncated_and_reported(tmp_path):
     recs = make_store(tmp_path / "s")
@@ -442,16 +442,8 @@ def test_message_that_is_not_utf8_is_an_error_on_read_and_in_fsck(tmp_path):
 def test_a_forged_index_is_caught_on_read(tmp_path):
     # Issue 11, item 10, at the library: an index with a valid checksum naming the wrong
     # records must not hand out another window's messages.
-    from cclogfs.store.index import SegmentIndex
-
     make_store(tmp_path / "s", n=6, segment_records=3)
-    idx = tmp_path / "s" / "00000000000000000000.idx"
-    size = (tmp_path / "s" / SEG).stat().st_size
-    index = SegmentIndex.decode(idx.read_bytes(), 0, size)
-    e = index.entries
-    rows = [(index.names[int(x["stream"])], int(x["count"]), int(x["seq"]), int(x["start"]), int(x["end"]),
-             int(y["offset"]), int(y["length"]), int(x["raw_len"])) for x, y in zip(e, e[::-1])]  # fmt: skip
-    idx.write_bytes(SegmentIndex.build(rows).encode(0, size))
+    forge_index_offsets(tmp_path / "s", SEG)
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
         w = next(w for w in store.query() if w.seq == 0)
         with pytest.raises(CorruptionError, match="the time index says") as err:

@@ -9,7 +9,7 @@ from cclogfs.cli import main
 from cclogfs.store import check_store, repair_store
 from cclogfs.store.fs import RecordingFileSystem
 from crashsim import DiskModel
-from helpers import SEG, flip, make_store
+from helpers import SEG, flip, forge_index_offsets, make_store
 
 
 def _messages(store, **kw):
@@ -63,18 +63,10 @@ def test_repair_names_sealed_damage_and_discard_lets_reads_through(tmp_path, cap
 
 def test_repair_rebuilds_a_forged_index(tmp_path):
     # Item 10: an index with a valid checksum but wrong offsets is rebuilt from the segment.
-    from cclogfs.store.index import SegmentIndex
-
     make_store(tmp_path / "s", n=6, segment_records=3)
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
         before = _messages(store)
-    idx = tmp_path / "s" / "00000000000000000000.idx"
-    size = (tmp_path / "s" / SEG).stat().st_size
-    index = SegmentIndex.decode(idx.read_bytes(), 0, size)
-    e = index.entries
-    rows = [(index.names[int(x["stream"])], int(x["count"]), int(x["seq"]), int(x["start"]), int(x["end"]),
-             int(y["offset"]), int(y["length"]), int(x["raw_len"])) for x, y in zip(e, e[::-1])]  # fmt: skip
-    idx.write_bytes(SegmentIndex.build(rows).encode(0, size))
+    forge_index_offsets(tmp_path / "s", SEG)
     report = repair_store(str(tmp_path / "s"))
     assert report.exit_code == 1 and any("rebuilt index" in a for a in report.actions)
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
