@@ -292,6 +292,12 @@ def _run(args: argparse.Namespace) -> int:
     if args.features_out:
         _write_dataset(args, rows)
     _print_summary(args, source, stats, upkeep, final_bytes)
+    return _exit_status(args, source, stats, policy, read_topics, received)
+
+
+def _exit_status(args: argparse.Namespace, source, stats: RecordStats, policy, read_topics, received: list[int]) -> int:
+    """An error for a run that stored nothing useful; else 128 + the signal that stopped it,
+    LOST when a live recording knows it lost messages, or the damaged-input code."""
     if stats.messages_in == 0 and not stats.interrupted:
         raise no_source_message(args.source, read_topics)
     if args.model and policy.scored == 0:  # a live source or stdin, checked only now
