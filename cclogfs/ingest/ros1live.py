@@ -22,6 +22,7 @@ import signal
 import sys
 import threading
 import time
+import urllib.parse
 from collections.abc import Iterable, Iterator
 from typing import Any
 
@@ -68,12 +69,25 @@ def master_uri(uri: str) -> str:
         raise InvalidInputError(f"{uri!r} is not a ROS 1 source; write ros1:// or ros1://HOST:PORT")
     where = uri[len("ros1://"):].strip("/")
     if where:
-        return f"http://{where}/"
+        return _checked(f"http://{where}/", uri)
     env = os.environ.get("ROS_MASTER_URI")
     if not env:
         raise SourceError("ros1:// needs a master: set ROS_MASTER_URI (e.g. http://localhost:11311) "
                           "or write ros1://HOST:PORT")  # fmt: skip
-    return env
+    return _checked(env, f"ROS_MASTER_URI={env}")
+
+
+def _checked(url: str, given: str) -> str:
+    """`url` when it is http://HOST[:PORT]/ (rosgraph raises a bare ValueError otherwise)."""
+    try:
+        parsed = urllib.parse.urlsplit(url)
+        ok = parsed.scheme == "http" and bool(parsed.hostname) and " " not in url
+        parsed.port  # noqa: B018 - raises ValueError for a port that is not a number
+    except ValueError:
+        ok = False
+    if not ok:
+        raise InvalidInputError(f"{given}: not a ROS master URI; write http://HOST:PORT (e.g. ros1://localhost:11311)")
+    return url
 
 
 class TopicMatcher:

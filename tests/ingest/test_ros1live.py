@@ -173,6 +173,19 @@ def test_no_master_is_one_line_and_exit_1(ros1, tmp_path):
     assert not (tmp_path / "s").exists()  # nothing created for a recording that could not start
 
 
+def test_a_malformed_master_uri_is_one_line_and_exit_1(ros1, tmp_path):
+    # rosgraph raised ValueError from deep inside is_master_online: a traceback, not a message
+    cases = [("ros1://nonsense:xx", {}), ("ros1://", {"ROS_MASTER_URI": "garbage"}),
+             ("ros1://", {"ROS_MASTER_URI": "http://localhost:abc"})]
+    for uri, extra in cases:
+        r = subprocess.run([*CCLOG, "record", uri, "--store", str(tmp_path / "s")], env={**os.environ, **extra},
+                           capture_output=True, text=True, timeout=60)  # fmt: skip
+        assert r.returncode == 1, (uri, extra, r.stderr)
+        assert r.stderr.startswith("cclog: error: ") and r.stderr.count("\n") == 1, r.stderr
+        assert "master URI" in r.stderr
+        assert not (tmp_path / "s").exists()
+
+
 def test_without_rospy_says_what_to_install(tmp_path):
     code = ("from cclogfs.ingest.ros1live import import_rospy\n"
             "import_rospy(paths=[])\n")  # fmt: skip
