@@ -162,26 +162,29 @@ class Ros1LiveSource:
         # oldest, silently). The cost is memory: while decoding lags, the backlog grows.
         self._subs[topic] = self._rospy.Subscriber(topic, self._rospy.AnyMsg, self._received, callback_args=topic,
                                                    queue_size=None, buff_size=1 << 20)  # fmt: skip
+        self.received.setdefault(topic, 0)  # a topic that delivers nothing is reported too
 
     def _received(self, msg: Any, topic: str) -> None:
         # In rospy's receive thread: take the time and the bytes, nothing more.
         self._queue.put((topic, time.time_ns(), msg._buff, msg._connection_header))
 
-    def discover(self) -> None:
-        """Subscribe to the matching topics the master lists that are not subscribed yet."""
+    def discover(self) -> list[str] | None:
+        """Subscribe to the matching topics the master lists that are not subscribed yet;
+        the topics it lists (None when it does not answer)."""
         try:
             published = self._rospy.get_published_topics()
         except Exception as err:  # the master went away: keep what is subscribed, say so once
             if not self._master_lost:
                 print(f"cclog: cannot list topics at {self.master} (recording goes on): {err}", file=sys.stderr)
             self._master_lost = True
-            return
+            return None
         if self._master_lost:
             print(f"cclog: {self.master} answers again", file=sys.stderr)
             self._master_lost = False
         for topic, _ in published:
             if topic not in self._subs and self.matcher(topic):
                 self._subscribe(topic)
+        return [t for t, _ in published]
 
     def stop(self) -> None:
         """End the iteration after the messages already received (thread- and signal-safe)."""
@@ -197,7 +200,10 @@ class Ros1LiveSource:
 
     def __iter__(self) -> Iterator[SourceMessage]:
         # Blocks until a message, the next look for topics, or stop(): no busy polling.
-        self.discover()
+        listed = self.discover()
+        if not self._subs and listed is not None:  # else the user waits on nothing, in silence
+            print(f"{self.name}: no topic on the master matches (published now: {', '.join(sorted(listed)) or 'none'}); "
+                  "waiting for one, Ctrl-C to stop", file=sys.stderr, flush=True)  # fmt: skip
         next_poll = time.monotonic() + self.poll_s
         while True:
             stopping = self._stop.is_set()

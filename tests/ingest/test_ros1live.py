@@ -339,3 +339,16 @@ def test_stop_ends_the_recording_while_a_topic_keeps_publishing(master, tmp_path
     total, topics = lost_lines(err)
     n = store_messages(tmp_path / "s")["/chatter"].total()
     assert n > 0 and topics[0] == f"/chatter: {n:,} received, not checked (std_msgs/String has no header.seq)", err
+
+
+def test_topics_that_match_nothing_or_deliver_nothing_are_said(master, tmp_path):
+    # A --topic pattern no topic matches waited in silence, and a subscribed topic that
+    # delivered nothing (a non-latched /tf_static published before the subscription) was
+    # left out of the report: the user could not tell it had been missed.
+    rec = recorder(master, tmp_path / "none.store", "--topic", "/nothing.*")
+    err = finish(rec, after_s=2.0, sig=signal.SIGTERM)
+    assert "no topic on the master matches" in err.splitlines()[0], err
+    rec = recorder(master, tmp_path / "quiet.store", "--topic", "/never_published")
+    wait_subscribed(master, "/never_published")
+    err = finish(rec, sig=signal.SIGTERM)
+    assert "received nothing on /never_published" in err, err
