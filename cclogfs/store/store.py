@@ -141,7 +141,10 @@ class Store:
         manifest_path = self.file_path(MANIFEST)
         if not self.fs.exists(manifest_path):
             # Only a lock and temporary files: a crash while the store was being created.
-            leftovers = [n for n in self.fs.listdir(self.path)] if self.fs.exists(self.path) else []
+            try:
+                leftovers = [n for n in self.fs.listdir(self.path)] if self.fs.exists(self.path) else []
+            except NotADirectoryError:
+                raise StoreError(f"{self.path} is a file, not a store directory") from None
             if all(n == LOCK or n.endswith(TMP_SUFFIX) for n in leftovers):
                 if not create or self.readonly:
                     raise StoreError(f"{self.path} is not a cclogfs store (no {MANIFEST}); "

@@ -222,3 +222,13 @@ def test_public_catalogue_api(tmp_path):
         assert reader.active_first_seq is None and reader.segment_count() == 3
         assert reader.store_id == store_id and reader.sealed_segments() == sealed
         assert [w.offset for w in reader.segment_windows(6)] == [32]
+
+
+def test_a_store_path_that_is_a_file_is_a_store_error(tmp_path):
+    # os.listdir raised NotADirectoryError: `cclog record x --store FILE` showed a traceback
+    path = tmp_path / "afile"
+    path.write_text("not a store\n")
+    for kw in ({"create": True}, {"readonly": True}):
+        with pytest.raises(StoreError, match="is a file, not a store directory"):
+            cclogfs.open_store(path, **kw)
+    assert path.read_text() == "not a store\n"
