@@ -35,6 +35,8 @@ from ..jsontext.ros import MessageConverter, message_stamp_ns
 from .base import SourceMessage
 from .ros1seq import SeqCheck
 
+# Header stamps this far from the wall clock are on another clock than receive times.
+CLOCK_APART_NS = 3600 * 1_000_000_000
 INSTALL_HINT = (
     "ROS 1 is not installed (no rospy): on Debian/Ubuntu `sudo apt-get install ros-core python3-rospy "
     "python3-rosbag`, or source a ROS 1 setup.bash"
@@ -139,6 +141,10 @@ class Ros1LiveSource:
         self._conns: dict[str, dict[str, Any]] = {}  # topic -> its first connection header
         self._typestores: dict[str, Any] = {}  # md5sum -> a type store with that definition
         self._converter = MessageConverter()
+        self._stamped: tuple[str, int] | None = None  # a topic with header stamps, and receive time - stamp
+        self._unstamped: set[str] = set()  # topics stored at their receive time
+        self._clock_checked: set[str] = set()
+        self._clock_said: set[str] = set()
         self._rospy = import_rospy()
         self._start_node(node_name)
 
@@ -236,7 +242,31 @@ class Ros1LiveSource:
             raise SourceError(f"{self.name}: cannot decode the {msgtype} message on {topic} "
                               f"received at {recv_ns} ns: {err}") from err  # fmt: skip
         self.received[topic] = self.received.get(topic, 0) + 1
-        return SourceMessage(topic, message_stamp_ns(msg) or recv_ns, self._converter.to_json(msg), msgtype)
+        stamp = message_stamp_ns(msg)
+        if stamp:
+            self._stamped = (topic, recv_ns - stamp)
+        elif topic not in self._unstamped:
+            self._unstamped.add(topic)
+            self._check_clocks(topic)
+        if self._stamped is not None and self._stamped[0] not in self._clock_checked:
+            self._clock_checked.add(self._stamped[0])
+            for other in sorted(self._unstamped):
+                self._check_clocks(other)
+        return SourceMessage(topic, stamp or recv_ns, self._converter.to_json(msg), msgtype)
+
+    def _check_clocks(self, topic: str) -> None:
+        """Say so when `topic` (no header stamp: stored at its receive time) and the header
+        stamps of another topic are on clocks far apart (a bag played without its clock):
+        the two never meet in one window or one playback."""
+        if self._stamped is None or abs(self._stamped[1]) < CLOCK_APART_NS or topic in self._clock_said:
+            return
+        self._clock_said.add(topic)
+        hours = abs(self._stamped[1]) / 3600e9
+        apart = f"{hours:,.0f} hours" if hours < 48 else f"{hours / 24:,.0f} days"
+        print(f"{self.name}: {topic} has no header stamp, so it is stored at its receive time (wall clock), but the "
+              f"header stamps of {self._stamped[0]} are {apart} away from it: "
+              f"{topic} is on another clock (a bag played without --clock?); smart logging's windows will not hold "
+              "it", file=sys.stderr, flush=True)  # fmt: skip
 
     def _typestore(self, topic: str, msgtype: str, header: dict[str, str]) -> Any:
         """A type store that knows `msgtype` as this connection defines it (one per MD5: two

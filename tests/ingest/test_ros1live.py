@@ -352,3 +352,20 @@ def test_topics_that_match_nothing_or_deliver_nothing_are_said(master, tmp_path)
     wait_subscribed(master, "/never_published")
     err = finish(rec, sig=signal.SIGTERM)
     assert "received nothing on /never_published" in err, err
+
+
+def test_a_headerless_topic_on_another_clock_than_the_stamps_is_said(master, tmp_path):
+    # A bag played without its clock: /odom keeps its 2015 header stamps, /tf (no header)
+    # gets the wall-clock receive time, years away. Smart logging's windows, on /odom's
+    # clock, then never held /tf: 896 /tf messages received, none stored, not a word.
+    subprocess.run([*CCLOG, "simulate", "--seed", "1", "--duration", "10", "--rate", "20", "--tf", "--nominal",
+                    "--out", str(tmp_path / "run")], check=True, capture_output=True)  # fmt: skip
+    bag = write_ros1_bag(tmp_path / "run" / "run", tmp_path / "run.bag")
+    rec = recorder(master, tmp_path / "s", "--topic", "/odom", "--topic", "/tf")
+    try:
+        wait_subscribed(master, "/tf")
+        played(play(master, bag, "--rate", "5"))
+        err = finish(rec)
+    finally:
+        stop(rec)
+    assert "/tf has no header stamp" in err and "/odom" in err and "another clock" in err, err
