@@ -209,6 +209,10 @@ def run(args: argparse.Namespace) -> int:
     if args.features_out:
         _write_dataset(args, rows)
     _print_summary(args, source, stats, upkeep, final_bytes)
+    odom = getattr(policy, "odom_topic", None)
+    if odom is not None and not stats.topics_in.get(odom):  # else "0 kept" reads as "nothing anomalous"
+        print(f"cclog: smart logging scored nothing: no {odom} message came in (the model's odometry topic), "
+              "so no window could open", file=sys.stderr)  # fmt: skip
     if stats.interrupted:
         return 130
     seq = getattr(source, "seq", None)
@@ -226,8 +230,8 @@ def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep:
         print(f"{args.source}: stopped by {source.stopped_by}; received "
               + (", ".join(f"{t} {n:,}" for t, n in sorted(source.received.items())) or "nothing"), file=sys.stderr)
         for topic in sorted(t for t, n in source.received.items() if not n):
-            print(f"{args.source}: received nothing on {topic} (subscribed after its messages were published, "
-                  "and not latched?)", file=sys.stderr)  # fmt: skip
+            print(f"{args.source}: received nothing on {topic} (nothing published while subscribed, or only "
+                  "before, and not latched)", file=sys.stderr)  # fmt: skip
     if getattr(source, "seq", None) is not None:
         lost = source.seq.lost
         print(f"{args.source}: {'LOST ' if lost else ''}{lost:,} messages lost (from header.seq)", file=sys.stderr)
