@@ -263,3 +263,15 @@ def test_unchecked_json_still_gets_the_stores_other_checks_at_the_door(tmp_path)
             record(messages, store, KeepAll(chunk=3), check_json=False)
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
         assert [t for w in store.query() for t, _ in w.messages()] == [1]
+
+
+def test_smart_logging_without_the_models_odometry_says_so(tmp_path, shared_data, capsys):
+    # A smart recording of topics without the model's /odom scored nothing and kept
+    # nothing, and said only "0 kept", as if nothing anomalous had happened.
+    smart_fixture(tmp_path, shared_data)
+    p = lambda name: str(tmp_path / name)  # noqa: E731
+    assert main(["train", p("train.jsonl"), "--out", p("model")]) == 0
+    capsys.readouterr()
+    assert main(["record", str(shared_data("tf_example.bag")), "--store", p("store"), "--model", p("model")]) == 1
+    err = capsys.readouterr().err
+    assert "/odom" in err and "--odom-topic" in err, err  # refused before anything is stored (issue 12)

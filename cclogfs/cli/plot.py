@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from ..errors import InvalidInputError
 
 EXAMPLES = """\
 examples:
@@ -30,13 +31,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():  # before the store is read: fail fast, write nothing
+        raise InvalidInputError(f"--out {out} is a file, not a directory for the PNG files")
+
     # Imported here, not at the top: `cclog --help` imports every subcommand module.
     from ..plot.store import plot_data, plot_store
     from ..store import open_store
 
     with open_store(args.store, readonly=True) as store:
+        if not store.streams():  # else an empty windows.png and exit 0
+            raise InvalidInputError(f"{args.store} holds no messages: nothing to plot")
         data = plot_data(store, args.topic)
-    paths = plot_store(data, Path(args.out))
+    paths = plot_store(data, out)
     if not len(data.x):
         print(f"cclog: no pose stream in {args.store} (name one with --topic): windows only", file=sys.stderr)
     for path in paths:

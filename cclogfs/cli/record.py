@@ -321,6 +321,9 @@ def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep:
     if getattr(source, "stopped_by", None):
         print(f"{args.source}: stopped by {source.stopped_by}; received "
               + (", ".join(f"{t} {n:,}" for t, n in sorted(source.received.items())) or "nothing"), file=sys.stderr)
+        for topic in sorted(t for t, n in source.received.items() if not n):
+            print(f"{args.source}: received nothing on {topic} (nothing published while subscribed, or only "
+                  "before, and not latched)", file=sys.stderr)  # fmt: skip
     if getattr(source, "seq", None) is not None:
         lost = source.seq.lost
         print(f"{args.source}: {'LOST ' if lost else ''}{lost:,} messages lost (from header.seq)", file=sys.stderr)

@@ -23,6 +23,7 @@ import signal
 import sys
 import threading
 import time
+import urllib.parse
 from collections.abc import Iterable, Iterator
 from typing import Any
 
@@ -35,6 +36,8 @@ from ..jsontext.ros import MessageConverter, message_stamp_ns
 from .base import SourceMessage, check_clock
 from .ros1seq import SeqCheck
 
+# Header stamps this far from the wall clock are on another clock than receive times.
+CLOCK_APART_NS = 3600 * 1_000_000_000
 INSTALL_HINT = (
     "ROS 1 is not installed (no rospy): on Debian/Ubuntu `sudo apt-get install ros-core python3-rospy "
     "python3-rosbag`, or source a ROS 1 setup.bash"
@@ -69,12 +72,25 @@ def master_uri(uri: str) -> str:
         raise InvalidInputError(f"{uri!r} is not a ROS 1 source; write ros1:// or ros1://HOST:PORT")
     where = uri[len("ros1://"):].strip("/")
     if where:
-        return f"http://{where}/"
+        return _checked(f"http://{where}/", uri)
     env = os.environ.get("ROS_MASTER_URI")
     if not env:
         raise SourceError("ros1:// needs a master: set ROS_MASTER_URI (e.g. http://localhost:11311) "
                           "or write ros1://HOST:PORT")  # fmt: skip
-    return env
+    return _checked(env, f"ROS_MASTER_URI={env}")
+
+
+def _checked(url: str, given: str) -> str:
+    """`url` when it is http://HOST[:PORT]/ (rosgraph raises a bare ValueError otherwise)."""
+    try:
+        parsed = urllib.parse.urlsplit(url)
+        ok = parsed.scheme == "http" and bool(parsed.hostname) and " " not in url
+        parsed.port  # noqa: B018 - raises ValueError for a port that is not a number
+    except ValueError:
+        ok = False
+    if not ok:
+        raise InvalidInputError(f"{given}: not a ROS master URI; write http://HOST:PORT (e.g. ros1://localhost:11311)")
+    return url
 
 
 class TopicMatcher:
@@ -128,6 +144,10 @@ class Ros1LiveSource:
         self._conns: dict[str, dict[str, Any]] = {}  # topic -> its first connection header
         self._typestores: dict[str, Any] = {}  # md5sum -> a type store with that definition
         self._converter = MessageConverter()
+        self._stamped: tuple[str, int] | None = None  # a topic with header stamps, and receive time - stamp
+        self._unstamped: set[str] = set()  # topics stored at their receive time
+        self._clock_checked: set[str] = set()
+        self._clock_said: set[str] = set()
         self._rospy = import_rospy()
         self._start_node(node_name)
 
@@ -151,26 +171,29 @@ class Ros1LiveSource:
         # oldest, silently). The cost is memory: while decoding lags, the backlog grows.
         self._subs[topic] = self._rospy.Subscriber(topic, self._rospy.AnyMsg, self._received, callback_args=topic,
                                                    queue_size=None, buff_size=1 << 20)  # fmt: skip
+        self.received.setdefault(topic, 0)  # a topic that delivers nothing is reported too
 
     def _received(self, msg: Any, topic: str) -> None:
         # In rospy's receive thread: take the time and the bytes, nothing more.
         self._queue.put((topic, time.time_ns(), msg._buff, msg._connection_header))
 
-    def discover(self) -> None:
-        """Subscribe to the matching topics the master lists that are not subscribed yet."""
+    def discover(self) -> list[str] | None:
+        """Subscribe to the matching topics the master lists that are not subscribed yet;
+        the topics it lists (None when it does not answer)."""
         try:
             published = self._rospy.get_published_topics()
         except Exception as err:  # the master went away: keep what is subscribed, say so once
             if not self._master_lost:
                 print(f"cclog: cannot list topics at {self.master} (recording goes on): {err}", file=sys.stderr)
             self._master_lost = True
-            return
+            return None
         if self._master_lost:
             print(f"cclog: {self.master} answers again", file=sys.stderr)
             self._master_lost = False
         for topic, _ in published:
             if topic not in self._subs and self.matcher(topic):
                 self._subscribe(topic)
+        return [t for t, _ in published]
 
     def stop(self) -> None:
         """End the iteration after the messages already received (thread- and signal-safe)."""
@@ -186,7 +209,10 @@ class Ros1LiveSource:
 
     def __iter__(self) -> Iterator[SourceMessage]:
         # Blocks until a message, the next look for topics, or stop(): no busy polling.
-        self.discover()
+        listed = self.discover()
+        if not self._subs and listed is not None:  # else the user waits on nothing, in silence
+            print(f"{self.name}: no topic on the master matches (published now: {', '.join(sorted(listed)) or 'none'}); "
+                  "waiting for one, Ctrl-C to stop", file=sys.stderr, flush=True)  # fmt: skip
         next_poll = time.monotonic() + self.poll_s
         while True:
             stopping = self._stop.is_set()
@@ -220,7 +246,34 @@ class Ros1LiveSource:
                               f"received at {recv_ns} ns: {err}") from err  # fmt: skip
         self.received[topic] = self.received.get(topic, 0) + 1
         stamp = message_stamp_ns(msg) if self._header_clock else 0
+        if self._header_clock:  # header stamps and receive times mixed: say when they are far apart
+            self._note_clock(topic, stamp, recv_ns)
         return SourceMessage(topic, stamp or recv_ns, self._converter.to_json(msg), msgtype)
+
+    def _note_clock(self, topic: str, stamp: int, recv_ns: int) -> None:
+        if stamp:
+            self._stamped = (topic, recv_ns - stamp)
+        elif topic not in self._unstamped:
+            self._unstamped.add(topic)
+            self._check_clocks(topic)
+        if self._stamped is not None and self._stamped[0] not in self._clock_checked:
+            self._clock_checked.add(self._stamped[0])
+            for other in sorted(self._unstamped):
+                self._check_clocks(other)
+
+    def _check_clocks(self, topic: str) -> None:
+        """Say so when `topic` (no header stamp: stored at its receive time) and the header
+        stamps of another topic are on clocks far apart (a bag played without its clock):
+        the two never meet in one window or one playback."""
+        if self._stamped is None or abs(self._stamped[1]) < CLOCK_APART_NS or topic in self._clock_said:
+            return
+        self._clock_said.add(topic)
+        hours = abs(self._stamped[1]) / 3600e9
+        apart = f"{hours:,.0f} hours" if hours < 48 else f"{hours / 24:,.0f} days"
+        print(f"{self.name}: {topic} has no header stamp, so it is stored at its receive time (wall clock), but the "
+              f"header stamps of {self._stamped[0]} are {apart} away from it: "
+              f"{topic} is on another clock (a bag played without --clock?); smart logging's windows will not hold "
+              "it", file=sys.stderr, flush=True)  # fmt: skip
 
     def _typestore(self, topic: str, msgtype: str, header: dict[str, str]) -> Any:
         """A type store that knows `msgtype` as this connection defines it (one per MD5: two

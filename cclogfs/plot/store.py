@@ -53,14 +53,15 @@ def pose_topic(store: Any) -> str | None:
     return "/odom" if "/odom" in streams else None
 
 
-def _position(msg: dict) -> tuple[float, float]:
-    pose = msg.get("pose", msg)
-    pose = pose.get("pose", pose) if isinstance(pose, dict) else pose
-    try:
+def _position(msg: dict, topic: str, stamp: int) -> tuple[float, float]:
+    try:  # any JSON may be stored: a list, a number, a string for x
+        pose = msg.get("pose", msg)
+        pose = pose.get("pose", pose) if isinstance(pose, dict) else pose
         p = pose["position"]
         return float(p["x"]), float(p["y"])
-    except (KeyError, TypeError):
-        raise InvalidInputError("a message has no pose.position (or pose.pose.position)") from None
+    except (AttributeError, KeyError, TypeError, ValueError):
+        raise InvalidInputError(f"{topic} at {stamp} ns: the message has no pose.position (or pose.pose.position); "
+                                "name a pose stream with --topic") from None  # fmt: skip
 
 
 def _twist_speed(msg: dict) -> float:
@@ -92,7 +93,7 @@ def plot_data(store: Any, topic: str | None = None) -> PlotData:
         if w.name == topic:
             for stamp, text in w.messages():
                 msg = json.loads(text)
-                rows.append((stamp, *_position(msg), _twist_speed(msg)))
+                rows.append((stamp, *_position(msg, topic, stamp), _twist_speed(msg)))
                 window_of.append(len(windows[topic]) - 1)
     if not rows:
         empty = np.zeros(0)

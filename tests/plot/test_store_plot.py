@@ -81,3 +81,27 @@ def test_plot_of_poses_without_twist_differentiates_them(shared_data, tmp_path):
     assert math.isclose(data.speed[5], math.hypot(data.x[5] - data.x[4], data.y[5] - data.y[4]) / dt)
     r = subprocess.run([*CCLOG, "plot", str(tmp_path / "s"), "--topic", "/nope"], capture_output=True, text=True)
     assert r.returncode == 1 and "no stream /nope" in r.stderr
+
+
+def run_cclog(*args):
+    return subprocess.run([*CCLOG, *map(str, args)], capture_output=True, text=True)
+
+
+def test_plot_errors_are_one_line_naming_what_is_wrong(tmp_path):
+    # --out onto a file was FileExistsError's traceback; an empty store gave an empty
+    # windows.png and exit 0; a pose-less /odom (the golden store's) did not say where.
+    with open_store(tmp_path / "empty", create=True):
+        pass
+    with open_store(tmp_path / "s", create=True) as store:
+        store.put_window("/odom", [(5, json.dumps({"v": 1}))])
+        store.put_window("/list", [(7, "[1, 2]")])
+    (tmp_path / "afile").write_text("x")
+    cases = [(["plot", tmp_path / "s", "--topic", "/odom", "--out", tmp_path / "afile"], "afile"),
+             (["plot", tmp_path / "empty", "--out", tmp_path / "p"], "no messages"),
+             (["plot", tmp_path / "s", "--out", tmp_path / "p"], "/odom at 5 ns"),
+             (["plot", tmp_path / "s", "--topic", "/list", "--out", tmp_path / "p"], "/list at 7 ns")]
+    for args, said in cases:
+        r = run_cclog(*args)
+        assert r.returncode == 1 and r.stderr.startswith("cclog: error: ") and r.stderr.count("\n") == 1, r.stderr
+        assert said in r.stderr, r.stderr
+    assert (tmp_path / "afile").read_text() == "x" and not (tmp_path / "p").exists()

@@ -253,3 +253,13 @@ def test_a_half_made_store_is_finished_by_the_next_writer(tmp_path):
         store.put_window("/a", [(1, "1")])
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
         assert [w.seq for w in store.query()] == [0]
+
+
+def test_a_store_path_that_is_a_file_is_a_store_error(tmp_path):
+    # os.listdir raised NotADirectoryError: `cclog record x --store FILE` showed a traceback
+    path = tmp_path / "afile"
+    path.write_text("not a store\n")
+    for kw in ({"create": True}, {"readonly": True}):
+        with pytest.raises(StoreError, match="cannot open the store: Not a directory"):
+            cclogfs.open_store(path, **kw)
+    assert path.read_text() == "not a store\n"
