@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 
 
@@ -12,7 +13,8 @@ EXAMPLES = """examples:
   cclog fsck out/demo/store --deep      # also decode every window
   cclog fsck out/demo/store --repair     # rebuild indexes, cut a torn tail, salvage side files
   cclog fsck out/demo/store --repair --discard-damaged   # and drop named damage for good
-exit status without --repair: 0 clean (warnings allowed), 1 damaged data found.
+exit status without --repair: 0 clean (warnings allowed), 1 damaged data found, 8 nothing to
+  check (the path is missing, not a directory, or a directory that holds no store).
 exit status with --repair (as e2fsck): 0 clean, nothing to do; 1 repaired, now clean;
   4 damage left (named in the manifest or quarantined: reads refuse it until
   --discard-damaged); 8 operational error (the store could not be opened or written).
@@ -58,6 +60,20 @@ def repair(args: argparse.Namespace) -> int:
     return report.exit_code
 
 
+def _not_a_store(path: str) -> str | None:
+    """Why `path` holds no store at all (None when it may: a manifest or segment is there)."""
+    from ..store.format import MANIFEST, parse_seq_name
+
+    if not os.path.lexists(path):
+        return f"{path} does not exist"
+    if not os.path.isdir(path):
+        return f"{path} is not a directory, so not a cclogfs store"
+    names = os.listdir(path)
+    if MANIFEST in names or any(parse_seq_name(n) for n in names):
+        return None
+    return f"{path} holds no cclogfs store (no {MANIFEST} and no segment files)"
+
+
 def run(args: argparse.Namespace) -> int:
     if args.discard_damaged and not args.repair:
         print("cclog: error: --discard-damaged needs --repair", file=sys.stderr)
@@ -66,6 +82,11 @@ def run(args: argparse.Namespace) -> int:
         return repair(args)
     # Imported here, not at the top: `cclog --help` imports every subcommand module.
     from ..store import check_store
+
+    problem = _not_a_store(args.store)
+    if problem:  # nothing to check is not damage: say what the path is instead of DAMAGED
+        print(f"cclog: error: {problem}", file=sys.stderr)
+        return 8
 
     report = check_store(args.store, deep=args.deep)
     if args.json:

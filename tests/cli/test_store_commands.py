@@ -80,3 +80,17 @@ def test_info_and_fsck_on_a_compacted_store(tmp_path, capsys):
     assert "retention dropped 2 windows (12 messages) of /odom from 1970-01-01T00:00:00.000Z" in out
     assert main(["fsck", "--deep", str(tmp_path / "s")]) == 0
     assert "clean" in (out := capsys.readouterr().out) and "1 aged windows" in out
+
+
+def test_fsck_of_no_store_is_an_operational_error_not_damage(tmp_path, capsys):
+    # Issue 12, item 9: `cclog fsck missing.store` printed DAMAGED; nothing to check is not
+    # damage. A missing path, a file, or an empty directory: one line on stderr, exit 8.
+    from cclogfs.cli import main
+
+    (tmp_path / "afile").write_text("x\n")
+    (tmp_path / "empty").mkdir()
+    for name, why in [("missing.store", "does not exist"), ("afile", "not a directory"),
+                      ("empty", "holds no cclogfs store")]:  # fmt: skip
+        assert main(["fsck", str(tmp_path / name)]) == 8
+        out, err = capsys.readouterr()
+        assert "DAMAGED" not in out and why in err and "\n" not in err.strip(), (out, err)
