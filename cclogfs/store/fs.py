@@ -12,6 +12,11 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
+# Permissions of what the store creates (FORMAT.md, "Permissions"): a robot's logs hold
+# where people live and work, so they are the owner's alone unless a deployment changes these.
+FILE_MODE = 0o600
+DIR_MODE = 0o700
+
 
 class FileSystem:
     """The real file system (POSIX)."""
@@ -20,7 +25,7 @@ class FileSystem:
         flags = os.O_RDWR if write else os.O_RDONLY
         if create:
             flags |= os.O_CREAT | os.O_EXCL
-        return os.open(path, flags | getattr(os, "O_CLOEXEC", 0), 0o644)
+        return os.open(path, flags | getattr(os, "O_CLOEXEC", 0), FILE_MODE)
 
     def close(self, fd: int) -> None:
         os.close(fd)
@@ -67,14 +72,14 @@ class FileSystem:
         return sorted(os.listdir(path))
 
     def mkdir(self, path: str) -> None:
-        os.makedirs(path, exist_ok=True)
+        os.makedirs(path, mode=DIR_MODE, exist_ok=True)  # parents get the default mode
 
     def exists(self, path: str) -> bool:
         return os.path.exists(path)
 
     def lock(self, path: str) -> int | None:
         """Take an exclusive lock on `path` (created if needed); None when another holds it."""
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), FILE_MODE)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
