@@ -7,6 +7,7 @@ disk images a crash could leave, which monkeypatching `os` cannot do for `open()
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import os
 from dataclasses import dataclass, field
@@ -17,6 +18,19 @@ from typing import Any
 FILE_MODE = 0o600
 DIR_MODE = 0o700
 
+# Every file is opened without following a symlink in its last component: a symlink named
+# like a store file must not let the writer truncate or write a file outside the store.
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
+
+
+def _open_nofollow(path: str, flags: int) -> int:
+    try:
+        return os.open(path, flags | _NOFOLLOW, FILE_MODE)
+    except OSError as err:
+        if err.errno == errno.ELOOP:  # what O_NOFOLLOW gives for a symlink: say it plainly
+            raise OSError(errno.ELOOP, "is a symbolic link, which the store never follows", path) from None
+        raise
+
 
 class FileSystem:
     """The real file system (POSIX)."""
@@ -25,7 +39,7 @@ class FileSystem:
         flags = os.O_RDWR if write else os.O_RDONLY
         if create:
             flags |= os.O_CREAT | os.O_EXCL
-        return os.open(path, flags | getattr(os, "O_CLOEXEC", 0), FILE_MODE)
+        return _open_nofollow(path, flags)
 
     def close(self, fd: int) -> None:
         os.close(fd)
@@ -79,7 +93,7 @@ class FileSystem:
 
     def lock(self, path: str) -> int | None:
         """Take an exclusive lock on `path` (created if needed); None when another holds it."""
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), FILE_MODE)
+        fd = _open_nofollow(path, os.O_RDWR | os.O_CREAT)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
