@@ -93,13 +93,30 @@ class FileSystem:
 
     def lock(self, path: str) -> int | None:
         """Take an exclusive lock on `path` (created if needed); None when another holds it."""
-        fd = _open_nofollow(path, os.O_RDWR | os.O_CREAT)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
+        for _attempt in range(5):
+            fd = _open_nofollow(path, os.O_RDWR | os.O_CREAT)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                os.close(fd)
+                return None
+            # A lock on a file that was unlinked or replaced after we opened it excludes
+            # nobody: the next writer opens the new file. Take the lock on what is there now.
+            if self.lock_held(fd, path):
+                return fd
             os.close(fd)
-            return None
-        return fd
+        raise OSError(errno.EAGAIN, "the lock file keeps being replaced; is another program "
+                      "removing it?", path)  # fmt: skip
+
+    def lock_held(self, fd: int, path: str) -> bool:
+        """Whether `fd` (a lock taken by `lock`) is still the file at `path`: false once the
+        file was removed or replaced, when a second writer could take a lock of its own."""
+        try:
+            now = os.lstat(path)
+        except FileNotFoundError:
+            return False
+        held = os.fstat(fd)
+        return (held.st_dev, held.st_ino) == (now.st_dev, now.st_ino)
 
     def unlock(self, fd: int) -> None:
         fcntl.flock(fd, fcntl.LOCK_UN)
