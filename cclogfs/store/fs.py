@@ -7,10 +7,29 @@ disk images a crash could leave, which monkeypatching `os` cannot do for `open()
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import os
 from dataclasses import dataclass, field
 from typing import Any
+
+# Permissions of what the store creates (FORMAT.md, "Permissions"): a robot's logs hold
+# where people live and work, so they are the owner's alone unless a deployment changes these.
+FILE_MODE = 0o600
+DIR_MODE = 0o700
+
+# Every file is opened without following a symlink in its last component: a symlink named
+# like a store file must not let the writer truncate or write a file outside the store.
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
+
+
+def _open_nofollow(path: str, flags: int) -> int:
+    try:
+        return os.open(path, flags | _NOFOLLOW, FILE_MODE)
+    except OSError as err:
+        if err.errno == errno.ELOOP:  # what O_NOFOLLOW gives for a symlink: say it plainly
+            raise OSError(errno.ELOOP, "is a symbolic link, which the store never follows", path) from None
+        raise
 
 
 class FileSystem:
@@ -20,7 +39,7 @@ class FileSystem:
         flags = os.O_RDWR if write else os.O_RDONLY
         if create:
             flags |= os.O_CREAT | os.O_EXCL
-        return os.open(path, flags | getattr(os, "O_CLOEXEC", 0), 0o644)
+        return _open_nofollow(path, flags)
 
     def close(self, fd: int) -> None:
         os.close(fd)
@@ -67,20 +86,37 @@ class FileSystem:
         return sorted(os.listdir(path))
 
     def mkdir(self, path: str) -> None:
-        os.makedirs(path, exist_ok=True)
+        os.makedirs(path, mode=DIR_MODE, exist_ok=True)  # parents get the default mode
 
     def exists(self, path: str) -> bool:
         return os.path.exists(path)
 
     def lock(self, path: str) -> int | None:
         """Take an exclusive lock on `path` (created if needed); None when another holds it."""
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
+        for _attempt in range(5):
+            fd = _open_nofollow(path, os.O_RDWR | os.O_CREAT)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                os.close(fd)
+                return None
+            # A lock on a file that was unlinked or replaced after we opened it excludes
+            # nobody: the next writer opens the new file. Take the lock on what is there now.
+            if self.lock_held(fd, path):
+                return fd
             os.close(fd)
-            return None
-        return fd
+        raise OSError(errno.EAGAIN, "the lock file keeps being replaced; is another program "
+                      "removing it?", path)  # fmt: skip
+
+    def lock_held(self, fd: int, path: str) -> bool:
+        """Whether `fd` (a lock taken by `lock`) is still the file at `path`: false once the
+        file was removed or replaced, when a second writer could take a lock of its own."""
+        try:
+            now = os.lstat(path)
+        except FileNotFoundError:
+            return False
+        held = os.fstat(fd)
+        return (held.st_dev, held.st_ino) == (now.st_dev, now.st_ino)
 
     def unlock(self, fd: int) -> None:
         fcntl.flock(fd, fcntl.LOCK_UN)

@@ -48,7 +48,7 @@ from .fs import FileSystem
 from .index import SegmentIndex, SegmentSpans, merge_stream_stats
 from .manifest import Manifest, SealedSegment
 from .recovery import Recovery, SegmentOpener
-from .segment import Segment
+from .segment import WRITE_BUFFER, Segment
 from .window import Receipt, Window
 
 __all__ = ["Dropped", "Receipt", "Recovery", "Replacement", "RewriteReport", "SealedSegment", "Store", "Window",
@@ -311,6 +311,8 @@ class Store:
             row = (name, len(stamps), seq, stamps[0], stamps[-1], seg.end, len(record), raw_len)
             if self._unsynced_since is None:  # before the append: a commit must never skip its fsync
                 self._unsynced_since = time.monotonic()
+            if len(seg.pending) + len(record) >= WRITE_BUFFER:  # this append writes the file
+                self._check_lock()
             try:
                 seg.append(record, row)
             except OSError as err:
@@ -338,7 +340,18 @@ class Store:
             self.check_writable()
             self._commit()
 
+    def _check_lock(self) -> None:
+        """Refuse to write once LOCK is no longer the file this writer locked: another
+        writer may have taken a new one and be writing the same segment (FORMAT.md)."""
+        if self._lock_fd is not None and not self.fs.lock_held(self._lock_fd, self.file_path(LOCK)):
+            err = StoreFailedError(f"{self.file_path(LOCK)}: the lock file was removed or replaced "
+                                   "while this writer held it, so another writer may be writing; "
+                                   "nothing more was written (reopen the store)")  # fmt: skip
+            self._failed = err
+            raise err
+
     def _commit(self) -> None:
+        self._check_lock()
         seg = self.active
         try:
             seg.flush()
@@ -409,6 +422,7 @@ class Store:
     def commit_manifest(self, manifest: Manifest) -> None:
         """Make `manifest` the store's (package-internal: sealing and compaction); the
         caller holds the lock and updates `sealed` to match."""
+        self._check_lock()
         manifest.commit(self.fs, self.file_path(MANIFEST))
         self.manifest = manifest
         self._sealed_spans = None

@@ -124,3 +124,27 @@ def test_a_store_does_all_its_writes_through_its_fs(tmp_path):
     made |= {os.path.basename(op[2]) for op in fs.ops if op[0] == "rename"}
     on_disk = set(os.listdir(tmp_path / "s")) - {"LOCK"}  # the lock holds no data
     assert on_disk and on_disk <= made
+
+
+def test_store_files_are_owner_only(tmp_path, monkeypatch):
+    """Issue 16 item 8: a robot's logs are not world-readable (0600 files, 0700 dirs)."""
+    os.umask(0o022)  # the common default; the store must not rely on a strict umask
+    made_dirs = []
+    real_mkdir = FileSystem.mkdir
+    monkeypatch.setattr(FileSystem, "mkdir", lambda self, p: (made_dirs.append(p), real_mkdir(self, p))[1])
+    path = tmp_path / "s"
+    with cclogfs.open_store(path, create=True, sync_every_ms=None) as store:
+        store.put_window("/a", [(1, "{}")])
+        store.sync()
+        assert store.seal()
+        store.put_window("/a", [(2, "{}")])
+        store.seal()
+        store.rewrite(lambda w: None)
+        store.drop_oldest()
+    assert any(".creating-" in p for p in made_dirs)  # the hidden sibling it is made in
+    assert os.stat(path).st_mode & 0o777 == 0o700
+    names = os.listdir(path)
+    assert {"LOCK", "MANIFEST"} <= set(names) and any(n.endswith(".seg") for n in names)
+    assert any(n.endswith(".idx") for n in names)
+    for name in names:
+        assert os.stat(path / name).st_mode & 0o777 == 0o600, name

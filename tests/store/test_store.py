@@ -263,3 +263,43 @@ def test_a_store_path_that_is_a_file_is_a_store_error(tmp_path):
         with pytest.raises(StoreError, match="cannot open the store: Not a directory"):
             cclogfs.open_store(path, **kw)
     assert path.read_text() == "not a store\n"
+
+
+def test_a_writer_whose_lock_file_was_removed_refuses_to_write(tmp_path):
+    """Issue 16 item 7: LOCK unlinked while writer A holds it lets writer B lock a new file;
+    A must notice before writing again, so B's records and A's synced ones both survive."""
+    from cclogfs.errors import StoreFailedError
+
+    path = tmp_path / "s"
+    a = cclogfs.open_store(path, create=True, sync_every_ms=None)
+    a.put_window("/a", [(1, '{"w": "a1"}')])
+    a.sync()
+    os.unlink(path / "LOCK")
+    with cclogfs.open_store(path, sync_every_ms=None) as b:
+        b.put_window("/b", [(2, '{"w": "b1"}')])
+        b.sync()
+    a.put_window("/a", [(3, '{"w": "a2"}')])
+    with pytest.raises(StoreFailedError, match="LOCK.*removed or replaced"):
+        a.sync()
+    with pytest.raises(StoreFailedError):
+        a.seal()
+    a.close()
+    with cclogfs.open_store(path, readonly=True) as store:
+        got = [(w.name, list(w.messages())) for w in store.query()]
+    assert got == [("/a", [(1, '{"w": "a1"}')]), ("/b", [(2, '{"w": "b1"}')])]
+
+
+def test_lock_is_taken_again_when_the_file_was_replaced_meanwhile(tmp_path):
+    from cclogfs.store.fs import FileSystem
+
+    fs, lock = FileSystem(), str(tmp_path / "LOCK")
+    fd = fs.lock(lock)
+    assert fs.lock_held(fd, lock)
+    os.unlink(lock)
+    assert not fs.lock_held(fd, lock)
+    fd2 = fs.lock(lock)  # a new file: this lock excludes the next writer again
+    assert fd2 is not None and fs.lock_held(fd2, lock)
+    os.replace(str(tmp_path / "LOCK"), str(tmp_path / "old"))
+    assert not fs.lock_held(fd2, lock)
+    fs.unlock(fd)
+    fs.unlock(fd2)
