@@ -7,7 +7,6 @@ import itertools
 import os
 import sys
 
-from ..errors import InvalidInputError
 from .common import Progress, Skipped, add_selection, nothing_matched, selected_windows
 from .outputs import add_force, check_output
 
@@ -37,20 +36,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_force(p, "--replace")  # --replace: the Parquet export's earlier spelling
 
 
-def check_target(args: argparse.Namespace) -> None:
-    """Refuse an output that cannot be written before any work (and any temporary file)."""
-    if args.mcap:
-        parent = os.path.dirname(os.path.abspath(args.mcap))
-        if os.path.isdir(args.mcap):
-            raise InvalidInputError(f"--mcap {args.mcap} is a directory; give a file name")
-        if not os.path.isdir(parent):
-            raise InvalidInputError(f"--mcap {args.mcap}: directory {parent} does not exist")
-    elif os.path.exists(args.parquet) and not os.path.isdir(args.parquet):
-        raise InvalidInputError(f"--parquet {args.parquet} is a file; give a directory")
-
-
 def run(args: argparse.Namespace) -> int:
-    check_target(args)
+    # Before any work (and any temporary file). A Parquet directory may exist: the robot's
+    # own partition is what --force replaces, checked by export_parquet.
+    if args.mcap:
+        check_output(args.mcap, [args.store], force=args.force)
+    else:
+        check_output(args.parquet, [args.store], force=True, directory=True)
     # Imported here, not at the top: `cclog --help` imports every subcommand module.
     from ..export import export_mcap, export_parquet
     from ..store import open_store
@@ -63,10 +55,8 @@ def run(args: argparse.Namespace) -> int:
             raise nothing_matched(store, args)
         windows = itertools.chain([first] if first is not None else [], windows)
         if args.mcap:
-            check_output(args.mcap, [args.store], force=args.force)
             stats = export_mcap(windows, args.mcap, progress=progress)
         else:
-            check_output(args.parquet, [args.store], force=True)  # the robot's own subdirectory is checked below
             robot = args.robot or os.path.basename(os.path.normpath(args.store))
             stats = export_parquet(
                 windows, args.parquet, robot=robot, replace=args.force, progress=progress

@@ -35,8 +35,19 @@ def _inside(path: Path, directory: str | Path) -> bool:
         return False
 
 
-def check_output(path: str | Path, inputs: list[str], *, force: bool) -> None:
-    """Refuse an output that is (or is inside) an input, or that exists without --force."""
+def check_output(path: str | Path, inputs: list[str], *, force: bool, directory: bool = False) -> None:
+    """Refuse, before any work, an output that cannot be written where asked (a file where a
+    directory is expected or the reverse, a missing parent directory), that is (or is inside)
+    an input, or that exists without --force."""
+    if directory:
+        if os.path.exists(path) and not os.path.isdir(path):
+            raise InvalidInputError(f"Output {path} is a file; give a directory.")
+    else:
+        if os.path.isdir(path):
+            raise InvalidInputError(f"Output {path} is a directory; give a file name.")
+        parent = os.path.dirname(os.path.abspath(path))
+        if not os.path.isdir(parent):
+            raise InvalidInputError(f"Output {path}: directory {parent} does not exist.")
     for src in inputs:
         if src == "-" or "://" in src:
             continue
@@ -50,10 +61,9 @@ def check_output(path: str | Path, inputs: list[str], *, force: bool) -> None:
 @contextmanager
 def atomic_output(path: str | Path, mode: str = "w") -> Iterator:
     """A file object on a temporary name beside `path`, renamed over it only when the block
-    ends without an error (so a failed or interrupted run leaves the old file, or none)."""
+    ends without an error (so a failed or interrupted run leaves the old file, or none).
+    `check_output` has refused a path that cannot take a file."""
     path = Path(path)
-    if path.is_dir():
-        raise InvalidInputError(f"Output {path} is a directory; give a file name.")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
     try:
         with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as f:
