@@ -22,6 +22,19 @@ class StoreLockedError(StoreError):
     """Another writer holds the store's lock."""
 
 
+class StoreIOError(StoreError, OSError):
+    """A file operation of the store failed (EIO, ENOSPC, EROFS, EACCES, ...). Also an
+    OSError, so the store's failure handling treats it as one; a CclogError, so no caller
+    ever sees a raw OSError. `what` names the operation."""
+
+    def __init__(self, errno: int, strerror: str, filename: str, what: str):
+        super().__init__(errno, strerror, filename)
+        self.what = what
+
+    def __str__(self) -> str:
+        return f"{self.filename}: {self.what} failed: {self.strerror}"
+
+
 class StoreFailedError(StoreError):
     """An fsync or write failed; the store refuses further writes until reopened."""
 

@@ -58,7 +58,7 @@ def test_golden_store_v2_reads_back(tmp_path):
                 for w in got
             ] == expected["windows"]  # fmt: skip
             assert store.streams()["/tf"]["aged"] == 1 and store.streams()["/odom"]["aged"] == 0
-    after = {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir() if p.name != "LOCK"}
+    after = {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir() if p.name not in ("LOCK", "RESERVE")}
     assert after == before  # opening it as the writer changed nothing
     report = check_store(str(tmp_path / "s"), deep=True)
     assert not report.findings and report.aged == 1 and report.decoded == len(expected["windows"])
@@ -96,7 +96,7 @@ def test_golden_store_v3_reads_back(tmp_path):
             got = [{"seq": w.seq, "name": w.name, "meta": w.meta, "messages": [list(m) for m in w.messages()]}
                    for w in sorted(store.query(), key=lambda w: w.seq)]  # fmt: skip
             assert got == expected
-    after = {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir() if p.name != "LOCK"}
+    after = {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir() if p.name not in ("LOCK", "RESERVE")}
     assert after == before
     assert not check_store(str(tmp_path / "s")).findings
     data = before["00000000000000000003.seg"]

@@ -61,6 +61,10 @@ class Host(Protocol):
 
     def fail(self, err: BaseException) -> None: ...
 
+    def release_reserve(self) -> None: ...
+
+    def ensure_reserve(self) -> bool: ...
+
 
 @dataclass(frozen=True)
 class Replacement:
@@ -226,13 +230,9 @@ def _plan(store: Host, seg: Segment, info: dict[str, Any], fn: Callable, report:
 def file_bytes(store: Any, seg: Any, gen: int) -> int:
     """Bytes of one generation of a sealed segment (anything with `first_seq`: a Segment or
     a SealedSegment) of `store` (anything with `path`): its file and its index."""
-    total = 0
-    for name in (segment_name(seg.first_seq, gen), index_name(seg.first_seq, gen)):
-        try:
-            total += os.path.getsize(os.path.join(store.path, name))
-        except FileNotFoundError:
-            pass
-    return total
+    fs = getattr(store, "fs", None) or FileSystem()
+    names = (segment_name(seg.first_seq, gen), index_name(seg.first_seq, gen))
+    return sum(fs.file_size(os.path.join(store.path, name)) or 0 for name in names)
 
 
 def _remove(store: Host, names: Iterable[str]) -> None:
@@ -341,7 +341,13 @@ def _commit_rewrite(store: Host, plans: list[_Plan], report: RewriteReport) -> N
         # From the commit on nothing may be undone: once the rename happened, the manifest on
         # disk names the new files, so an interrupt must not reach the cleanup above.
         with signals_deferred():
-            _commit(store, manifest, "rewriting")
+            try:
+                _commit(store, manifest, "rewriting")
+            except StoreFailedError:
+                raise
+            except StoreError:  # nothing committed: the new generations are unnamed
+                _remove_quietly(store, _generation_files(plans, old=False))
+                raise
             _finish_rewrite(store, plans, report)
     finally:
         store.lock.release()
@@ -357,15 +363,29 @@ def _commit_rewrite(store: Host, plans: list[_Plan], report: RewriteReport) -> N
 
 
 def _commit(store: Host, manifest: Manifest, what: str) -> None:
-    """The commit point of a rewrite or drop; any failure leaves the store failed (whether
-    the rename happened is unknown, so neither generation may be removed)."""
+    """The commit point of a rewrite or drop. A failure before the rename (writing or
+    syncing MANIFEST.tmp: a full disk) changed nothing: StoreError, and the store goes on.
+    One at the rename's directory fsync, or an exception there, leaves the store failed:
+    whether the disk holds the new manifest is unknown, so neither generation is removed."""
     try:
         store.commit_manifest(manifest)
+    except StoreFailedError:
+        raise
+    except OSError as err:
+        if not getattr(err, "renamed", False):
+            raise StoreError(f"{store.path}: {what} failed before its commit, writing the new manifest: "
+                             f"{err}; nothing changed (the manifest names the same segments as before)"
+                             ) from err  # fmt: skip
+        store.fail(err)
+        raise StoreFailedError(f"{store.path}: {what} failed at its commit: the new manifest was renamed "
+                               f"into place but {err}, so whether the disk holds it is unknown; the store "
+                               "refuses further writes (reopen it: it follows whichever manifest the disk "
+                               "holds, and the files of both are kept)") from err  # fmt: skip
     except BaseException as err:
         store.fail(err)
-        raise StoreFailedError(f"{store.path}: {what} failed at its commit: {err}; the store refuses "
-                               "further writes (reopen it: the manifest names either the old or the "
-                               "new segments, and both are kept)") from err  # fmt: skip
+        raise StoreFailedError(f"{store.path}: {what} was interrupted at its commit ({err!r}); the store "
+                               "refuses further writes (reopen it: the manifest names either the old or "
+                               "the new segments, and both are kept)") from err  # fmt: skip
 
 
 def _finish_rewrite(store: Host, plans: list[_Plan], report: RewriteReport) -> None:
@@ -404,9 +424,27 @@ def drop_oldest(store: Host) -> Dropped | None:
         seg, info = store.sealed[0], store.manifest.segments[0]
         freed = file_bytes(store, seg, seg.gen)
         with signals_deferred():  # the commit and its aftermath run to the end
-            _commit(store, store.manifest.without_oldest(), f"dropping segment {os.path.basename(seg.path)}")
+            # On a full disk the new manifest fits only in the reserve's space (FORMAT.md, "Reserve").
+            store.release_reserve()
+            try:
+                _commit(store, store.manifest.without_oldest(), f"dropping segment {os.path.basename(seg.path)}")
+            except StoreFailedError:
+                raise
+            except StoreError:
+                _ensure_reserve_quietly(store)
+                raise
             _finish_drop(store, seg)
+            _ensure_reserve_quietly(store)
         return Dropped(info["first_seq"], info["end_seq"], info["streams"], freed)
+
+
+def _ensure_reserve_quietly(store: Host) -> None:
+    """Set the reserve aside again; a disk failing now is for the next write to report:
+    the drop itself is done (or undone) whatever happens to the reserve."""
+    try:
+        store.ensure_reserve()
+    except OSError:
+        pass
 
 
 def _finish_drop(store: Host, seg: Segment) -> None:

@@ -103,6 +103,19 @@ MAX_MANIFEST = 64 << 20
 
 MANIFEST = "MANIFEST"
 LOCK = "LOCK"
+RESERVE = "RESERVE"
+# Space the writer sets aside so that retention can relieve a full disk (FORMAT.md,
+# "Reserve"): what opening and one drop write, with room to spare.
+RESERVE_BASE = 1 << 20
+RESERVE_STEP = 64 << 10
+
+
+def reserve_bytes(manifest_len: int) -> int:
+    """Size of the RESERVE file for a MANIFEST of `manifest_len` bytes: 1 MiB (a lock, a
+    new active segment, the index of a segment sealed on open) plus twice the manifest (its
+    temporary copy beside it), rounded up to 64 KiB."""
+    need = RESERVE_BASE + 2 * manifest_len
+    return -(-need // RESERVE_STEP) * RESERVE_STEP
 TMP_SUFFIX = ".tmp"
 SEGMENT_SUFFIX = ".seg"
 INDEX_SUFFIX = ".idx"

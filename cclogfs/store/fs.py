@@ -9,9 +9,13 @@ from __future__ import annotations
 
 import errno
 import fcntl
+import functools
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
+
+from ..errors import StoreIOError
 
 # Permissions of what the store creates (FORMAT.md, "Permissions"): a robot's logs hold
 # where people live and work, so they are the owner's alone unless a deployment changes these.
@@ -32,18 +36,59 @@ def _open_nofollow(path: str, flags: int) -> int:
         raise
 
 
-class FileSystem:
-    """The real file system (POSIX)."""
+_F = TypeVar("_F", bound=Callable[..., Any])
 
+
+def io_op(what: str) -> Callable[[_F], _F]:
+    """Turn an OSError of a file operation into StoreIOError naming the file and `what`
+    failed: callers that handle a failed write or fsync still catch it as an OSError, and
+    no caller ever gets a raw one. A missing or existing file (ENOENT, EEXIST) stays the
+    plain OSError callers test for; a held lock is no failure."""
+
+    def wrap(fn: _F) -> _F:
+        @functools.wraps(fn)
+        def op(self: FileSystem, target: Any, *args: Any, **kwargs: Any) -> Any:
+            try:
+                return fn(self, target, *args, **kwargs)
+            except (FileNotFoundError, FileExistsError, BlockingIOError, StoreIOError):
+                raise
+            except OSError as err:
+                name = self.name_of(target) if isinstance(target, int) else target
+                raise StoreIOError(err.errno or errno.EIO, err.strerror or str(err), err.filename or name,
+                                   what) from err  # fmt: skip
+
+        return op  # type: ignore[return-value]
+
+    return wrap
+
+
+class FileSystem:
+    """The real file system (POSIX). Every operation's OSError (but a missing or existing
+    file) reaches the caller as StoreIOError (`io_op`)."""
+
+    def name_of(self, fd: int) -> str:
+        """The path a descriptor was opened with (for error messages)."""
+        return getattr(self, "_names", {}).get(fd, f"file descriptor {fd}")
+
+    def _named(self, fd: int, path: str) -> int:
+        if not hasattr(self, "_names"):
+            self._names: dict[int, str] = {}
+        self._names[fd] = path
+        return fd
+
+    @io_op("opening")
     def open(self, path: str, *, write: bool = False, create: bool = False) -> int:
         flags = os.O_RDWR if write else os.O_RDONLY
         if create:
             flags |= os.O_CREAT | os.O_EXCL
-        return _open_nofollow(path, flags)
+        return self._named(_open_nofollow(path, flags), path)
 
+    @io_op("closing")
     def close(self, fd: int) -> None:
+        getattr(self, "_names", {}).pop(fd, None)
         os.close(fd)
 
+    @io_op("reading")
     def pread(self, fd: int, size: int, offset: int) -> bytes:
         chunks, got = [], 0
         while got < size:  # pread may return short reads for large sizes
@@ -54,27 +99,57 @@ class FileSystem:
             got += len(chunk)
         return chunks[0] if len(chunks) == 1 else b"".join(chunks)
 
+    @io_op("writing")
     def pwrite(self, fd: int, data: bytes, offset: int) -> None:
         view = memoryview(data)
         while view:
             n = os.pwrite(fd, view, offset)
             view, offset = view[n:], offset + n
 
+    @io_op("fsync")
     def fsync(self, fd: int) -> None:
         os.fsync(fd)
 
+    @io_op("truncating")
     def truncate(self, fd: int, size: int) -> None:
         os.ftruncate(fd, size)
 
+    @io_op("stat")
     def size(self, fd: int) -> int:
         return os.fstat(fd).st_size
 
+    @io_op("allocating")
+    def allocate(self, fd: int, size: int) -> None:
+        """Make the file `size` bytes with its blocks allocated (not sparse): space set
+        aside, so a later write into it cannot fail for lack of space."""
+        if hasattr(os, "posix_fallocate"):
+            os.posix_fallocate(fd, 0, size)
+        else:  # pragma: no cover - every POSIX system cclogfs runs on has it
+            os.ftruncate(fd, size)
+
+    @io_op("statvfs")
+    def free_bytes(self, path: str) -> int:
+        """Bytes an unprivileged writer may still allocate on the file system of `path`."""
+        st = os.statvfs(path)
+        return st.f_bavail * st.f_frsize
+
+    @io_op("stat")
+    def file_size(self, path: str) -> int | None:
+        """Bytes of the file at `path` (not following a symlink); None when it is gone."""
+        try:
+            return os.lstat(path).st_size
+        except FileNotFoundError:
+            return None
+
+    @io_op("renaming")
     def rename(self, src: str, dst: str) -> None:
         os.rename(src, dst)
 
+    @io_op("removing")
     def unlink(self, path: str) -> None:
         os.unlink(path)
 
+    @io_op("fsync of the directory")
     def fsync_dir(self, path: str) -> None:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
         try:
@@ -82,15 +157,18 @@ class FileSystem:
         finally:
             os.close(fd)
 
+    @io_op("listing")
     def listdir(self, path: str) -> list[str]:
         return sorted(os.listdir(path))
 
+    @io_op("making the directory")
     def mkdir(self, path: str) -> None:
         os.makedirs(path, mode=DIR_MODE, exist_ok=True)  # parents get the default mode
 
     def exists(self, path: str) -> bool:
         return os.path.exists(path)
 
+    @io_op("locking")
     def lock(self, path: str) -> int | None:
         """Take an exclusive lock on `path` (created if needed); None when another holds it."""
         for _attempt in range(5):
@@ -103,11 +181,12 @@ class FileSystem:
             # A lock on a file that was unlinked or replaced after we opened it excludes
             # nobody: the next writer opens the new file. Take the lock on what is there now.
             if self.lock_held(fd, path):
-                return fd
+                return self._named(fd, path)
             os.close(fd)
         raise OSError(errno.EAGAIN, "the lock file keeps being replaced; is another program "
                       "removing it?", path)  # fmt: skip
 
+    @io_op("checking the lock")
     def lock_held(self, fd: int, path: str) -> bool:
         """Whether `fd` (a lock taken by `lock`) is still the file at `path`: false once the
         file was removed or replaced, when a second writer could take a lock of its own."""
@@ -118,7 +197,9 @@ class FileSystem:
         held = os.fstat(fd)
         return (held.st_dev, held.st_ino) == (now.st_dev, now.st_ino)
 
+    @io_op("unlocking")
     def unlock(self, fd: int) -> None:
+        getattr(self, "_names", {}).pop(fd, None)
         fcntl.flock(fd, fcntl.LOCK_UN)
         os.close(fd)
 
@@ -132,18 +213,32 @@ class FileSystem:
             self.close(fd)
 
     def write_file_atomic(self, path: str, data: bytes) -> None:
-        """Replace `path`: write a temp file, fsync it, rename it over, fsync the directory."""
+        """Replace `path`: write a temp file, fsync it, rename it over, fsync the directory.
+        A failure before the rename leaves `path` as it was (and the temp file removed, when
+        it can be: on a full disk it holds the space a retry needs); one at the directory
+        fsync carries `renamed = True`."""
         tmp = path + ".tmp"
         if self.exists(tmp):
             self.unlink(tmp)
         fd = self.open(tmp, write=True, create=True)
         try:
-            self.pwrite(fd, data, 0)
-            self.fsync(fd)
-        finally:
-            self.close(fd)
+            try:
+                self.pwrite(fd, data, 0)
+                self.fsync(fd)
+            finally:
+                self.close(fd)
+        except OSError:
+            try:
+                self.unlink(tmp)
+            except OSError:
+                pass  # a leftover `*.tmp`, removed by the writer's next open
+            raise
         self.rename(tmp, path)
-        self.fsync_dir(os.path.dirname(path) or ".")
+        try:
+            self.fsync_dir(os.path.dirname(path) or ".")
+        except OSError as err:
+            err.renamed = True  # the new file is in place, but whether the disk has it is unknown
+            raise
 
 
 @dataclass
@@ -184,6 +279,7 @@ class RecordingFileSystem(FileSystem):
         self.ops.append(("write", self._paths[fd], offset, bytes(data)))
         super().pwrite(fd, data, offset)
 
+    @io_op("fsync")
     def fsync(self, fd: int) -> None:
         if self.fail_fsync:
             raise OSError(5, "Input/output error (injected)")
@@ -194,6 +290,10 @@ class RecordingFileSystem(FileSystem):
         self.ops.append(("truncate", self._paths[fd], size))
         super().truncate(fd, size)
 
+    def allocate(self, fd: int, size: int) -> None:
+        self.ops.append(("truncate", self._paths[fd], size))  # the file grows by zeros
+        super().allocate(fd, size)
+
     def rename(self, src: str, dst: str) -> None:
         self.ops.append(("rename", src, dst))
         super().rename(src, dst)
@@ -202,6 +302,7 @@ class RecordingFileSystem(FileSystem):
         self.ops.append(("unlink", path))
         super().unlink(path)
 
+    @io_op("fsync of the directory")
     def fsync_dir(self, path: str) -> None:
         if self.fail_fsync:
             raise OSError(5, "Input/output error (injected)")

@@ -6,7 +6,7 @@ import os
 from dataclasses import dataclass, field
 
 from ..errors import CclogError, UnknownCodecError
-from .format import LOCK, MANIFEST, QUARANTINE, SIDE_FILE, TMP_SUFFIX, index_name, parse_seq_name, segment_name
+from .format import LOCK, MANIFEST, QUARANTINE, RESERVE, SIDE_FILE, TMP_SUFFIX, index_name, parse_seq_name, segment_name
 from .records import count_intact
 from .fs import FileSystem
 from .index import SegmentIndex
@@ -89,7 +89,7 @@ def check_store(path: str, *, deep: bool = False, fs: FileSystem | None = None) 
 
 def _check_names(path: str, fs: FileSystem, leftovers: set[str], report: FsckReport) -> None:
     """Every file in the directory is one the store may hold; side files are evidence."""
-    names = set(os.listdir(path))
+    names = set(fs.listdir(path))
     for name in sorted(names):
         parsed = parse_seq_name(name)
         if (parsed and parsed[1] == "idx" and name not in leftovers
@@ -103,7 +103,7 @@ def _check_names(path: str, fs: FileSystem, leftovers: set[str], report: FsckRep
                                           "(perhaps acknowledged): they are not in the store")  # fmt: skip
             else:
                 report.add("warning", name, "bytes recovery cut from the log (no intact record among them)")
-        elif not parsed and name not in (MANIFEST, LOCK, QUARANTINE) and not name.endswith(TMP_SUFFIX):
+        elif not parsed and name not in (MANIFEST, LOCK, RESERVE, QUARANTINE) and not name.endswith(TMP_SUFFIX):
             report.add("warning", name, "not a file a cclogfs store holds")
 
 

@@ -5,6 +5,7 @@ See docs/FORMAT.md for the layout and the durability contract this module implem
 
 from __future__ import annotations
 
+import errno
 import heapq
 import json
 import os
@@ -24,6 +25,7 @@ from ..errors import (
     InvalidInputError,
     StoreError,
     StoreFailedError,
+    StoreIOError,
     StoreLockedError,
 )
 from . import compaction, planted
@@ -36,12 +38,14 @@ from .format import (
     MANIFEST,
     MAX_NS,
     MIN_NS,
+    RESERVE,
     SEGMENT_HEADER_SIZE,
     TMP_SUFFIX,
     Reason,
     index_name,
     pack_segment_header,
     parse_seq_name,
+    reserve_bytes,
     segment_name,
 )
 from .fs import FileSystem
@@ -154,6 +158,7 @@ class Store:
                     self.recovery.removed_files.append(name)
         self._open_segments_retrying()
         if not self.readonly:
+            self.ensure_reserve()
             self._start_flusher()
 
     def _create_or_finish(self, create: bool) -> None:
@@ -198,6 +203,10 @@ class Store:
             raise StoreLockedError(f"{self.path} is locked by another writer ({holder}); "
                                    "open it with readonly=True to read")  # fmt: skip
         self._lock_fd = fd
+        # On a full disk the reserve is freed before this writer's first write: opening (the
+        # lock's pid, a new active segment, a seal) must work so that retention can run.
+        if self._space_short():
+            self.release_reserve()
         info = json.dumps({"pid": os.getpid(), "host": socket.gethostname()}).encode()
         self.fs.truncate(fd, 0)
         self.fs.pwrite(fd, info, 0)
@@ -419,6 +428,39 @@ class Store:
         seg.sealed_size = seg.size
         self.sealed.append(seg)
 
+    def release_reserve(self) -> None:
+        """Free the space RESERVE sets aside (package-internal: retention does it right
+        before its commit, the writer on open before its first write; FORMAT.md, "Reserve")."""
+        path = self.file_path(RESERVE)
+        if self.fs.file_size(path) is not None:  # lstat: a symlink is removed as a link
+            self.fs.unlink(path)
+
+    def _space_short(self) -> bool:
+        """Less free space than the reserve sets aside: the disk is (nearly) full."""
+        manifest = self.fs.file_size(self.file_path(MANIFEST)) or 0
+        return self.fs.free_bytes(self.path) < reserve_bytes(manifest)
+
+    def ensure_reserve(self) -> bool:
+        """Set the reserve's space aside again (package-internal). On a full disk it stays
+        short (False) until retention frees space: that space is then free for the next
+        drop all the same. Any other failure is the disk's and is raised."""
+        path = self.file_path(RESERVE)
+        want = reserve_bytes(self.fs.file_size(self.file_path(MANIFEST)) or 0)
+        size = self.fs.file_size(path)
+        if size is not None and size >= want:
+            return True
+        try:
+            fd = self.fs.open(path, write=True, create=size is None)
+            try:
+                self.fs.allocate(fd, want)
+            finally:
+                self.fs.close(fd)
+        except StoreIOError as err:
+            if err.errno not in (errno.ENOSPC, errno.EDQUOT):
+                raise
+            return False
+        return True
+
     def commit_manifest(self, manifest: Manifest) -> None:
         """Make `manifest` the store's (package-internal: sealing and compaction); the
         caller holds the lock and updates `sealed` to match."""
@@ -606,24 +648,13 @@ class Store:
         """Bytes of the store's own files (manifest, segments, indexes): what a storage
         budget counts. Recovery's side files (`.seg.tail-N`) and other strays are left out,
         so evidence kept for a repair never makes retention drop data."""
-        total = 0
-        for name in self.fs.listdir(self.path):
-            if name == MANIFEST or parse_seq_name(name) is not None:
-                try:
-                    total += os.path.getsize(self.file_path(name))
-                except FileNotFoundError:  # removed meanwhile (a writer compacting while we read)
-                    pass
-        return total
+        names = [n for n in self.fs.listdir(self.path) if n == MANIFEST or parse_seq_name(n) is not None]
+        # A file removed meanwhile (a writer compacting while we read) counts 0.
+        return sum(self.fs.file_size(self.file_path(name)) or 0 for name in names)
 
     def disk_bytes(self) -> int:
         """Bytes of every file in the store directory."""
-        total = 0
-        for name in self.fs.listdir(self.path):
-            try:
-                total += os.path.getsize(self.file_path(name))
-            except FileNotFoundError:  # removed meanwhile (a writer compacting while we read)
-                pass
-        return total
+        return sum(self.fs.file_size(self.file_path(name)) or 0 for name in self.fs.listdir(self.path))
 
 
 def _remove_stale_creations(parent: str, base: str) -> None:

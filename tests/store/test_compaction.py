@@ -76,7 +76,7 @@ def test_rewrite_replaces_downsamples_and_keeps(tmp_path):
                                              "00000000000000000003-1.idx", "00000000000000000003-1.seg",
                                              "00000000000000000006-1.idx", "00000000000000000006-1.seg",
                                              "00000000000000000009-1.idx", "00000000000000000009-1.seg",
-                                             "00000000000000000010.seg", "LOCK", MANIFEST]  # fmt: skip
+                                             "00000000000000000010.seg", "LOCK", MANIFEST, "RESERVE"]  # fmt: skip
 
 
 def test_a_segment_whose_records_are_all_kept_is_not_rewritten(tmp_path):
@@ -158,7 +158,7 @@ def test_drop_oldest_moves_the_start_of_the_log(tmp_path):
     with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
         assert store.recovery.clean and [w.seq for w in store.query()] == [11]
         assert store.first_seq == 11 and store.dropped()["segments"] == 5
-    assert sorted(files(tmp_path / "s")) == ["00000000000000000011.seg", "LOCK", MANIFEST]
+    assert sorted(files(tmp_path / "s")) == ["00000000000000000011.seg", "LOCK", MANIFEST, "RESERVE"]
     report = check_store(str(tmp_path / "s"))
     assert not report.findings and report.records == 1
 
@@ -280,7 +280,7 @@ def test_a_version_1_store_opened_and_closed_stays_byte_for_byte(tmp_path):
     with cclogfs.open_store(tmp_path / "s", sync_every_ms=None, segment_age_s=1e12):
         pass  # (its active segment is older than the default age limit: it would be sealed)
     after = files(tmp_path / "s")
-    del after["LOCK"]
+    del after["LOCK"], after["RESERVE"]
     assert after == before
     with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
         store.put_window("/a", [(1, "1")])

@@ -15,7 +15,7 @@ def store_of(path, n=30):
 
 
 def files(path):
-    return {p.name: p.read_bytes() for p in Path(path).iterdir() if p.name != "LOCK"}
+    return {p.name: p.read_bytes() for p in Path(path).iterdir() if p.name not in ("LOCK", "RESERVE")}
 
 
 def test_a_clean_store(tmp_path):

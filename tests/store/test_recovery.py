@@ -9,7 +9,7 @@ from helpers import SEG, append, make_store, segment_files, seqs
 
 
 def snapshot(path):
-    return {p.name: p.read_bytes() for p in sorted(path.iterdir()) if p.name != "LOCK"}
+    return {p.name: p.read_bytes() for p in sorted(path.iterdir()) if p.name not in ("LOCK", "RESERVE")}
 
 
 def torn_tail(path):
