@@ -652,6 +652,10 @@ class Store:
         # A file removed meanwhile (a writer compacting while we read) counts 0.
         return sum(self.fs.file_size(self.file_path(name)) or 0 for name in names)
 
+    def free_bytes(self) -> int:
+        """Bytes still free on the store's file system (for this user)."""
+        return self.fs.free_bytes(self.path)
+
     def disk_bytes(self) -> int:
         """Bytes of every file in the store directory."""
         return sum(self.fs.file_size(self.file_path(name)) or 0 for name in self.fs.listdir(self.path))

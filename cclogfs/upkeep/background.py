@@ -10,7 +10,7 @@ from typing import Sequence
 from .._signals import signals_deferred
 from ..errors import CorruptionError, InvalidInputError, StoreFailedError
 from ..store import SealedSegment, Store
-from .job import CompactReport, Stopped, age_segments, candidate_segments, compact, selected
+from .job import CompactReport, Stopped, age_segments, candidate_segments, compact, room_to_age, selected
 from .policy import Policy
 
 __all__ = ["Upkeep"]
@@ -39,7 +39,9 @@ class Upkeep:
     - with only a `budget`, the oldest sealed segments are dropped while the store's files
       are over it, right there (each drop is a manifest rename and an unlink);
     - with an aging `policy` (and `older_than_ns`), a background thread does the work:
-      retention, then aging one sealed segment per commit, oldest first. The rewrite plans
+      aging one sealed segment per commit, oldest first, each followed by retention, so
+      that what aging saved keeps older data (retention first when the disk has no room
+      for a rewrite). The rewrite plans
       without the store's lock, so recording goes on (sharing the interpreter); only the
       commit waits for it. The thread alone drops or rewrites, so the two never race.
     Segments are at most 1/8 of the budget (`store_options`), so the store stays within
@@ -60,6 +62,7 @@ class Upkeep:
         self.sealed_upto = -1  # end seq of the newest sealed segment at the last run
         self.active_seen: int | None = None  # the active segment's first seq at the last put
         self.runs = self.dropped_segments = self.aged_windows = 0
+        self.bytes_before = self.bytes_after = 0  # stored bytes of the segments aged, before and after
         self.errors: list[str] = []  # what failed in the background (the first MAX_ERRORS)
         self.done: set[int] = set()  # first seqs of segments with nothing left to age
         self.seen: dict[int, dict] = {}  # first seq -> the cutoffs it was last aged at
@@ -116,14 +119,42 @@ class Upkeep:
                 self._exited.wait()
             raise
 
-    def _retain(self, store: Store) -> int:
-        """Drop the oldest segments while over the budget; how many were dropped."""
+    def _retain(self, store: Store, *, pending: bool = True) -> int:
+        """Drop the oldest segments while over the budget; how many were dropped. With
+        `pending`, what aging is yet to save on the segments due counts as saved (at the
+        ratio it saved so far): a drop is for good, and aging the backlog first would
+        have kept that segment (issue 16 item 9). A full disk asks without it."""
         self.runs += 1
         if self.budget is None:
             return 0
-        dropped = compact(store, budget=self.budget).segments_dropped
+        slack = self._pending_savings(store) if pending and self.policy is not None else 0
+        dropped = compact(store, budget=self.budget + slack).segments_dropped
         self.dropped_segments += dropped
         return dropped
+
+    def _pending_savings(self, store: Store) -> int:
+        """Bytes aging will save on the segments due and not yet aged, at the ratio it
+        achieved on what it aged so far (nothing before it aged anything)."""
+        if not self.bytes_before:
+            return 0
+        ratio = min(1.0, self.bytes_after / self.bytes_before)
+        cutoff = _cutoffs_sealed(store, self.older_than_ns)
+        due = sum(seg.size for seg in self._due(store, cutoff))
+        return int(due * (1 - ratio))
+
+    def _due(self, store: Store, cutoff: dict[str, int]) -> list[SealedSegment]:
+        """Sealed segments with windows to age at `cutoff`, oldest first."""
+        segs = _by_first_seq(store)
+        out = []
+        for first_seq in candidate_segments(store, cutoff, self.streams, None):
+            seg = segs[first_seq]
+            if first_seq in self.done or first_seq in self.broken or self.seen.get(first_seq) == self._mine(seg, cutoff):
+                continue  # nothing left to age, or aged at these cutoffs already
+            out.append(seg)
+        return out
+
+    def _mine(self, seg: SealedSegment, cutoff: dict[str, int]) -> dict:
+        return {name: cutoff.get(name) for name in seg.streams if selected(name, self.streams)}
 
     def _work(self, store: Store) -> None:
         try:
@@ -140,8 +171,13 @@ class Upkeep:
             if self._stop.is_set():
                 return
             try:
-                self._retain(store)
+                # Aging first: what it saves keeps older segments within the budget, which
+                # retention would otherwise have dropped already (issue 16 item 9). A disk
+                # with no room for a rewrite gets retention first.
+                if not room_to_age(store):
+                    self._retain(store, pending=False)
                 self._age_all(store)
+                self._retain(store)
             except Stopped:
                 return
             except StoreFailedError as err:  # the recorder sees it at its next put
@@ -157,30 +193,30 @@ class Upkeep:
             self.errors.append(f"{type(err).__name__}: {err}")
 
     def _age_all(self, store: Store) -> None:
-        """Age every sealed segment with windows due, oldest first, one commit each. A
+        """Age every sealed segment with windows due, one commit each, newest first: were
+        aging to fall behind the recording, the segments retention will keep are aged
+        first. When the disk has no room for the next rewrite, retention runs first. A
         segment is read again only once the cutoffs of its streams have moved."""
         cutoff = _cutoffs_sealed(store, self.older_than_ns)
-        segs = _by_first_seq(store)  # again after each drop
-        for first_seq in candidate_segments(store, cutoff, self.streams, None):
+        for seg in reversed(self._due(store, cutoff)):
             if self._stop.is_set():
                 return
-            seg = segs.get(first_seq)
-            if seg is None or first_seq in self.done or first_seq in self.broken:
-                continue
-            mine = {name: cutoff.get(name) for name in seg.streams if selected(name, self.streams)}
-            if self.seen.get(first_seq) == mine:
-                continue  # aged at these cutoffs already: nothing new is due
+            if not room_to_age(store) and self._retain(store, pending=False):
+                if seg.first_seq not in _by_first_seq(store):
+                    continue  # dropped to make room
             report = CompactReport()
             try:
-                age_segments(store, self.policy, cutoff, self.streams, report, segments=[first_seq], seal=False,
+                age_segments(store, self.policy, cutoff, self.streams, report, segments=[seg.first_seq], seal=False,
                              stop=self._stop)  # fmt: skip
             except CorruptionError as err:
-                self.broken.add(first_seq)  # reported once; `cclog fsck` says more
+                self.broken.add(seg.first_seq)  # reported once; `cclog fsck` says more
                 self._error(err)
                 continue
-            self.aged_windows += sum(a["windows"] for a in report.aged.values())
-            self.seen[first_seq] = mine
+            for a in report.aged.values():
+                self.aged_windows += a["windows"]
+                self.bytes_before += a["bytes_before"]
+                self.bytes_after += a["bytes_after"]
+            mine = self._mine(seg, cutoff)
+            self.seen[seg.first_seq] = mine
             if all(seg.streams[name]["end_ns"] < limit for name, limit in mine.items() if limit is not None):
-                self.done.add(first_seq)  # every selected window was old enough
-            if self._retain(store):
-                segs = _by_first_seq(store)
+                self.done.add(seg.first_seq)  # every selected window was old enough

@@ -14,6 +14,9 @@ work:
    oldest sealed segment is dropped (retention). The active segment is never dropped;
    if the budget cannot be met without it, the report says so.
 
+Aging comes first so that what it saves keeps older data within the budget; when the
+disk has no room for a rewrite (a full disk), retention comes first and makes it.
+
 It sees the store only through its public API (`sealed_segments()`, `active_first_seq`,
 `rewrite`, `drop_oldest`, ...): the manifest's per-segment statistics say which segments
 may hold windows due without reading a record.
@@ -21,16 +24,18 @@ may hold windows due without reading a record.
 
 from __future__ import annotations
 
+import errno
 import threading
 from dataclasses import dataclass, field
 from fnmatch import fnmatchcase
 from typing import Sequence
 
+from ..errors import StoreError
 from ..store import RecordFlag, Replacement, Store, Window, file_bytes, merge_stream_stats
 from .policy import Policy
 
-__all__ = ["DEFAULT_EXCLUDE", "CompactReport", "Stopped", "age_segments", "candidate_segments", "compact", "passes_of",
-           "preview", "selected"]  # fmt: skip
+__all__ = ["DEFAULT_EXCLUDE", "CompactReport", "Stopped", "age_segments", "candidate_segments", "compact", "no_space",
+           "passes_of", "preview", "room_to_age", "selected"]  # fmt: skip
 
 # The smart-logging summary answers "how far did the robot drive this year"; it is tiny,
 # so it stays exact unless a stream pattern names it.
@@ -90,13 +95,40 @@ def compact(
     report = CompactReport(disk_before=store.data_bytes(), budget=budget)
     # The segment being written is never dropped, not even once sealed here for aging.
     keep_from = store.active_first_seq
-    if policy is not None:
-        cutoff = _cutoffs(store, before_ns, older_than_ns)
-        age_segments(store, policy, cutoff, streams, report, segments=segments, seal=seal)
+    # Aging first lets retention keep the older data it shrank; on a disk too full for a
+    # rewrite (both generations of a segment at once) retention runs first to make room.
+    age_first = budget is None or room_to_age(store)
+    if policy is not None and age_first:
+        try:
+            age_segments(store, policy, _cutoffs(store, before_ns, older_than_ns), streams, report,
+                         segments=segments, seal=seal)  # fmt: skip
+        except StoreError as err:
+            if budget is None or not no_space(err):
+                raise
+            age_first = False  # the disk filled meanwhile (nothing committed): retention, then again
     if budget is not None:
         _retain(store, budget, keep_from, report)
+    if policy is not None and not age_first:
+        age_segments(store, policy, _cutoffs(store, before_ns, older_than_ns), streams, report,
+                     segments=segments, seal=seal)  # fmt: skip
     report.disk_after = store.data_bytes()
     return report
+
+
+def room_to_age(store: Store) -> bool:
+    """Whether the disk has room for a rewrite: the new generation of the largest sealed
+    segment (and its index) beside the old one."""
+    need = max((file_bytes(store, seg, seg.gen) for seg in store.sealed_segments()), default=0)
+    return store.free_bytes() >= need
+
+
+def no_space(err: BaseException) -> bool:
+    """Whether a store error was a full disk (ENOSPC or a quota), which retention relieves."""
+    while err is not None:
+        if isinstance(err, OSError) and err.errno in (errno.ENOSPC, errno.EDQUOT):
+            return True
+        err = err.__cause__
+    return False
 
 
 def _retain(store: Store, budget: int, keep_from: int | None, report: CompactReport) -> None:

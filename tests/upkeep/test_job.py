@@ -85,9 +85,9 @@ def test_same_policy_twice_rewrites_nothing_and_a_new_one_adds_a_pass(tmp_path):
 def test_budget_drops_oldest_segments_and_says_when_it_cannot(tmp_path):
     build(tmp_path / "s", segment_records=4)
     with cclogfs.open_store(tmp_path / "s") as store:
-        total = store.disk_bytes()
+        total = store.data_bytes()
         report = compact(store, budget=total // 2)
-        assert store.disk_bytes() <= total // 2 and not report.over_budget
+        assert store.data_bytes() <= total // 2 and not report.over_budget
         assert report.segments_dropped >= 1
         first_left = min(w.start_ns for w in store.query("/odom"))
         assert first_left > 0 and report.dropped["/odom"]["start_ns"] == 0
@@ -142,9 +142,9 @@ def test_real_log_ages_within_bound_and_shrinks(tmp_path, shared_data):
     with cclogfs.open_store(tmp_path / "s", readonly=True) as s:
         exact = {w.seq: list(w.messages()) for w in s.query()}
     with cclogfs.open_store(tmp_path / "s") as store:
-        size = store.disk_bytes()
+        size = store.data_bytes()
         compact(store, policy=Policy([parse_rule("1e-3")]))
-        assert store.disk_bytes() < 0.7 * size
+        assert store.data_bytes() < 0.7 * size
     with cclogfs.open_store(tmp_path / "s", readonly=True) as s:
         for w in s.query():
             for (_, t0), (_, t1) in zip(exact[w.seq], w.messages(), strict=True):
