@@ -81,3 +81,16 @@ def test_finishing_after_an_error_returns_and_later_segments_still_age(tmp_path)
     assert len(upkeep.errors) == 1 and "CorruptionError" in upkeep.errors[0]
     assert any(w.aged is not None for w in store.query("/odom") if w.seq >= 4)
     store.close()
+
+
+def test_aging_buys_history_under_the_same_budget(tmp_path, shared_data):
+    # Issue 16 item 9: recording with aging kept exactly what the budget alone kept (the
+    # same 4,560 messages of this log), since retention ran before aging saved anything.
+    from bench.aging_history import kept_history
+
+    log = shared_data("long/slamfail_long_passage.mcap")
+    plain = kept_history(log, tmp_path / "plain", "192KiB", [])
+    aged = kept_history(log, tmp_path / "aged", "192KiB", ["--age-older-than", "2min", "--age-error", "1e-3"])
+    assert plain["bytes"] <= 192 << 10 and aged["bytes"] <= 192 << 10
+    assert aged["aged_windows"] > 0 and aged["first_ns"] < plain["first_ns"]
+    assert aged["messages"] > 1.25 * plain["messages"], (plain, aged)
