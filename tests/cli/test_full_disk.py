@@ -8,6 +8,7 @@ without, except in CI (CI=true), where it fails.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -140,3 +141,43 @@ class _Capture:
 
 def _run_alone(disk: Path, work: Path, aging: bool) -> None:
     _full_disk_scenario(disk, work, _Capture(), aging)
+
+
+@contextlib.contextmanager
+def _tmpfs(path: Path, size: int):
+    """A tmpfs of `size` bytes mounted at `path` (root only; skipped otherwise, failed in CI)."""
+    if not _can_mount():
+        if os.environ.get("CI") == "true":
+            pytest.fail("cannot mount a tmpfs (not root), and CI must not skip the full-disk tests")
+        pytest.skip("cannot mount a tmpfs here (not root)")
+    path.mkdir()
+    subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(path)], check=True)
+    try:
+        yield path
+    finally:
+        subprocess.run(["umount", str(path)], check=True)
+
+
+def test_record_and_compact_on_a_read_only_file_system_say_so_in_one_line(tmp_path, capsys):
+    _odom_lines(tmp_path / "a.jsonl", 0, 50)
+    with _tmpfs(tmp_path / "disk", 1 << 20) as disk:
+        assert main(["record", str(tmp_path / "a.jsonl"), "--store", str(disk / "s")]) == 0
+        subprocess.run(["mount", "-o", "remount,ro", str(disk)], check=True)
+        capsys.readouterr()
+        for argv in (["record", str(tmp_path / "a.jsonl"), "--store", str(disk / "s")],
+                     ["record", str(tmp_path / "a.jsonl"), "--store", str(disk / "new")],
+                     ["compact", str(disk / "s"), "--budget", "1KiB"]):  # fmt: skip
+            assert main(argv) == 1
+            err = capsys.readouterr().err
+            assert err.count("\n") == 1 and "cclog: error: " in err and "Read-only file system" in err
+        assert sorted(p.name for p in disk.iterdir()) == ["s"]
+
+
+def test_creating_a_store_on_a_full_disk_leaves_nothing(tmp_path, capsys):
+    _odom_lines(tmp_path / "a.jsonl", 0, 50)
+    with _tmpfs(tmp_path / "disk", 64 << 10) as disk:
+        _fill(disk)
+        assert main(["record", str(tmp_path / "a.jsonl"), "--store", str(disk / "new")]) == 1
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "No space left on device" in err
+        assert sorted(p.name for p in disk.iterdir()) == ["other-program.dat"]
