@@ -147,10 +147,11 @@ class Upkeep:
         segs = _by_first_seq(store)
         out = []
         for first_seq in candidate_segments(store, cutoff, self.streams, None):
-            seg = segs[first_seq]
-            if first_seq in self.done or first_seq in self.broken or self.seen.get(first_seq) == self._mine(seg, cutoff):
-                continue  # nothing left to age, or aged at these cutoffs already
-            out.append(seg)
+            seg = segs.get(first_seq)  # None: sealed since `segs` was read; the next pass has it
+            if seg is None or first_seq in self.done or first_seq in self.broken:
+                continue  # nothing left to age in it (or not readable)
+            if self.seen.get(first_seq) != self._mine(seg, cutoff):  # else aged at these cutoffs already
+                out.append(seg)
         return out
 
     def _mine(self, seg: SealedSegment, cutoff: dict[str, int]) -> dict:
