@@ -328,7 +328,8 @@ def _plan_all(store: Host, chosen: list[tuple[Segment, dict[str, Any]]], fn: Cal
         _remove_quietly(store, _generation_files(plans, old=False) + _partial_files(seg for seg, _ in chosen))
         if isinstance(err, OSError):
             raise StoreError(f"{store.path}: rewriting failed before its commit: {err}; nothing of this "
-                             "rewrite was committed (its new files are removed)") from err  # fmt: skip
+                             "rewrite was committed: the store is unchanged by it (its new files are "
+                             "removed)") from err  # fmt: skip
         raise
     return plans
 
