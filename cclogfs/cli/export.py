@@ -7,18 +7,25 @@ import itertools
 import os
 import sys
 
+from ..errors import InvalidInputError
 from .common import Progress, Skipped, add_selection, nothing_matched, selected_windows
 from .outputs import add_force, check_output
 
 EXAMPLES = """\
 examples:
-  cclog export robot.store --mcap anomalies.mcap       # open in Foxglove or `mcap cat`
+  cclog export robot.store --mcap anomalies.mcap       # ROS 2 MCAP: ros2 bag play, Foxglove, rosbags
+  cclog export robot.store --mcap anomalies.mcap --encoding json   # every stream as JSON text
   cclog export robot.store --parquet lake/ --robot tb3-01
   cclog export robot.store --parquet lake/ --topic /odom --start 2015-05-21
   duckdb -c "SELECT robot, count(*), avg(\\"twist.twist.linear.x\\")
              FROM read_parquet('lake/**/*.parquet', hive_partitioning=true) GROUP BY robot"
 
 Whole windows are exported: --start/--end choose the windows that overlap the range.
+MCAP: a stream whose ROS type rosbags knows (ROS 2 types; a ROS 1 type by its ROS 2 name)
+is written as `ros2 bag record` writes it (CDR, ros2msg schema); any other stream as JSON,
+said on stderr. A ROS 1 header.seq (ROS 2 headers have none) is dropped and counted on
+stderr; any other value that does not fit the type stops the export with an error naming
+the stream, message and field.
 Parquet goes to DIR/robot=NAME/stream=STREAM/date=YYYY-MM-DD/part-*.parquet.
 """
 
@@ -30,9 +37,12 @@ DESCRIPTION = "Export the windows of a store to an MCAP file or a Parquet data s
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_selection(p)
     to = p.add_mutually_exclusive_group(required=True)
-    to.add_argument("--mcap", metavar="OUT.mcap", help="write one MCAP file (JSON channels)")
+    to.add_argument("--mcap", metavar="OUT.mcap", help="write one MCAP file (ROS 2 CDR where the type is known, else JSON)")
     to.add_argument("--parquet", metavar="DIR", help="write Hive-partitioned Parquet under DIR")
     p.add_argument("--robot", help="robot name for the Parquet partition (default: store name)")
+    p.add_argument("--encoding", choices=("auto", "cdr", "json"),
+                   help="MCAP message encoding: auto (CDR where the ROS type is known, JSON for the rest; "
+                        "default), cdr (refuse a stream that cannot be CDR), json (every stream as JSON)")  # fmt: skip
     add_force(p, "--replace")  # --replace: the Parquet export's earlier spelling
 
 
@@ -41,6 +51,8 @@ def run(args: argparse.Namespace) -> int:
     # own partition is what --force replaces, checked by export_parquet.
     if args.mcap:
         check_output(args.mcap, [args.store], force=args.force)
+    elif args.encoding:
+        raise InvalidInputError("--encoding is for --mcap; Parquet columns are typed from the JSON.")
     else:
         check_output(args.parquet, [args.store], force=True, directory=True)
     # Imported here, not at the top: `cclog --help` imports every subcommand module.
@@ -55,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
             raise nothing_matched(store, args)
         windows = itertools.chain([first] if first is not None else [], windows)
         if args.mcap:
-            stats = export_mcap(windows, args.mcap, progress=progress)
+            stats = export_mcap(windows, args.mcap, encoding=args.encoding or "auto", progress=progress)
         else:
             robot = args.robot or os.path.basename(os.path.normpath(args.store))
             stats = export_parquet(
@@ -66,4 +78,16 @@ def run(args: argparse.Namespace) -> int:
         f"{len(stats.streams)} streams to {len(stats.files)} files",
         file=sys.stderr,
     )
+    if args.mcap:
+        _report_mcap(stats)
     return skipped.report()
+
+
+def _report_mcap(stats) -> None:
+    """What the MCAP could not carry as the store has it: never silent."""
+    for stream, why in sorted(stats.json_streams.items()):
+        print(f"note: {stream} exported as JSON, not CDR: {why} (ROS 2 tools skip or refuse "
+              "JSON channels; --topic leaves it out)", file=sys.stderr)  # fmt: skip
+    for (stream, field), n in sorted(stats.dropped.items()):
+        print(f"note: {stream}: {field} left out of {n:,} messages (not a field of the ROS 2 type)",
+              file=sys.stderr)

@@ -1,0 +1,157 @@
+"""Stored JSON back to ROS 2 CDR, so an MCAP export reads as if `ros2 bag record` wrote it.
+
+A stream is exported in CDR when its type (the window meta's `msgtype`) is one of the ROS 2
+types rosbags ships (`Stores.LATEST`, the newest ROS 2 LTS it knows). Its schema is what
+rosbag2 writes: encoding `ros2msg`, named after the type, the definition with its
+dependencies as rosbags generates it, and the channel carries the type's RIHS01 hash and
+the QoS a player needs (`/tf_static` and ROS 1 latched topics transient-local, so late
+subscribers still get them).
+
+Each message is rebuilt from its JSON (`jsontext.rosmsg`) and serialized by rosbags. A key
+the ROS 2 type lacks is refused, except two that carry nothing a ROS 2 reader can use and
+are dropped and counted (reported by the caller): a ROS 1 `header.seq` (a ROS 2 Header has
+no `seq`) and a definition constant with its constant's value (older stores wrote them as
+fields, docs/JSON.md).
+"""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from collections.abc import Callable, Mapping
+from io import StringIO
+from typing import Any
+
+from ..errors import InvalidInputError
+from ..jsontext.rosmsg import build
+
+HEADER = "std_msgs/msg/Header"
+# Topics latched by convention, as ROS 2 recorders treat them (ingest/ros2qos.py).
+LATCHED_BY_NAME = frozenset({"/tf_static"})
+
+Encode = Callable[[str], bytes]
+
+
+def ros2_name(msgtype: str) -> str:
+    """`pkg/msg/Type` for `pkg/Type` (the ROS 1 spelling a JSONL line may give)."""
+    parts = msgtype.split("/")
+    return f"{parts[0]}/msg/{parts[1]}" if len(parts) == 2 else msgtype
+
+
+class Ros2Types:
+    """The ROS 2 types a CDR export can use, and what it had to leave out of messages."""
+
+    def __init__(self) -> None:
+        from rosbags.typesys import Stores, get_typestore
+
+        self.typestore = get_typestore(Stores.LATEST)
+        self.dropped: Counter[tuple[str, str]] = Counter()  # (stream, field path) -> messages
+
+    def knows(self, msgtype: str) -> bool:
+        return ros2_name(msgtype) in self.typestore.fielddefs
+
+    def schema(self, msgtype: str) -> tuple[str, str, bytes]:
+        """(name, encoding, data) of the MCAP schema of `msgtype`, as rosbag2 writes it."""
+        name = ros2_name(msgtype)
+        text, _ = self.typestore.generate_msgdef(name, ros_version=2)
+        return name, "ros2msg", text.encode()
+
+    def channel_metadata(self, stream: str, msgtype: str, meta: Mapping[str, Any]) -> dict[str, str]:
+        """The channel metadata rosbag2 writes: offered QoS (YAML) and the type hash."""
+        return {"offered_qos_profiles": _qos_yaml(qos(stream, meta)),
+                "topic_type_hash": self.typestore.hash_rihs01(ros2_name(msgtype))}  # fmt: skip
+
+    def encoder(self, stream: str, msgtype: str) -> Encode:
+        """JSON text -> CDR bytes of one stream's messages. Raises InvalidInputError naming
+        the field at fault; the caller adds the stream and message."""
+        name = ros2_name(msgtype)
+        ts = self.typestore
+        fielddefs = ts.fielddefs
+        dropped = self.dropped
+        prefix = len(name)
+
+        def encode(text: str) -> bytes:
+            obj = json.loads(text)
+            seen: set[str] = set()  # fields dropped from this message, counted once each
+
+            def drop(where: str, owner: str, key: str) -> bool:
+                path = where[prefix + 1 :]
+                if not (owner == HEADER and key == "seq") and not _is_constant(fielddefs, owner, key, _lookup(obj, path)):
+                    return False
+                field = _field_path(path)
+                if field not in seen:
+                    seen.add(field)
+                    dropped[(stream, field)] += 1
+                return True
+
+            try:
+                return bytes(ts.serialize_cdr(build(ts, name, obj, drop=drop), name))
+            except InvalidInputError:
+                raise
+            except Exception as err:  # rosbags' serializer; rosmsg has checked types and ranges
+                raise InvalidInputError(f"{name}: {err}") from None
+
+        return encode
+
+
+def _is_constant(fielddefs: Mapping[str, Any], owner: str, key: str, value: Any) -> bool:
+    consts = fielddefs[owner][0]
+    return any(cname == key and cvalue == value for cname, _, cvalue in consts)
+
+
+def _field_path(where: str) -> str:
+    """`transforms[3].header.seq` -> `transforms[].header.seq` (one count per field)."""
+    out, depth = [], 0
+    for ch in where:
+        if ch == "[":
+            depth += 1
+            out.append("[]")
+        elif ch == "]":
+            depth -= 1
+        elif depth == 0:
+            out.append(ch)
+    return "".join(out)
+
+
+def _lookup(obj: Any, where: str) -> Any:
+    """The value at a path `a.b[2].c` of a JSON object (None if absent)."""
+    for part in where.replace("[", ".[").split("."):
+        if not part:
+            continue
+        if part.startswith("["):
+            obj = obj[int(part[1:-1])] if isinstance(obj, list) else None
+        else:
+            obj = obj.get(part) if isinstance(obj, dict) else None
+    return obj
+
+
+def qos(stream: str, meta: Mapping[str, Any]) -> Any:
+    """The QoS a publisher of `stream` offered, as far as a store knows: reliable, and
+    transient-local (depth 1) for a latched topic, volatile (depth 10) for the others."""
+    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+
+    latched = stream in LATCHED_BY_NAME or bool(meta.get("latching"))
+    never = QosTime(9223372036, 854775807)  # rmw's "infinite", as rosbag2 writes it
+    return Qos(QosHistory.KEEP_LAST, 1 if latched else 10, QosReliability.RELIABLE,
+               QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
+               never, never, QosLiveliness.AUTOMATIC, never, False)  # fmt: skip
+
+
+def message_error(stream: str, index: int, stamp_ns: int, window_seq: int, err: Exception) -> InvalidInputError:
+    """The one-line error for a stored message the ROS 2 type cannot take."""
+    return InvalidInputError(
+        f"{stream}, message {index} (log time {stamp_ns} ns, window {window_seq}): {err}; "
+        "export it as JSON with --encoding json, or leave the stream out with --topic."
+    )
+
+
+def _qos_yaml(profile: Any) -> str:
+    """One offered QoS profile, YAML as rosbag2 (metadata version 9) writes it."""
+    from rosbags.rosbag2.metadata import dump_qos_v9
+    from ruamel.yaml import YAML
+
+    out = StringIO()
+    yaml = YAML(typ="safe")
+    yaml.default_flow_style = False
+    yaml.dump(dump_qos_v9([profile]), out)
+    return out.getvalue().strip()

@@ -1,0 +1,232 @@
+"""Issue 12 item 4: an MCAP export carries ROS 2 CDR messages with `ros2msg` schemas for every
+stream whose type rosbags knows, so rosbags (and `ros2 bag play`, Foxglove) read it as a bag
+`ros2 bag record` wrote. Real bags are recorded with `cclog record`, exported with
+`cclog export`, and every message read back with rosbags is compared with the stored JSON."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from mcap.reader import make_reader
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import Stores, get_typestore
+
+import cclogfs
+from cclogfs.cli import main
+from cclogfs.jsontext.lines import format_line
+from cclogfs.jsontext.ros import MessageConverter
+
+
+def record(bag, tmp_path, *extra):
+    store = tmp_path / "s"
+    assert main(["record", str(bag), "--store", str(store), *extra]) == 0
+    return store
+
+
+def stored(store):
+    """{topic: [(stamp_ns, text)]} of every stored message, in window order."""
+    out: dict[str, list] = {}
+    with cclogfs.open_store(store, readonly=True) as s:
+        for w in s.query():
+            out.setdefault(w.name, []).extend(w.messages())
+    return out
+
+
+def read_back(path):
+    """{topic: [(log_time, JSON of the deserialized message)]}, as rosbags reads the file."""
+    to_json = MessageConverter().to_json
+    out: dict[str, list] = {}
+    with AnyReader([path]) as reader:
+        for con, log_time, raw in reader.messages():
+            out.setdefault(con.topic, []).append((log_time, to_json(reader.deserialize(raw, con.msgtype))))
+    return out
+
+
+def without_seq(text):
+    """The stored JSON of a ROS 1 message, less what a ROS 2 message cannot carry."""
+    def strip(obj):
+        if isinstance(obj, dict):
+            if "stamp" in obj and "frame_id" in obj:  # a Header
+                obj.pop("seq")
+            for v in obj.values():
+                strip(v)
+        elif isinstance(obj, list):
+            for v in obj:
+                strip(v)
+        return obj
+
+    return json.dumps(strip(json.loads(text)))
+
+
+def test_ros2_bag_export_reads_back_with_rosbags_field_for_field(shared_data, tmp_path, capsys):
+    store = record(shared_data("nav2_turtlebot.mcap"), tmp_path)
+    out = tmp_path / "out.mcap"
+    assert main(["export", str(store), "--mcap", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "exported" in err and "note:" not in err  # every stream went as CDR, nothing left out
+    want = stored(store)
+    got = read_back(out)
+    assert {t: len(m) for t, m in got.items()} == {"/odom": 2639, "/tf": 5422, "/tf_static": 1, "/amcl_pose": 135}
+    # Every field of every message, and its log time: the text rosbags' message converts to
+    # is the stored text, byte for byte (same fields, same values, same order).
+    for topic, msgs in want.items():
+        assert sorted(got[topic]) == sorted(msgs), topic
+    # publish_time is the stored log time too; sequence counts per channel.
+    with open(out, "rb") as f:
+        for _, chan, msg in make_reader(f).iter_messages(log_time_order=False):
+            assert msg.publish_time == msg.log_time
+
+
+def test_schemas_and_channels_are_what_rosbag2_writes(shared_data, tmp_path, capsys):
+    bag = shared_data("nav2_turtlebot.mcap")
+    store = record(bag, tmp_path)
+    out = tmp_path / "out.mcap"
+    assert main(["export", str(store), "--mcap", str(out)]) == 0
+    with open(bag, "rb") as f:
+        src = make_reader(f).get_summary()
+    src_hash = {c.topic: c.metadata["topic_type_hash"] for c in src.channels.values()}
+    ts = get_typestore(Stores.LATEST)
+    with open(out, "rb") as f:
+        reader = make_reader(f)
+        assert reader.get_header().profile == "ros2"
+        summary = reader.get_summary()
+    chans = {c.topic: c for c in summary.channels.values()}
+    types = {"/odom": "nav_msgs/msg/Odometry", "/tf": "tf2_msgs/msg/TFMessage",
+             "/tf_static": "tf2_msgs/msg/TFMessage", "/amcl_pose": "geometry_msgs/msg/PoseWithCovarianceStamped"}  # fmt: skip
+    assert set(chans) == set(types)
+    for topic, chan in chans.items():
+        schema = summary.schemas[chan.schema_id]
+        assert (chan.message_encoding, schema.encoding, schema.name) == ("cdr", "ros2msg", types[topic])
+        assert schema.data.decode() == ts.generate_msgdef(types[topic], ros_version=2)[0]
+        assert chan.metadata["topic_type_hash"] == src_hash[topic]  # the hash `ros2 bag record` wrote
+    assert "durability: transient_local" in chans["/tf_static"].metadata["offered_qos_profiles"]
+    assert "durability: volatile" in chans["/odom"].metadata["offered_qos_profiles"]
+
+
+def test_ros1_bag_export_drops_header_seq_and_says_so(shared_data, tmp_path, capsys):
+    store = record(shared_data("tf_example.bag"), tmp_path)
+    out = tmp_path / "out.mcap"
+    assert main(["export", str(store), "--mcap", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "note: /tf: transforms[].header.seq left out of 517 messages" in err
+    assert "note: /tf_static: transforms[].header.seq left out of 1 messages" in err
+    want = {t: [(s, without_seq(x)) for s, x in msgs] for t, msgs in stored(store).items()}
+    got = read_back(out)
+    assert {t: len(m) for t, m in got.items()} == {"/tf": 517, "/tf_static": 1}
+    for topic, msgs in want.items():
+        assert sorted(got[topic]) == sorted(msgs), topic
+    # A latched ROS 1 topic stays latched for a ROS 2 player.
+    with open(out, "rb") as f:
+        chans = {c.topic: c for c in make_reader(f).get_summary().channels.values()}
+    assert "transient_local" in chans["/tf_static"].metadata["offered_qos_profiles"]
+
+
+def test_encoding_json_keeps_the_stored_text(shared_data, tmp_path, capsys):
+    store = record(shared_data("nav2_turtlebot.mcap"), tmp_path, "--topic", "/amcl_pose")
+    out = tmp_path / "out.mcap"
+    assert main(["export", str(store), "--mcap", str(out), "--encoding", "json"]) == 0
+    with open(out, "rb") as f:
+        reader = make_reader(f)
+        chan = next(iter(reader.get_summary().channels.values()))
+        texts = [m.data.decode() for _, _, m in reader.iter_messages()]
+        schema = reader.get_summary().schemas[chan.schema_id]
+    assert (chan.message_encoding, schema.encoding, schema.name) == ("json", "jsonschema",
+                                                                     "geometry_msgs/msg/PoseWithCovarianceStamped")
+    assert texts == [t for _, t in stored(store)["/amcl_pose"]]
+
+
+def jsonl_store(tmp_path, lines):
+    tmp_path.mkdir(exist_ok=True)
+    src = tmp_path / "in.jsonl"
+    src.write_text("".join(lines))
+    return record(src, tmp_path)
+
+
+def test_unknown_type_goes_as_json_with_a_note(tmp_path, capsys):
+    store = jsonl_store(tmp_path, [
+        '{"topic": "/odd", "stamp_ns": 5, "msg": {"x": 1}, "msgtype": "acme_msgs/msg/Widget"}\n',
+        '{"topic": "/plain", "stamp_ns": 6, "msg": {"y": 2}}\n',
+        '{"topic": "/pose", "stamp_ns": 7, "msg": {"x": 1.5, "theta": 0.25}, "msgtype": "geometry_msgs/Pose2D"}\n',
+    ])  # fmt: skip
+    out = tmp_path / "out.mcap"
+    assert main(["export", str(store), "--mcap", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "note: /odd exported as JSON, not CDR: its type acme_msgs/msg/Widget is not a ROS 2 type rosbags knows" in err
+    assert "note: /plain exported as JSON, not CDR: the store has no type for it" in err
+    with open(out, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        chans = {c.topic: (c.message_encoding, summary.schemas[c.schema_id].name) for c in summary.channels.values()}
+        data = {c.topic: m.data for _, c, m in reader.iter_messages()}
+    # A ROS 1 spelling (geometry_msgs/Pose2D) is the ROS 2 type geometry_msgs/msg/Pose2D; a
+    # field the JSON lacks is zero, as in a message built in ROS 2.
+    assert chans == {"/odd": ("json", "acme_msgs/msg/Widget"), "/plain": ("json", "/plain"),
+                     "/pose": ("cdr", "geometry_msgs/msg/Pose2D")}  # fmt: skip
+    assert data["/odd"] == b'{"x": 1}'
+    ts = get_typestore(Stores.LATEST)
+    pose = ts.deserialize_cdr(data["/pose"], "geometry_msgs/msg/Pose2D")
+    assert (pose.x, pose.y, pose.theta) == (1.5, 0.0, 0.25)
+
+    # --encoding cdr refuses what it cannot write as CDR, and leaves no file.
+    assert main(["export", str(store), "--mcap", str(tmp_path / "cdr.mcap"), "--encoding", "cdr"]) == 1
+    assert "/odd cannot be exported as CDR: its type acme_msgs/msg/Widget is not a ROS 2 type" in capsys.readouterr().err
+    assert not (tmp_path / "cdr.mcap").exists()
+
+
+@pytest.mark.parametrize("msg, field", [
+    ('{"r": "far", "g": 0.0, "b": 0.0, "a": 1.0}', "std_msgs/msg/ColorRGBA.r: 'far' is not a float32"),
+    ('{"r": 1.0, "colour": 3}', "std_msgs/msg/ColorRGBA has no field 'colour'"),
+    ('{"r": [1.0]}', "std_msgs/msg/ColorRGBA.r: [1.0] is not a float32"),
+    ('{"r": 1e50}', "std_msgs/msg/ColorRGBA.r: 1e+50 is out of range for a float32"),
+])  # fmt: skip
+def test_a_value_the_type_cannot_take_is_refused_naming_stream_message_and_field(tmp_path, capsys, msg, field):
+    typed = ', "msgtype": "std_msgs/msg/ColorRGBA"}\n'
+    store = jsonl_store(tmp_path, [format_line("/pose", i, '{"r": 1.0}')[:-2] + typed for i in range(3)]
+                        + [format_line("/pose", 3, msg)[:-2] + typed])  # fmt: skip
+    out = tmp_path / "out.mcap"
+    assert main(["export", str(store), "--mcap", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "/pose, message 3 (log time 3 ns, window" in err and field in err and "--encoding json" in err
+    assert "Traceback" not in err and not out.exists() and list(tmp_path.glob("*.tmp")) == []
+    # As JSON it goes.
+    assert main(["export", str(store), "--mcap", str(out), "--encoding", "json"]) == 0
+
+
+def test_integers_out_of_range_and_non_bools_are_refused_by_field(tmp_path, capsys):
+    lines = [format_line("/n", 1, '{"data": 256}')[:-2] + ', "msgtype": "std_msgs/UInt8"}\n']
+    store = jsonl_store(tmp_path, lines)
+    assert main(["export", str(store), "--mcap", str(tmp_path / "o.mcap")]) == 1
+    assert "/n, message 0 (log time 1 ns, window 0): std_msgs/msg/UInt8.data: 256 is out of range for a uint8 " \
+           "(0 to 255)" in capsys.readouterr().err  # fmt: skip
+    store = jsonl_store(tmp_path / "b", [format_line("/b", 1, '{"data": "no"}')[:-2] + ', "msgtype": "std_msgs/Bool"}\n'])
+    assert main(["export", str(store), "--mcap", str(tmp_path / "o.mcap")]) == 1
+    assert "std_msgs/msg/Bool.data: 'no' is not a bool" in capsys.readouterr().err
+
+
+def test_constants_older_stores_wrote_are_dropped_and_counted_a_wrong_one_refused(tmp_path, capsys):
+    fix = ('{"header": {"stamp": {"sec": 1, "nanosec": 2}, "frame_id": "gps"}, "status": {"STATUS_NO_FIX": -1, '
+           '"STATUS_FIX": 0, "status": 0, "service": 1}, "latitude": 50.8, "longitude": 12.9, "altitude": 300.0, '
+           '"position_covariance": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], "position_covariance_type": 0}')
+    typed = ', "msgtype": "sensor_msgs/msg/NavSatFix"}\n'
+    store = jsonl_store(tmp_path, [format_line("/fix", i, fix)[:-2] + typed for i in range(4)])
+    assert main(["export", str(store), "--mcap", str(tmp_path / "o.mcap")]) == 0
+    err = capsys.readouterr().err
+    assert "note: /fix: status.STATUS_NO_FIX left out of 4 messages" in err
+    assert "note: /fix: status.STATUS_FIX left out of 4 messages" in err
+    back = read_back(tmp_path / "o.mcap")["/fix"]
+    assert [json.loads(t)["status"] for _, t in back] == [{"status": 0, "service": 1}] * 4
+    # A "constant" whose value is not the definition's is not a constant: refused.
+    store = jsonl_store(tmp_path / "b", [format_line("/fix", 1, fix.replace('"STATUS_FIX": 0', '"STATUS_FIX": 7'))[:-2]
+                                         + typed])  # fmt: skip
+    assert main(["export", str(store), "--mcap", str(tmp_path / "b.mcap")]) == 1
+    assert "sensor_msgs/msg/NavSatFix.status: sensor_msgs/msg/NavSatStatus has no field 'STATUS_FIX'" in \
+        capsys.readouterr().err  # fmt: skip
+
+
+def test_encoding_is_an_mcap_option(tmp_path, capsys, shared_data):
+    store = jsonl_store(tmp_path, ['{"topic": "/a", "stamp_ns": 5, "msg": {"x": 1}}\n'])
+    assert main(["export", str(store), "--parquet", str(tmp_path / "lake"), "--encoding", "cdr"]) == 1
+    assert "--encoding is for --mcap" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["export", str(store), "--mcap", str(tmp_path / "o.mcap"), "--encoding", "ros1"])
