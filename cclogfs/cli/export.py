@@ -1,4 +1,4 @@
-"""`cclog export`: a store's windows to MCAP or to Hive-partitioned Parquet."""
+"""`cclog export`: a store's windows to MCAP, to a rosbag2 bag or to Hive-partitioned Parquet."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ EXAMPLES = """\
 examples:
   cclog export robot.store --mcap anomalies.mcap       # ROS 2 MCAP: ros2 bag play, Foxglove, rosbags
   cclog export robot.store --mcap anomalies.mcap --encoding json   # every stream as JSON text
+  cclog export robot.store --rosbag2 anomalies_bag/    # a rosbag2 directory: ros2 bag play anomalies_bag
   cclog export robot.store --parquet lake/ --robot tb3-01
   cclog export robot.store --parquet lake/ --topic /odom --start 2015-05-21
   duckdb -c "SELECT robot, count(*), avg(\\"twist.twist.linear.x\\")
@@ -30,14 +31,16 @@ Parquet goes to DIR/robot=NAME/stream=STREAM/date=YYYY-MM-DD/part-*.parquet.
 """
 
 
-HELP = "export stored windows to MCAP or Parquet"
-DESCRIPTION = "Export the windows of a store to an MCAP file or a Parquet data set."
+HELP = "export stored windows to MCAP, a rosbag2 bag or Parquet"
+DESCRIPTION = "Export the windows of a store to an MCAP file, a rosbag2 bag or a Parquet data set."
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_selection(p)
     to = p.add_mutually_exclusive_group(required=True)
     to.add_argument("--mcap", metavar="OUT.mcap", help="write one MCAP file (ROS 2 CDR where the type is known, else JSON)")
+    to.add_argument("--rosbag2", metavar="DIR", help="write a rosbag2 bag (metadata.yaml + MCAP, ROS 2 CDR) "
+                    "that ros2 bag play and rosbags open; every stream must have a ROS 2 type")  # fmt: skip
     to.add_argument("--parquet", metavar="DIR", help="write Hive-partitioned Parquet under DIR")
     p.add_argument("--robot", help="robot name for the Parquet partition (default: store name)")
     p.add_argument("--encoding", choices=("auto", "cdr", "json"),
@@ -49,10 +52,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     # Before any work (and any temporary file). A Parquet directory may exist: the robot's
     # own partition is what --force replaces, checked by export_parquet.
+    if args.encoding and not args.mcap:
+        raise InvalidInputError("--encoding is for --mcap (a rosbag2 bag is all CDR; Parquet columns are typed "
+                                "from the JSON).")  # fmt: skip
     if args.mcap:
         check_output(args.mcap, [args.store], force=args.force)
-    elif args.encoding:
-        raise InvalidInputError("--encoding is for --mcap; Parquet columns are typed from the JSON.")
+    elif args.rosbag2:
+        from ..export.rosbag2 import check_rosbag2_output
+
+        check_output(args.rosbag2, [args.store], force=args.force, directory=True)
+        check_rosbag2_output(args.rosbag2, force=args.force)
     else:
         check_output(args.parquet, [args.store], force=True, directory=True)
     # Imported here, not at the top: `cclog --help` imports every subcommand module.
@@ -68,6 +77,10 @@ def run(args: argparse.Namespace) -> int:
         windows = itertools.chain([first] if first is not None else [], windows)
         if args.mcap:
             stats = export_mcap(windows, args.mcap, encoding=args.encoding or "auto", progress=progress)
+        elif args.rosbag2:
+            from ..export.rosbag2 import export_rosbag2
+
+            stats = export_rosbag2(windows, args.rosbag2, replace=args.force, progress=progress)
         else:
             robot = args.robot or os.path.basename(os.path.normpath(args.store))
             stats = export_parquet(
@@ -78,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
         f"{len(stats.streams)} streams to {len(stats.files)} files",
         file=sys.stderr,
     )
-    if args.mcap:
+    if args.mcap or args.rosbag2:
         _report_mcap(stats)
     return skipped.report()
 
@@ -89,5 +102,5 @@ def _report_mcap(stats) -> None:
         print(f"note: {stream} exported as JSON, not CDR: {why} (ROS 2 tools skip or refuse "
               "JSON channels; --topic leaves it out)", file=sys.stderr)  # fmt: skip
     for (stream, field), n in sorted(stats.dropped.items()):
-        print(f"note: {stream}: {field} left out of {n:,} messages (not a field of the ROS 2 type)",
+        print(f"note: {stream}: {field} left out of {n:,} message{'s' * (n != 1)} (not a field of the ROS 2 type)",
               file=sys.stderr)

@@ -110,7 +110,7 @@ def test_ros1_bag_export_drops_header_seq_and_says_so(shared_data, tmp_path, cap
     assert main(["export", str(store), "--mcap", str(out)]) == 0
     err = capsys.readouterr().err
     assert "note: /tf: transforms[].header.seq left out of 517 messages" in err
-    assert "note: /tf_static: transforms[].header.seq left out of 1 messages" in err
+    assert "note: /tf_static: transforms[].header.seq left out of 1 message" in err
     want = {t: [(s, without_seq(x)) for s, x in msgs] for t, msgs in stored(store).items()}
     got = read_back(out)
     assert {t: len(m) for t, m in got.items()} == {"/tf": 517, "/tf_static": 1}
@@ -230,3 +230,47 @@ def test_encoding_is_an_mcap_option(tmp_path, capsys, shared_data):
     assert "--encoding is for --mcap" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["export", str(store), "--mcap", str(tmp_path / "o.mcap"), "--encoding", "ros1"])
+
+
+def test_rosbag2_directory_opens_with_anyreader_field_for_field(shared_data, tmp_path, capsys):
+    store = record(shared_data("tf_example.bag"), tmp_path)
+    bag = tmp_path / "bag"
+    assert main(["export", str(store), "--rosbag2", str(bag)]) == 0
+    err = capsys.readouterr().err
+    assert "windows, 518 messages of 2 streams" in err
+    assert "note: /tf: transforms[].header.seq left out of 517 messages" in err
+    assert sorted(p.name for p in bag.iterdir()) == ["bag.mcap", "metadata.yaml"]
+    with AnyReader([bag]) as reader:  # a rosbag2 directory, read through its metadata.yaml
+        assert {c.topic: (c.msgtype, c.msgcount) for c in reader.connections} == {
+            "/tf": ("tf2_msgs/msg/TFMessage", 517), "/tf_static": ("tf2_msgs/msg/TFMessage", 1)}
+        latched = {c.topic: c.ext.offered_qos_profiles[0].durability.name for c in reader.connections}
+    assert latched == {"/tf": "VOLATILE", "/tf_static": "TRANSIENT_LOCAL"}
+    want = {t: [(s, without_seq(x)) for s, x in msgs] for t, msgs in stored(store).items()}
+    got = read_back(bag)
+    for topic, msgs in want.items():
+        assert sorted(got[topic]) == sorted(msgs), topic
+
+    # Replaced only with --force, and only a bag; a failed run leaves the old bag and no temporary.
+    assert main(["export", str(store), "--rosbag2", str(bag)]) == 1
+    assert "exists; pass --force" in capsys.readouterr().err
+    (tmp_path / "notabag").mkdir()
+    assert main(["export", str(store), "--rosbag2", str(tmp_path / "notabag"), "--force"]) == 1
+    assert "is not a rosbag2 directory (no metadata.yaml)" in capsys.readouterr().err
+    assert main(["export", str(store), "--rosbag2", str(bag), "--force", "--topic", "/tf_static"]) == 0
+    with AnyReader([bag]) as reader:
+        assert [c.topic for c in reader.connections] == ["/tf_static"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bag", "notabag", "s"]
+
+
+def test_rosbag2_refuses_a_stream_it_cannot_carry(tmp_path, capsys):
+    store = jsonl_store(tmp_path, [
+        format_line("/pose", 1, '{"x": 1.0}')[:-2] + ', "msgtype": "geometry_msgs/msg/Pose2D"}\n',
+        '{"topic": "/odd", "stamp_ns": 5, "msg": {"x": 1}, "msgtype": "acme_msgs/msg/Widget"}\n',
+    ])  # fmt: skip
+    bag = tmp_path / "bag"
+    assert main(["export", str(store), "--rosbag2", str(bag)]) == 1
+    err = capsys.readouterr().err
+    assert "/odd cannot go into a rosbag2 bag: its type acme_msgs/msg/Widget is not a ROS 2 type" in err
+    assert not bag.exists() and not list(tmp_path.glob(".bag.*"))
+    assert main(["export", str(store), "--rosbag2", str(bag), "--topic", "/pose"]) == 0
+    assert main(["export", str(store), "--rosbag2", str(tmp_path / "b2"), "--encoding", "json"]) == 1
