@@ -24,9 +24,9 @@ examples:
 Whole windows are exported: --start/--end choose the windows that overlap the range.
 MCAP: a stream whose ROS type rosbags knows (ROS 2 types; a ROS 1 type by its ROS 2 name)
 is written as `ros2 bag record` writes it (CDR, ros2msg schema); any other stream as JSON,
-said on stderr. A ROS 1 header.seq (ROS 2 headers have none) is dropped and counted on
-stderr; any other value that does not fit the type stops the export with an error naming
-the stream, message and field.
+said on stderr. ROS 1 shapes are mapped and counted on stderr (header.seq left out,
+CameraInfo.D taken as d, a field ROS 2 added written as zero); any other value that does
+not fit the type stops the export with an error naming the stream, message and field.
 Parquet goes to DIR/robot=NAME/stream=STREAM/date=YYYY-MM-DD/part-*.parquet.
 """
 
@@ -101,6 +101,5 @@ def _report_mcap(stats) -> None:
     for stream, why in sorted(stats.json_streams.items()):
         print(f"note: {stream} exported as JSON, not CDR: {why} (ROS 2 tools skip or refuse "
               "JSON channels; --topic leaves it out)", file=sys.stderr)  # fmt: skip
-    for (stream, field), n in sorted(stats.dropped.items()):
-        print(f"note: {stream}: {field} left out of {n:,} message{'s' * (n != 1)} (not a field of the ROS 2 type)",
-              file=sys.stderr)
+    for (stream, sentence), n in sorted(stats.notes.items()):
+        print(f"note: {stream}: " + sentence.format(n=f"{n:,} message{'s' * (n != 1)}"), file=sys.stderr)

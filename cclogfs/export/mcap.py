@@ -39,7 +39,7 @@ class McapStats(ExportStats):
     """ExportStats, plus what a CDR export could not carry as the store has it."""
 
     json_streams: dict[str, str] = dataclasses.field(default_factory=dict)  # stream -> why JSON
-    dropped: Counter = dataclasses.field(default_factory=Counter)  # (stream, field) -> messages
+    notes: Counter = dataclasses.field(default_factory=Counter)  # (stream, sentence with {n}) -> messages
 
 
 def export_mcap(
@@ -70,7 +70,7 @@ def export_mcap(
         raise
     os.replace(tmp, path)
     if channels.ros2 is not None:
-        stats.dropped = channels.ros2.dropped
+        stats.notes = channels.ros2.notes
     return stats
 
 

@@ -8,10 +8,12 @@ the QoS a player needs (`/tf_static` and ROS 1 latched topics transient-local, s
 subscribers still get them).
 
 Each message is rebuilt from its JSON (`jsontext.rosmsg`) and serialized by rosbags. A key
-the ROS 2 type lacks is refused, except two that carry nothing a ROS 2 reader can use and
-are dropped and counted (reported by the caller): a ROS 1 `header.seq` (a ROS 2 Header has
-no `seq`) and a definition constant with its constant's value (older stores wrote them as
-fields, docs/JSON.md).
+the ROS 2 type lacks is refused, except: two that carry nothing a ROS 2 reader can use are
+left out, a ROS 1 `header.seq` (a ROS 2 Header has no `seq`) and a definition constant with
+its constant's value (older stores wrote them as fields, docs/JSON.md); and a key that is
+a field the object lacks but for case is taken as it (ROS 1 `CameraInfo.D`, ROS 2 `d`).
+A field the JSON lacks (one ROS 2 added, as `Range.variance`) is zero. Each of these is
+counted per stream, field and message (`Ros2Types.notes`), for the caller to report.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from io import StringIO
 from typing import Any
 
 from ..errors import InvalidInputError
-from ..jsontext.rosmsg import build
+from ..jsontext.rosmsg import Fit, build
 
 HEADER = "std_msgs/msg/Header"
 # Topics latched by convention, as ROS 2 recorders treat them (ingest/ros2qos.py).
@@ -45,7 +47,7 @@ class Ros2Types:
         from rosbags.typesys import Stores, get_typestore
 
         self.typestore = get_typestore(Stores.LATEST)
-        self.dropped: Counter[tuple[str, str]] = Counter()  # (stream, field path) -> messages
+        self.notes: Counter[tuple[str, str]] = Counter()  # (stream, sentence with {n}) -> messages
 
     def knows(self, msgtype: str) -> bool:
         return ros2_name(msgtype) in self.typestore.fielddefs
@@ -66,32 +68,43 @@ class Ros2Types:
         the field at fault; the caller adds the stream and message."""
         name = ros2_name(msgtype)
         ts = self.typestore
-        fielddefs = ts.fielddefs
-        dropped = self.dropped
-        prefix = len(name)
 
         def encode(text: str) -> bytes:
-            obj = json.loads(text)
-            seen: set[str] = set()  # fields dropped from this message, counted once each
-
-            def drop(where: str, owner: str, key: str) -> bool:
-                path = where[prefix + 1 :]
-                if not (owner == HEADER and key == "seq") and not _is_constant(fielddefs, owner, key, _lookup(obj, path)):
-                    return False
-                field = _field_path(path)
-                if field not in seen:
-                    seen.add(field)
-                    dropped[(stream, field)] += 1
-                return True
-
+            fit = _Ros2Fit(ts.fielddefs, stream, len(name) + 1)
             try:
-                return bytes(ts.serialize_cdr(build(ts, name, obj, drop=drop), name))
+                data = bytes(ts.serialize_cdr(build(ts, name, json.loads(text), fit=fit), name))
             except InvalidInputError:
                 raise
             except Exception as err:  # rosbags' serializer; rosmsg has checked types and ranges
                 raise InvalidInputError(f"{name}: {err}") from None
+            self.notes.update(fit.notes)  # once per message, not per array element
+            return data
 
         return encode
+
+
+class _Ros2Fit(Fit):
+    """A stored (maybe ROS 1) message into its ROS 2 type: what may be left out, renamed or
+    zero-filled, each noted as a sentence with `{n}` for the number of messages."""
+
+    def __init__(self, fielddefs: Mapping[str, Any], stream: str, skip: int) -> None:
+        self.fielddefs, self.stream, self.skip = fielddefs, stream, skip
+        self.notes: set[tuple[str, str]] = set()
+
+    def extra(self, where: str, msgtype: str, key: str, value: Any, fields: list[str]) -> str | None:
+        path = _field_path(where[self.skip :])
+        if (msgtype == HEADER and key == "seq") or _is_constant(self.fielddefs, msgtype, key, value):
+            self.notes.add((self.stream, f"{path} left out of {{n}} (not a field of the ROS 2 type)"))
+            return ""
+        same = [f for f in fields if f.lower() == key.lower()]  # ROS 1 CameraInfo.D is ROS 2's d
+        if len(same) == 1:
+            self.notes.add((self.stream, f"{path} written as ROS 2's {same[0]} in {{n}}"))
+            return same[0]
+        return None
+
+    def missing(self, where: str, msgtype: str, field: str) -> None:
+        path = _field_path(where[self.skip :])
+        self.notes.add((self.stream, f"{path} missing from {{n}}, written as zero (a field of the ROS 2 type)"))
 
 
 def _is_constant(fielddefs: Mapping[str, Any], owner: str, key: str, value: Any) -> bool:
@@ -111,18 +124,6 @@ def _field_path(where: str) -> str:
         elif depth == 0:
             out.append(ch)
     return "".join(out)
-
-
-def _lookup(obj: Any, where: str) -> Any:
-    """The value at a path `a.b[2].c` of a JSON object (None if absent)."""
-    for part in where.replace("[", ".[").split("."):
-        if not part:
-            continue
-        if part.startswith("["):
-            obj = obj[int(part[1:-1])] if isinstance(obj, list) else None
-        else:
-            obj = obj.get(part) if isinstance(obj, dict) else None
-    return obj
 
 
 def qos(stream: str, meta: Mapping[str, Any]) -> Any:

@@ -56,7 +56,7 @@ def export_rosbag2(
         os.replace(work / path.name, path)
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    stats.dropped = ros2.dropped
+    stats.notes = ros2.notes
     stats.files = [str(p) for p in sorted(path.iterdir())]
     return stats
 

@@ -3,8 +3,9 @@
 
 Fields are filled from the type's definition in a rosbags type store; a field the JSON
 lacks gets its zero value (a ROS 2 header has no `seq`: it becomes 0 in ROS 1), a key the
-type lacks is an error unless `drop` (given the key's path, the type and the key) accepts
-to leave it out: the CDR export drops a ROS 1 `header.seq` so, and counts it. Byte arrays come as base64 (as jsontext.ros writes them), other
+type lacks is an error. A `Fit` given to `build` may decide otherwise and is told of both:
+the CDR export drops a ROS 1 `header.seq`, takes ROS 1 `CameraInfo.D` as ROS 2's `d`, and
+counts what it did. Byte arrays come as base64 (as jsontext.ros writes them), other
 primitive arrays as numpy arrays, which is what rosbags' serializers take.
 """
 
@@ -13,7 +14,6 @@ from __future__ import annotations
 import base64
 import json
 import math
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -36,14 +36,27 @@ def from_json(typestore: Any, msgtype: str, text: str) -> Any:
     return build(typestore, msgtype, json.loads(text))
 
 
-# (path of a key, its message type, the key) -> True to leave the key out, False to refuse it.
-Drop = Callable[[str, str, str], bool]
+class Fit:
+    """What to do with a JSON object whose keys are not its type's fields. This default
+    refuses a key the type lacks and lets a missing field be zero."""
+
+    def extra(self, where: str, msgtype: str, key: str, value: Any, fields: list[str]) -> str | None:
+        """For a key (at path `where`) that `msgtype` lacks: None to refuse it, "" to leave it
+        out, or the field (one of `fields`, absent from the object) that takes its value."""
+        return None
+
+    def missing(self, where: str, msgtype: str, field: str) -> None:
+        """A field the object lacks (at path `where`), which becomes zero."""
 
 
-def build(typestore: Any, msgtype: str, obj: Any, where: str = "", drop: Drop | None = None) -> Any:
+_REFUSE = Fit()
+
+
+def build(typestore: Any, msgtype: str, obj: Any, where: str = "", fit: Fit = _REFUSE) -> Any:
     """A `msgtype` message from a JSON object (a dict; None gives every field's zero)."""
     where = where or msgtype
-    if obj is None:
+    absent = obj is None
+    if absent:
         obj = {}
     if not isinstance(obj, dict):
         raise InvalidInputError(f"{where}: expected a JSON object for {msgtype}, got {type(obj).__name__}")
@@ -52,10 +65,7 @@ def build(typestore: Any, msgtype: str, obj: Any, where: str = "", drop: Drop | 
     except KeyError:
         raise InvalidInputError(f"{where}: the message type {msgtype} is not known") from None
     if len(obj) > len(fields) or any(key not in obj for key, _ in fields):  # else the keys are the fields
-        names = {name for name, _ in fields}
-        for key in sorted(set(obj) - names):
-            if drop is None or not drop(f"{where}.{key}", msgtype, key):
-                raise InvalidInputError(f"{where}: {msgtype} has no field {key!r}")
+        obj = _fit(obj, msgtype, [name for name, _ in fields], where, fit, absent)
     values = {}
     for name, desc in fields:
         value = obj.get(name)
@@ -64,16 +74,33 @@ def build(typestore: Any, msgtype: str, obj: Any, where: str = "", drop: Drop | 
         if kind == Nodetype.BASE and value.__class__ is _PLAIN.get(detail[0]):
             values[name] = value
         else:
-            values[name] = _value(typestore, desc, value, f"{where}.{name}", drop)
+            values[name] = _value(typestore, desc, value, f"{where}.{name}", fit)
     return typestore.types[msgtype](**values)
 
 
-def _value(typestore: Any, desc: tuple, value: Any, where: str, drop: Drop | None) -> Any:
+def _fit(obj: dict, msgtype: str, names: list[str], where: str, fit: Fit, absent: bool) -> dict:
+    """`obj` with the keys `fit` renames or drops handled; raises for a key it refuses."""
+    out = {k: v for k, v in obj.items() if k in names}
+    for key in sorted(set(obj) - set(names)):
+        free = [n for n in names if n not in out]
+        field = fit.extra(f"{where}.{key}", msgtype, key, obj[key], free)
+        if field is None:
+            raise InvalidInputError(f"{where}: {msgtype} has no field {key!r}")
+        if field:
+            out[field] = obj[key]
+    if not absent:  # a whole message the JSON lacks is one missing field, told by its parent
+        for name in names:
+            if name not in out:
+                fit.missing(f"{where}.{name}", msgtype, name)
+    return out
+
+
+def _value(typestore: Any, desc: tuple, value: Any, where: str, fit: Fit) -> Any:
     kind, detail = desc
     if kind == Nodetype.BASE:
         return _base(detail[0], value, where)
     if kind == Nodetype.NAME:
-        return build(typestore, detail, value, where, drop)
+        return build(typestore, detail, value, where, fit)
     (sub_kind, sub_detail), length = detail
     if sub_kind == Nodetype.BASE and sub_detail[0] in _DTYPES:
         arr = _array(_DTYPES[sub_detail[0]], value, where)
@@ -81,9 +108,9 @@ def _value(typestore: Any, desc: tuple, value: Any, where: str, drop: Drop | Non
             arr = np.zeros(length, dtype=arr.dtype)
     else:
         sub = (sub_kind, sub_detail)
-        arr = [_value(typestore, sub, v, f"{where}[{i}]", drop) for i, v in enumerate(value or [])]
+        arr = [_value(typestore, sub, v, f"{where}[{i}]", fit) for i, v in enumerate(value or [])]
         if kind == Nodetype.ARRAY and value is None:
-            arr = [_value(typestore, sub, None, where, drop) for _ in range(length)]
+            arr = [_value(typestore, sub, None, where, fit) for _ in range(length)]
     if kind == Nodetype.ARRAY and len(arr) != length:
         raise InvalidInputError(f"{where}: expected {length} elements, got {len(arr)}")
     return arr

@@ -154,6 +154,7 @@ def test_unknown_type_goes_as_json_with_a_note(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "note: /odd exported as JSON, not CDR: its type acme_msgs/msg/Widget is not a ROS 2 type rosbags knows" in err
     assert "note: /plain exported as JSON, not CDR: the store has no type for it" in err
+    assert "note: /pose: y missing from 1 message, written as zero (a field of the ROS 2 type)" in err
     with open(out, "rb") as f:
         reader = make_reader(f)
         summary = reader.get_summary()
@@ -274,3 +275,44 @@ def test_rosbag2_refuses_a_stream_it_cannot_carry(tmp_path, capsys):
     assert not bag.exists() and not list(tmp_path.glob(".bag.*"))
     assert main(["export", str(store), "--rosbag2", str(bag), "--topic", "/pose"]) == 0
     assert main(["export", str(store), "--rosbag2", str(tmp_path / "b2"), "--encoding", "json"]) == 1
+
+
+def test_ros1_field_names_and_fields_ros2_added_are_mapped_and_said(tmp_path, capsys):
+    """A real ROS 1 bag (written by rosbags with Noetic's definitions) of CameraInfo, whose
+    D/K/R/P are ROS 2's d/k/r/p, and Range, which ROS 2 extended with `variance`."""
+    import numpy as np
+    from rosbags.rosbag1 import Writer
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    T = ts.types
+    bag = tmp_path / "cam.bag"
+    with Writer(bag) as w:
+        cam = w.add_connection("/camera_info", "sensor_msgs/msg/CameraInfo", typestore=ts)
+        rng = w.add_connection("/range", "sensor_msgs/msg/Range", typestore=ts)
+        for i in range(3):
+            header = T["std_msgs/msg/Header"](seq=i, stamp=T["builtin_interfaces/msg/Time"](sec=10 + i, nanosec=5),
+                                              frame_id="cam")  # fmt: skip
+            info = T["sensor_msgs/msg/CameraInfo"](
+                header=header, height=480, width=640, distortion_model="plumb_bob",
+                D=np.array([0.1, -0.2, 0.0, 0.0, 0.01 * i]), K=np.arange(9, dtype=np.float64),
+                R=np.eye(3).ravel(), P=np.arange(12, dtype=np.float64) / 7, binning_x=0, binning_y=0,
+                roi=T["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0, width=0, do_rectify=False))  # fmt: skip
+            w.write(cam, (100 + i) * 10**9, ts.serialize_ros1(info, "sensor_msgs/msg/CameraInfo"))
+            r = T["sensor_msgs/msg/Range"](header=header, radiation_type=1, field_of_view=0.5, min_range=0.1,
+                                           max_range=4.0, range=1.25 + i)  # fmt: skip
+            w.write(rng, (100 + i) * 10**9 + 1, ts.serialize_ros1(r, "sensor_msgs/msg/Range"))
+    store = record(bag, tmp_path)
+    out = tmp_path / "out.mcap"
+    assert main(["export", str(store), "--mcap", str(out)]) == 0
+    err = capsys.readouterr().err
+    for line in ["note: /camera_info: D written as ROS 2's d in 3 messages", "note: /camera_info: P written as ROS 2's p",
+                 "note: /camera_info: header.seq left out of 3 messages",
+                 "note: /range: variance missing from 3 messages, written as zero"]:  # fmt: skip
+        assert line in err
+    got = read_back(out)
+    want = stored(store)
+    for (_, text), (_, back) in zip(want["/camera_info"], got["/camera_info"], strict=True):
+        mine = json.loads(without_seq(text))
+        assert json.loads(back) == {k.lower() if len(k) == 1 else k: v for k, v in mine.items()}
+    for (_, text), (_, back) in zip(want["/range"], got["/range"], strict=True):
+        assert json.loads(back) == {**json.loads(without_seq(text)), "variance": 0.0}
