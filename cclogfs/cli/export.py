@@ -76,11 +76,13 @@ def run(args: argparse.Namespace) -> int:
             raise nothing_matched(store, args)
         windows = itertools.chain([first] if first is not None else [], windows)
         if args.mcap:
-            stats = export_mcap(windows, args.mcap, encoding=args.encoding or "auto", progress=progress)
+            stats = export_mcap(windows, args.mcap, encoding=args.encoding or "auto", progress=progress,
+                                describe=_describer(store))
         elif args.rosbag2:
             from ..export.rosbag2 import export_rosbag2
 
-            stats = export_rosbag2(windows, args.rosbag2, replace=args.force, progress=progress)
+            stats = export_rosbag2(windows, args.rosbag2, replace=args.force, progress=progress,
+                                   describe=_describer(store))
         else:
             robot = args.robot or os.path.basename(os.path.normpath(args.store))
             stats = export_parquet(
@@ -94,6 +96,14 @@ def run(args: argparse.Namespace) -> int:
     if args.mcap or args.rosbag2:
         _report_mcap(stats)
     return skipped.report()
+
+
+def _describer(store):
+    """stream -> its type as the store knows it, with the definition and latching that only
+    a recording's first window holds (the selected windows may start later)."""
+    from ..play.pace import stream_types
+
+    return lambda name: stream_types(store, [name]).get(name, {})
 
 
 def _report_mcap(stats) -> None:

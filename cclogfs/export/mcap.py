@@ -23,7 +23,7 @@ from mcap.writer import CompressionType, Writer
 from ..errors import InvalidInputError
 from .base import ExportStats, Progress, StoredWindow
 from .jsonschema import message_schema
-from .ros2cdr import Ros2Types, message_error
+from .ros2cdr import Describe, Ros2Types, message_error, stream_meta
 
 WINDOW_METADATA = "cclogfs.window"
 _COMPRESSION = {
@@ -49,8 +49,12 @@ def export_mcap(
     compression: str = "zstd",
     encoding: str = "auto",
     progress: Progress | None = None,
+    describe: Describe | None = None,
 ) -> McapStats:
-    """Write every window's messages to `path` (replaced atomically when complete)."""
+    """Write every window's messages to `path` (replaced atomically when complete).
+    `describe(stream)`: what the store knows of a stream's type beyond the window's meta (the
+    definition and latching a recording keeps in its first window only, which the selected
+    windows may not include)."""
     try:
         comp = _COMPRESSION[compression]
     except KeyError:
@@ -62,7 +66,7 @@ def export_mcap(
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
     stats = McapStats(files=[str(path)])
-    channels = _Channels(encoding, stats)
+    channels = _Channels(encoding, stats, describe)
     try:
         _write(windows, tmp, comp, channels, progress)
     except BaseException:
@@ -118,9 +122,10 @@ def _write(
 class _Channels:
     """One channel per stream, its encoding chosen at the stream's first message."""
 
-    def __init__(self, encoding: str, stats: McapStats) -> None:
+    def __init__(self, encoding: str, stats: McapStats, describe: Describe | None) -> None:
         self.encoding = encoding
         self.stats = stats
+        self.describe = describe
         self.ros2 = Ros2Types() if encoding != "json" else None
         self._chan: dict[str, tuple[int, Callable[[str], bytes]]] = {}
         self._seq: dict[int, int] = {}
@@ -137,12 +142,13 @@ class _Channels:
     def _register(self, writer: Writer, w: StoredWindow, first_text: str) -> tuple[int, Callable[[str], bytes]]:
         msgtype = str(w.meta.get("msgtype") or "")
         if self.ros2 is not None:
-            if msgtype and self.ros2.knows(msgtype):
+            meta = stream_meta(w, self.describe)
+            why = self.ros2.why_not(msgtype, meta)
+            if why is None:
                 name, enc, data = self.ros2.schema(msgtype)
                 schema = writer.register_schema(name, enc, data)
-                meta = self.ros2.channel_metadata(w.name, msgtype, w.meta)
+                meta = self.ros2.channel_metadata(w.name, msgtype, meta)
                 return writer.register_channel(w.name, "cdr", schema, meta), self.ros2.encoder(w.name, msgtype)
-            why = f"its type {msgtype} is not a ROS 2 type rosbags knows" if msgtype else "the store has no type for it"
             if self.encoding == "cdr":
                 raise InvalidInputError(f"{w.name} cannot be exported as CDR: {why}; use --encoding auto or json.")
             self.stats.json_streams[w.name] = why

@@ -1,7 +1,8 @@
 """Stored JSON back to ROS 2 CDR, so an MCAP export reads as if `ros2 bag record` wrote it.
 
 A stream is exported in CDR when its type (the window meta's `msgtype`) is one of the ROS 2
-types rosbags ships (`Stores.LATEST`, the newest ROS 2 LTS it knows). Its schema is what
+types rosbags ships (`Stores.LATEST`, the newest ROS 2 LTS it knows), or one whose
+definition the window meta holds (`msgdef`). Its schema is what
 rosbag2 writes: encoding `ros2msg`, named after the type, the definition with its
 dependencies as rosbags generates it, and the channel carries the type's RIHS01 hash and
 the QoS a player needs (`/tf_static` and ROS 1 latched topics transient-local, so late
@@ -32,6 +33,18 @@ HEADER = "std_msgs/msg/Header"
 LATCHED_BY_NAME = frozenset({"/tf_static"})
 
 Encode = Callable[[str], bytes]
+# stream -> what the store knows of its type ("msgtype", "msgdef", "latching"; play.pace.stream_types)
+Describe = Callable[[str], Mapping[str, Any]]
+
+
+def stream_meta(w: Any, describe: Describe | None) -> Mapping[str, Any]:
+    """A window's meta, completed by `describe` with what only a run's first window holds."""
+    if describe is None:
+        return w.meta
+    known = describe(w.name)
+    if known.get("msgtype") != w.meta.get("msgtype"):
+        return w.meta
+    return {**known, **w.meta}
 
 
 def ros2_name(msgtype: str) -> str:
@@ -49,8 +62,27 @@ class Ros2Types:
         self.typestore = get_typestore(Stores.LATEST)
         self.notes: Counter[tuple[str, str]] = Counter()  # (stream, sentence with {n}) -> messages
 
-    def knows(self, msgtype: str) -> bool:
-        return ros2_name(msgtype) in self.typestore.fielddefs
+    def why_not(self, msgtype: str, meta: Mapping[str, Any]) -> str | None:
+        """None when `msgtype` can be written as CDR, else why not. A type rosbags does not
+        ship is learnt from the ROS 1 definition `record` kept (`msgdef`, in the first
+        window of a run; jsontext.rostypes): a lab's own message types."""
+        if not msgtype:
+            return "the store has no type for it"
+        name = ros2_name(msgtype)
+        if name in self.typestore.fielddefs:
+            return None
+        if not meta.get("msgdef"):
+            return f"its type {msgtype} is not a ROS 2 type rosbags knows, and the window has no definition of it"
+        from rosbags.typesys import get_types_from_msg
+
+        try:
+            types = get_types_from_msg(meta["msgdef"], name)
+            # Types rosbags ships keep their ROS 2 definitions (a Header without seq).
+            self.typestore.register({k: v for k, v in types.items() if k not in self.typestore.fielddefs})
+            self.typestore.generate_msgdef(name, ros_version=2)
+        except Exception as err:  # rosbags' parser raises several types for a bad definition
+            return f"its stored definition of {msgtype} cannot be read: {err}"
+        return None
 
     def schema(self, msgtype: str) -> tuple[str, str, bytes]:
         """(name, encoding, data) of the MCAP schema of `msgtype`, as rosbag2 writes it."""

@@ -17,14 +17,14 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
 from ..errors import InvalidInputError
 from .base import Progress, StoredWindow
 from .mcap import McapStats
-from .ros2cdr import Encode, Ros2Types, message_error, qos
+from .ros2cdr import Describe, Encode, Ros2Types, message_error, qos, stream_meta
 
 
 def check_rosbag2_output(path: str | Path, *, force: bool) -> None:
@@ -40,8 +40,10 @@ def check_rosbag2_output(path: str | Path, *, force: bool) -> None:
 
 def export_rosbag2(
     windows: Iterable[StoredWindow], path: str | Path, *, replace: bool = False, progress: Progress | None = None,
+    describe: Describe | None = None,
 ) -> McapStats:  # fmt: skip
-    """Write every window's messages as a rosbag2 bag in directory `path`."""
+    """Write every window's messages as a rosbag2 bag in directory `path` (`describe` as
+    for export_mcap)."""
     path = Path(path)
     check_rosbag2_output(path, force=replace)
     if os.path.lexists(path) and not replace:
@@ -50,7 +52,7 @@ def export_rosbag2(
     ros2 = Ros2Types()
     work = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
     try:
-        _write(windows, work / path.name, ros2, stats, progress)
+        _write(windows, work / path.name, ros2, stats, progress, describe)
         if os.path.lexists(path):
             os.replace(path, work / "replaced")
         os.replace(work / path.name, path)
@@ -62,7 +64,7 @@ def export_rosbag2(
 
 
 def _write(windows: Iterable[StoredWindow], bag: Path, ros2: Ros2Types, stats: McapStats,
-           progress: Progress | None) -> None:  # fmt: skip
+           progress: Progress | None, describe: Describe | None) -> None:  # fmt: skip
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 
@@ -74,7 +76,7 @@ def _write(windows: Iterable[StoredWindow], bag: Path, ros2: Ros2Types, stats: M
         counts: dict[str, int] = {}
         for w in windows:
             if w.name not in streams:
-                streams[w.name] = _connect(writer, ros2, w)
+                streams[w.name] = _connect(writer, ros2, w, stream_meta(w, describe))
             conn, encode = streams[w.name]
             before = counts.get(w.name, 0)
             index = before
@@ -100,12 +102,11 @@ def _write(windows: Iterable[StoredWindow], bag: Path, ros2: Ros2Types, stats: M
     writer.close()
 
 
-def _connect(writer: Any, ros2: Ros2Types, w: StoredWindow) -> tuple[Any, Encode]:
-    msgtype = str(w.meta.get("msgtype") or "")
-    if not msgtype or not ros2.knows(msgtype):
-        why = f"its type {msgtype} is not a ROS 2 type rosbags knows" if msgtype else "the store has no type for it"
+def _connect(writer: Any, ros2: Ros2Types, w: StoredWindow, meta: Mapping[str, Any]) -> tuple[Any, Encode]:
+    msgtype = str(meta.get("msgtype") or "")
+    if why := ros2.why_not(msgtype, meta):
         raise InvalidInputError(f"{w.name} cannot go into a rosbag2 bag: {why}; leave it out with --topic, "
                                 "or export to --mcap, which writes it as JSON.")  # fmt: skip
     name = ros2.schema(msgtype)[0]
-    conn = writer.add_connection(w.name, name, typestore=ros2.typestore, offered_qos_profiles=[qos(w.name, w.meta)])
+    conn = writer.add_connection(w.name, name, typestore=ros2.typestore, offered_qos_profiles=[qos(w.name, meta)])
     return conn, ros2.encoder(w.name, msgtype)

@@ -316,3 +316,68 @@ def test_ros1_field_names_and_fields_ros2_added_are_mapped_and_said(tmp_path, ca
         assert json.loads(back) == {k.lower() if len(k) == 1 else k: v for k, v in mine.items()}
     for (_, text), (_, back) in zip(want["/range"], got["/range"], strict=True):
         assert json.loads(back) == {**json.loads(without_seq(text)), "variance": 0.0}
+
+
+READING = """Header header
+float32 temperature
+uint16[] counts
+string label
+geometry_msgs/Point where
+int8 MODE_A=1
+uint8 mode
+"""
+
+
+def test_a_labs_own_ros1_type_goes_as_cdr_from_its_stored_definition(tmp_path, capsys):
+    """A custom type rosbags does not ship: `record` keeps its ROS 1 definition, the export
+    learns the type from it; rosbags reads the export with the ros2msg schema it carries."""
+    import numpy as np
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import get_types_from_msg
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    ts.register(get_types_from_msg(READING, "acme_msgs/msg/Reading"))
+    msgdef, md5 = ts.generate_msgdef("acme_msgs/msg/Reading", ros_version=1)
+    T = ts.types
+    bag = tmp_path / "lab.bag"
+    with Writer(bag) as w:
+        conn = w.add_connection("/reading", "acme_msgs/msg/Reading", msgdef=msgdef, md5sum=md5)
+        for i in range(450):
+            header = T["std_msgs/msg/Header"](seq=i, stamp=T["builtin_interfaces/msg/Time"](sec=i, nanosec=7),
+                                              frame_id="lab")  # fmt: skip
+            msg = T["acme_msgs/msg/Reading"](
+                header=header, temperature=np.float32(20 + i / 8), counts=np.arange(i % 5, dtype=np.uint16),
+                label=f"r{i}", where=T["geometry_msgs/msg/Point"](x=i / 3, y=-1.0, z=0.5), mode=i % 3)  # fmt: skip
+            w.write(conn, (1000 + i) * 10**9, ts.serialize_ros1(msg, "acme_msgs/msg/Reading"))
+    store = record(bag, tmp_path)
+    out = tmp_path / "out.mcap"
+    assert main(["export", str(store), "--mcap", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "exported as JSON" not in err and "note: /reading: header.seq left out of 450 messages" in err
+    with open(out, "rb") as f:
+        summary = make_reader(f).get_summary()
+    (chan,) = summary.channels.values()
+    schema = summary.schemas[chan.schema_id]
+    assert (chan.message_encoding, schema.name, schema.encoding) == ("cdr", "acme_msgs/msg/Reading", "ros2msg")
+    assert "MSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n" in schema.data.decode()
+    want = [(s, without_seq(x)) for s, x in stored(store)["/reading"]]
+    assert read_back(out)["/reading"] == want  # every field of all 450 messages, in order
+
+    # Windows later in the run than the one holding the definition: the export finds it.
+    late = tmp_path / "late.mcap"
+    assert main(["export", str(store), "--mcap", str(late), "--start", "1400"]) == 0
+    assert "exported as JSON" not in capsys.readouterr().err
+    with cclogfs.open_store(store, readonly=True) as s:
+        windows = list(s.query(start_ns=1400 * 10**9))
+        assert "msgdef" not in windows[0].meta, "the selection must not start at the defining window"
+        late_want = [(t, without_seq(x)) for w in windows for t, x in w.messages()]
+    assert read_back(late)["/reading"] == late_want
+
+    # Without any stored definition (a JSONL source naming the type): JSON, and said why.
+    src = tmp_path / "r.jsonl"
+    assert main(["convert", str(bag), "-o", str(src)]) == 0
+    src.write_text("".join(line[:-2] + ', "msgtype": "acme_msgs/msg/Reading"}\n' for line in src.open()))
+    assert main(["record", str(src), "--store", str(tmp_path / "j")]) == 0
+    assert main(["export", str(tmp_path / "j"), "--mcap", str(tmp_path / "j.mcap")]) == 0
+    assert "note: /reading exported as JSON, not CDR: its type acme_msgs/msg/Reading is not a ROS 2 type " \
+           "rosbags knows, and the window has no definition of it" in capsys.readouterr().err  # fmt: skip
