@@ -142,8 +142,7 @@ class _Channels:
     def _register(self, writer: Writer, w: StoredWindow, first_text: str) -> tuple[int, Callable[[str], bytes]]:
         msgtype = str(w.meta.get("msgtype") or "")
         if self.ros2 is not None:
-            meta = stream_meta(w, self.describe)
-            why = self.ros2.why_not(msgtype, meta)
+            meta, why = stream_meta(self.ros2, w, self.describe)
             if why is None:
                 name, enc, data = self.ros2.schema(msgtype)
                 schema = writer.register_schema(name, enc, data)

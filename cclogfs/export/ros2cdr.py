@@ -37,16 +37,6 @@ Encode = Callable[[str], bytes]
 Describe = Callable[[str], Mapping[str, Any]]
 
 
-def stream_meta(w: Any, describe: Describe | None) -> Mapping[str, Any]:
-    """A window's meta, completed by `describe` with what only a run's first window holds."""
-    if describe is None:
-        return w.meta
-    known = describe(w.name)
-    if known.get("msgtype") != w.meta.get("msgtype"):
-        return w.meta
-    return {**known, **w.meta}
-
-
 def ros2_name(msgtype: str) -> str:
     """`pkg/msg/Type` for `pkg/Type` (the ROS 1 spelling a JSONL line may give)."""
     parts = msgtype.split("/")
@@ -156,6 +146,21 @@ def _field_path(where: str) -> str:
         elif depth == 0:
             out.append(ch)
     return "".join(out)
+
+
+def stream_meta(ros2: Ros2Types, w: Any, describe: Describe | None) -> tuple[Mapping[str, Any], str | None]:
+    """(meta, why not CDR) of a stream from its first selected window: when its type is one
+    rosbags does not know, completed by `describe` with the definition a run's first window
+    holds. Only then: `describe` may read every window of the stream."""
+    msgtype = str(w.meta.get("msgtype") or "")
+    why = ros2.why_not(msgtype, w.meta)
+    if why is None or describe is None or not msgtype or "msgdef" in w.meta:
+        return w.meta, why
+    known = describe(w.name)
+    if known.get("msgtype") != msgtype or "msgdef" not in known:
+        return w.meta, why
+    meta = {**known, **w.meta}
+    return meta, ros2.why_not(msgtype, meta)
 
 
 def qos(stream: str, meta: Mapping[str, Any]) -> Any:

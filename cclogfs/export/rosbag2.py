@@ -76,7 +76,7 @@ def _write(windows: Iterable[StoredWindow], bag: Path, ros2: Ros2Types, stats: M
         counts: dict[str, int] = {}
         for w in windows:
             if w.name not in streams:
-                streams[w.name] = _connect(writer, ros2, w, stream_meta(w, describe))
+                streams[w.name] = _connect(writer, ros2, w, *stream_meta(ros2, w, describe))
             conn, encode = streams[w.name]
             before = counts.get(w.name, 0)
             index = before
@@ -102,9 +102,10 @@ def _write(windows: Iterable[StoredWindow], bag: Path, ros2: Ros2Types, stats: M
     writer.close()
 
 
-def _connect(writer: Any, ros2: Ros2Types, w: StoredWindow, meta: Mapping[str, Any]) -> tuple[Any, Encode]:
+def _connect(writer: Any, ros2: Ros2Types, w: StoredWindow, meta: Mapping[str, Any],
+             why: str | None) -> tuple[Any, Encode]:  # fmt: skip
     msgtype = str(meta.get("msgtype") or "")
-    if why := ros2.why_not(msgtype, meta):
+    if why:
         raise InvalidInputError(f"{w.name} cannot go into a rosbag2 bag: {why}; leave it out with --topic, "
                                 "or export to --mcap, which writes it as JSON.")  # fmt: skip
     name = ros2.schema(msgtype)[0]
