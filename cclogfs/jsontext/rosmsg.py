@@ -73,6 +73,8 @@ def build(typestore: Any, msgtype: str, obj: Any, where: str = "", fit: Fit = _R
         # The common case without a call: a float or string the JSON already has right.
         if kind == Nodetype.BASE and value.__class__ is _PLAIN.get(detail[0]):
             values[name] = value
+        elif value is None and name in obj:  # rosbridge never writes null: not silently a zero
+            raise InvalidInputError(f"{where}.{name}: null is not a value of {msgtype}.{name}")
         else:
             values[name] = _value(typestore, desc, value, f"{where}.{name}", fit)
     return typestore.types[msgtype](**values)

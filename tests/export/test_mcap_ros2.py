@@ -180,6 +180,7 @@ def test_unknown_type_goes_as_json_with_a_note(tmp_path, capsys):
     ('{"r": 1.0, "colour": 3}', "std_msgs/msg/ColorRGBA has no field 'colour'"),
     ('{"r": [1.0]}', "std_msgs/msg/ColorRGBA.r: [1.0] is not a float32"),
     ('{"r": 1e50}', "std_msgs/msg/ColorRGBA.r: 1e+50 is out of range for a float32"),
+    ('{"r": null}', "std_msgs/msg/ColorRGBA.r: null is not a value of std_msgs/msg/ColorRGBA.r"),
 ])  # fmt: skip
 def test_a_value_the_type_cannot_take_is_refused_naming_stream_message_and_field(tmp_path, capsys, msg, field):
     typed = ', "msgtype": "std_msgs/msg/ColorRGBA"}\n'
