@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         check_output(args.parquet, [args.store], force=True, directory=True)
     # Imported here, not at the top: `cclog --help` imports every subcommand module.
-    from ..export import export_mcap, export_parquet
+    from ..export import export_mcap, export_parquet, export_rosbag2
     from ..store import open_store
 
     with open_store(args.store, readonly=True) as store, Progress("export") as progress:
@@ -79,8 +79,6 @@ def run(args: argparse.Namespace) -> int:
             stats = export_mcap(windows, args.mcap, encoding=args.encoding or "auto", progress=progress,
                                 describe=_describer(store))
         elif args.rosbag2:
-            from ..export.rosbag2 import export_rosbag2
-
             stats = export_rosbag2(windows, args.rosbag2, replace=args.force, progress=progress,
                                    describe=_describer(store))
         else:
@@ -109,7 +107,8 @@ def _describer(store):
 def _report_mcap(stats) -> None:
     """What the MCAP could not carry as the store has it: never silent."""
     for stream, why in sorted(stats.json_streams.items()):
-        print(f"note: {stream} exported as JSON, not CDR: {why} (ROS 2 tools skip or refuse "
-              "JSON channels; --topic leaves it out)", file=sys.stderr)  # fmt: skip
+        print(f"note: {stream} exported as JSON, not CDR: {why}; rosbags and ros2 bag refuse a file with "
+              "JSON channels: leave the stream out with --topic, or export all as JSON with --encoding json",
+              file=sys.stderr)  # fmt: skip
     for (stream, sentence), n in sorted(stats.notes.items()):
         print(f"note: {stream}: " + sentence.format(n=f"{n:,} message{'s' * (n != 1)}"), file=sys.stderr)
