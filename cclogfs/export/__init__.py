@@ -1,4 +1,5 @@
-"""Exports of stored windows to formats other tools read: MCAP (JSON), Parquet, JSONL.
+"""Exports of stored windows to formats other tools read: MCAP (ROS 2 CDR or JSON), rosbag2,
+Parquet, JSONL.
 
 Exporters take any iterable of windows (`StoredWindow`: what the store's `query()` returns)
 and know nothing of how they were chosen or stored.
@@ -22,6 +23,8 @@ _MODULES = {
     "schema_of": "jsonschema",
     "WINDOW_METADATA": "mcap",
     "export_mcap": "mcap",
+    "McapStats": "mcap",
+    "export_rosbag2": "rosbag2",
     "export_parquet": "parquet",
     "flatten": "parquet",
 }

@@ -1,16 +1,21 @@
 """Export windows to an MCAP file any MCAP tool (Foxglove, `mcap` CLI) can open.
 
-One channel per stream with `message_encoding` "json" and a "jsonschema" schema; each
-message's bytes are the stored JSON text unchanged, `log_time` and `publish_time` its
-stamp. Each window becomes a Metadata record named `cclogfs.window` (MCAP metadata
-values are strings, so `meta` is its JSON text).
+One channel per stream. With encoding "auto" (the default) a stream whose ROS type rosbags
+knows is written as `ros2 bag record` writes it: `cdr` messages, a `ros2msg` schema named
+after the type (`export.ros2cdr`); any other stream as `json` messages (the stored text
+unchanged) with a "jsonschema" schema, and the caller is told (`McapStats.json_streams`).
+"cdr" refuses a stream it cannot write as CDR; "json" writes every stream as JSON.
+`log_time` and `publish_time` are the stored stamps. Each window becomes a Metadata record
+named `cclogfs.window` (MCAP metadata values are strings, so `meta` is its JSON text).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
-from collections.abc import Iterable
+from collections import Counter
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
@@ -18,6 +23,7 @@ from mcap.writer import CompressionType, Writer
 from ..errors import InvalidInputError
 from .base import ExportStats, Progress, StoredWindow
 from .jsonschema import message_schema
+from .ros2cdr import Describe, Ros2Types, message_error, stream_meta
 
 WINDOW_METADATA = "cclogfs.window"
 _COMPRESSION = {
@@ -25,6 +31,15 @@ _COMPRESSION = {
     "lz4": CompressionType.LZ4,
     "none": CompressionType.NONE,
 }
+ENCODINGS = ("auto", "cdr", "json")
+
+
+@dataclasses.dataclass
+class McapStats(ExportStats):
+    """ExportStats, plus what a CDR export could not carry as the store has it."""
+
+    json_streams: dict[str, str] = dataclasses.field(default_factory=dict)  # stream -> why JSON
+    notes: Counter = dataclasses.field(default_factory=Counter)  # (stream, sentence with {n}) -> messages
 
 
 def export_mcap(
@@ -32,36 +47,46 @@ def export_mcap(
     path: str | Path,
     *,
     compression: str = "zstd",
+    encoding: str = "auto",
     progress: Progress | None = None,
-) -> ExportStats:
-    """Write every window's messages to `path` (replaced atomically when complete)."""
+    describe: Describe | None = None,
+) -> McapStats:
+    """Write every window's messages to `path` (replaced atomically when complete).
+    `describe(stream)`: what the store knows of a stream's type beyond the window's meta (the
+    definition and latching a recording keeps in its first window only, which the selected
+    windows may not include)."""
     try:
         comp = _COMPRESSION[compression]
     except KeyError:
         raise InvalidInputError(
             f"Unknown MCAP compression {compression!r}; use one of {', '.join(_COMPRESSION)}."
         ) from None
+    if encoding not in ENCODINGS:
+        raise InvalidInputError(f"Unknown MCAP encoding {encoding!r}; use one of {', '.join(ENCODINGS)}.")
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
-    stats = ExportStats(files=[str(path)])
+    stats = McapStats(files=[str(path)])
+    channels = _Channels(encoding, stats, describe)
     try:
-        _write(windows, tmp, comp, stats, progress)
+        _write(windows, tmp, comp, channels, progress)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
     os.replace(tmp, path)
+    if channels.ros2 is not None:
+        stats.notes = channels.ros2.notes
     return stats
 
 
 def _write(
-    windows: Iterable[StoredWindow], tmp: Path, comp: CompressionType, stats: ExportStats,
+    windows: Iterable[StoredWindow], tmp: Path, comp: CompressionType, channels: _Channels,
     progress: Progress | None,
 ) -> None:
-    channels: dict[str, int] = {}
-    sequence: dict[int, int] = {}
+    stats = channels.stats
     with open(tmp, "wb") as f:
         writer = Writer(f, compression=comp)
-        writer.start(profile="", library="cclogfs")
+        # The ros2 profile (what rosbag2 writes, and what rosbags requires) unless all JSON.
+        writer.start(profile="" if channels.encoding == "json" else "ros2", library="cclogfs")
         for w in windows:
             count = 0
             for stamp_ns, text in w.messages():
@@ -70,15 +95,16 @@ def _write(
                         f"The message on {w.name} at {stamp_ns} ns cannot go into MCAP, whose "
                         "times are unsigned nanoseconds; export a time range after 0 (--start 0)."
                     )
-                chan = channels.get(w.name)
-                if chan is None:
-                    chan = channels[w.name] = _register(writer, w, text)
-                seq = sequence[chan] = sequence.get(chan, -1) + 1
+                chan, seq, encode = channels.get(writer, w, text)
+                try:
+                    data = encode(text)
+                except InvalidInputError as err:
+                    raise message_error(w.name, seq, stamp_ns, w.seq, err) from None
                 writer.add_message(
                     chan,
                     log_time=stamp_ns,
                     publish_time=stamp_ns,
-                    data=text.encode("utf-8"),
+                    data=data,
                     sequence=seq & 0xFFFFFFFF,
                 )
                 count += 1
@@ -93,11 +119,46 @@ def _write(
         os.fsync(f.fileno())
 
 
-def _register(writer: Writer, w: StoredWindow, first_text: str) -> int:
-    # The ROS type names the schema when the recorder kept it; else the stream does.
-    title = str(w.meta.get("msgtype") or w.name)
-    schema = writer.register_schema(title, "jsonschema", message_schema(first_text, title))
-    return writer.register_channel(w.name, "json", schema)
+class _Channels:
+    """One channel per stream, its encoding chosen at the stream's first message."""
+
+    def __init__(self, encoding: str, stats: McapStats, describe: Describe | None) -> None:
+        self.encoding = encoding
+        self.stats = stats
+        self.describe = describe
+        self.ros2 = Ros2Types() if encoding != "json" else None
+        self._chan: dict[str, tuple[int, Callable[[str], bytes]]] = {}
+        self._seq: dict[int, int] = {}
+
+    def get(self, writer: Writer, w: StoredWindow, text: str) -> tuple[int, int, Callable[[str], bytes]]:
+        """(channel id, the message's sequence number in it, its encoder) for a message of w."""
+        entry = self._chan.get(w.name)
+        if entry is None:
+            entry = self._chan[w.name] = self._register(writer, w, text)
+        chan, encode = entry
+        seq = self._seq[chan] = self._seq.get(chan, -1) + 1
+        return chan, seq, encode
+
+    def _register(self, writer: Writer, w: StoredWindow, first_text: str) -> tuple[int, Callable[[str], bytes]]:
+        msgtype = str(w.meta.get("msgtype") or "")
+        if self.ros2 is not None:
+            meta, why = stream_meta(self.ros2, w, self.describe)
+            if why is None:
+                name, enc, data = self.ros2.schema(msgtype)
+                schema = writer.register_schema(name, enc, data)
+                meta = self.ros2.channel_metadata(w.name, msgtype, meta)
+                return writer.register_channel(w.name, "cdr", schema, meta), self.ros2.encoder(w.name, msgtype)
+            if self.encoding == "cdr":
+                raise InvalidInputError(f"{w.name} cannot be exported as CDR: {why}; use --encoding auto or json.")
+            self.stats.json_streams[w.name] = why
+        # The ROS type names the schema when the recorder kept it; else the stream does.
+        title = msgtype or w.name
+        schema = writer.register_schema(title, "jsonschema", message_schema(first_text, title))
+        return writer.register_channel(w.name, "json", schema), _utf8
+
+
+def _utf8(text: str) -> bytes:
+    return text.encode("utf-8")
 
 
 def window_metadata(w: StoredWindow, count: int) -> dict[str, str]:

@@ -1,4 +1,5 @@
-"""MCAP export read back with the official mcap reader, byte for byte."""
+"""MCAP export (--encoding json) read back with the official mcap reader, byte for byte.
+The ROS 2 CDR export is tested in test_mcap_ros2.py."""
 
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ def test_store_to_mcap_byte_exact(shared_data, tmp_path):
     out = tmp_path / "out.mcap"
     with cclogfs.open_store(store_path, readonly=True) as store:
         windows = list(store.query())
-        stats = export_mcap(store.query(), out)
+        stats = export_mcap(store.query(), out, encoding="json")  # the stored text, as it is
         expect = {t: [] for t in TYPES}
         for w in windows:
             expect[w.name].extend(w.messages())
