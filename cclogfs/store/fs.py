@@ -32,6 +32,14 @@ def _open_nofollow(path: str, flags: int) -> int:
         raise
 
 
+class FileTooLargeError(OSError):
+    """A store file larger than the format allows it to be: never read into memory."""
+
+    def __init__(self, path: str, size: int, limit: int):
+        super().__init__(errno.EFBIG, f"is {size} bytes, over the {limit}-byte limit of the format", path)
+        self.size, self.limit = size, limit
+
+
 class FileSystem:
     """The real file system (POSIX)."""
 
@@ -124,10 +132,15 @@ class FileSystem:
 
     # Convenience built on the calls above.
 
-    def read_file(self, path: str) -> bytes:
+    def read_file(self, path: str, limit: int | None = None) -> bytes:
+        """The whole file; with `limit`, FileTooLargeError when it holds more bytes, checked
+        on its size before anything is read (a sparse file costs no disk, but memory)."""
         fd = self.open(path)
         try:
-            return self.pread(fd, self.size(fd), 0)
+            size = self.size(fd)
+            if limit is not None and size > limit:
+                raise FileTooLargeError(path, size, limit)
+            return self.pread(fd, size, 0)
         finally:
             self.close(fd)
 
