@@ -10,6 +10,7 @@ from __future__ import annotations
 import errno
 import fcntl
 import os
+import stat
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -25,11 +26,17 @@ _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
 
 def _open_nofollow(path: str, flags: int) -> int:
     try:
-        return os.open(path, flags | _NOFOLLOW, FILE_MODE)
+        fd = os.open(path, flags | _NOFOLLOW, FILE_MODE)
     except OSError as err:
         if err.errno == errno.ELOOP:  # what O_NOFOLLOW gives for a symlink: say it plainly
             raise OSError(errno.ELOOP, "is a symbolic link, which the store never follows", path) from None
         raise
+    # A directory (or fifo, device) named like a store file opens read-only: refuse it here,
+    # by name, rather than fail on the first read with no file named.
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise OSError(errno.EISDIR, "is not a regular file (a directory?), which the store never uses", path)
+    return fd
 
 
 class FileTooLargeError(OSError):
