@@ -221,7 +221,7 @@ class Policy:
         if slots is None:
             try:
                 slots = self._slots(text)
-            except IndexError:  # the lexer follows JSON's nesting: a value where a key belongs, ...
+            except (IndexError, json.JSONDecodeError):  # the lexer follows JSON's nesting and strings
                 raise InvalidInputError("Cannot age a message that is not JSON (its nesting is broken).") from None
             if len(self._shapes) >= _SHAPE_CACHE_MAX:
                 self._shapes.clear()
