@@ -13,10 +13,9 @@ Used by tests/fuzz (the committed corpus replayed, and Hypothesis) and by
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
-import io
 import json
-import os
 import struct
 import tempfile
 from collections.abc import Callable, Iterator
@@ -227,9 +226,14 @@ def run_one(name: str, data: bytes) -> None:
             pass
 
 
+@functools.lru_cache(maxsize=None)
+def _seeds(name: str) -> tuple[bytes, ...]:
+    return tuple(_SEEDS.get(name, lambda: [b""])())
+
+
 def seeds(name: str) -> list[bytes]:
-    """Valid inputs of each target, to start the fuzzers from (built, not stored)."""
-    return _SEEDS.get(name, lambda: [b""])()
+    """Valid inputs of each target, to start the fuzzers from (built once, not stored)."""
+    return list(_seeds(name))
 
 
 def _store_seeds() -> dict[str, list[bytes]]:
