@@ -115,7 +115,7 @@ def manifest(data: bytes) -> None:
 
 def manifest_json(data: bytes) -> None:
     """A manifest body as JSON text (the fuzzer need not build the binary framing)."""
-    manifest(fmt.pack_manifest_text(data) if hasattr(fmt, "pack_manifest_text") else _frame_manifest(data))
+    manifest(_frame_manifest(data))
 
 
 def _frame_manifest(text: bytes) -> bytes:

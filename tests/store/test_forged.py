@@ -23,7 +23,6 @@ from cclogfs.store.format import (
     MANIFEST,
     MANIFEST_HEADER,
     MANIFEST_MAGIC,
-    Reason,
     crc32c,
     pack_manifest,
     pack_record,
