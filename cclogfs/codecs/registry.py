@@ -62,4 +62,15 @@ def codec_for_record(config: bytes) -> Codec:
     shape cache) per config instead of building one per window. Sharing across threads is
     safe: every codec keeps its zstd contexts and caches per thread (see simple, columnar).
     """
-    return codec_from_config(json.loads(config))
+    try:
+        parsed = json.loads(config)
+    except (ValueError, RecursionError) as err:  # UnicodeDecodeError is a ValueError
+        raise CodecError(f"codec config is not JSON: {str(err)[:80]}") from None
+    try:
+        return codec_from_config(parsed)
+    except CodecError:
+        raise
+    except (TypeError, ValueError, KeyError, AttributeError, OverflowError) as err:
+        # A config no writer produces (a forged or damaged record): a codec's from_config
+        # trusts the shapes its own get_config wrote.
+        raise CodecError(f"codec config {str(parsed)[:80]} is not valid: {type(err).__name__}: {err}") from None

@@ -11,6 +11,7 @@ import errno
 import fcntl
 import functools
 import os
+import stat
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
@@ -29,11 +30,25 @@ _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
 
 def _open_nofollow(path: str, flags: int) -> int:
     try:
-        return os.open(path, flags | _NOFOLLOW, FILE_MODE)
+        fd = os.open(path, flags | _NOFOLLOW, FILE_MODE)
     except OSError as err:
         if err.errno == errno.ELOOP:  # what O_NOFOLLOW gives for a symlink: say it plainly
             raise OSError(errno.ELOOP, "is a symbolic link, which the store never follows", path) from None
         raise
+    # A directory (or fifo, device) named like a store file opens read-only: refuse it here,
+    # by name, rather than fail on the first read with no file named.
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise OSError(errno.EISDIR, "is not a regular file (a directory?), which the store never uses", path)
+    return fd
+
+
+class FileTooLargeError(OSError):
+    """A store file larger than the format allows it to be: never read into memory."""
+
+    def __init__(self, path: str, size: int, limit: int):
+        super().__init__(errno.EFBIG, f"is {size} bytes, over the {limit}-byte limit of the format", path)
+        self.size, self.limit = size, limit
 
 
 _F = TypeVar("_F", bound=Callable[..., Any])
@@ -205,10 +220,15 @@ class FileSystem:
 
     # Convenience built on the calls above.
 
-    def read_file(self, path: str) -> bytes:
+    def read_file(self, path: str, limit: int | None = None) -> bytes:
+        """The whole file; with `limit`, FileTooLargeError when it holds more bytes, checked
+        on its size before anything is read (a sparse file costs no disk, but memory)."""
         fd = self.open(path)
         try:
-            return self.pread(fd, self.size(fd), 0)
+            size = self.size(fd)
+            if limit is not None and size > limit:
+                raise FileTooLargeError(path, size, limit)
+            return self.pread(fd, size, 0)
         finally:
             self.close(fd)
 

@@ -119,6 +119,7 @@ def _decode_all(store: Store, report: FsckReport) -> None:
         for window in windows:
             where = f"{os.path.basename(window.segment_path)}@{window.offset}"
             try:
+                window.meta  # noqa: B018 - a JSON object, like the codec config messages() checks
                 for _ in window.messages():
                     pass
                 report.decoded += 1
@@ -208,7 +209,7 @@ def _check_past_damage(store: Store, fs: FileSystem, info: SealedSegment, seg: S
                        report: FsckReport) -> None:  # fmt: skip
     """The scan cannot frame records past damage, but the index can: check each one."""
     try:
-        index = SegmentIndex.decode(fs.read_file(_index_path(store, info)), seg.first_seq, seg.size)
+        index = SegmentIndex.read(fs, _index_path(store, info), seg.first_seq, seg.size)
     except Exception:  # noqa: BLE001 - no usable index: nothing more can be framed
         report.add("error", os.path.basename(seg.path), f"no usable index: records after offset {offset} "
                                                        "cannot be framed")  # fmt: skip
@@ -232,7 +233,7 @@ def _check_index(store: Store, fs: FileSystem, info: SealedSegment, seg: Segment
     path = _index_path(store, info)
     where = os.path.basename(path)
     try:
-        stored = SegmentIndex.decode(fs.read_file(path), seg.first_seq, seg.size)
+        stored = SegmentIndex.read(fs, path, seg.first_seq, seg.size)
     except FileNotFoundError:
         report.add("warning", where, "missing; the writer rebuilds it from the segment on first use")
         return

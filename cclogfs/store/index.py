@@ -20,11 +20,15 @@ from .format import (
     INDEX_ENTRY_FIELDS,
     INDEX_HEADER,
     INDEX_MAGIC,
-    MAX_NAME,
+    MIN_RECORD,
+    SEGMENT_HEADER_SIZE,
+    CHECKSUMS_OFF,
     Reason,
     RecordError,
+    index_size_limit,
     xxh3,
 )
+from .fs import FileSystem, FileTooLargeError
 
 ENTRY = np.dtype(INDEX_ENTRY_FIELDS)
 
@@ -81,6 +85,17 @@ class SegmentIndex:
         return body + struct.pack("<Q", xxh3(body))
 
     @classmethod
+    def read(cls, fs: FileSystem, path: str, first_seq: int, segment_size: int) -> SegmentIndex:
+        """Load the index file at `path` of the segment (first_seq, segment_size); its size is
+        checked against the limit for that segment before it is read (raises RecordError,
+        or OSError when it cannot be read)."""
+        try:
+            data = fs.read_file(path, limit=index_size_limit(segment_size))
+        except FileTooLargeError as err:
+            raise RecordError(Reason.BAD_LENGTH, err.strerror) from None
+        return cls.decode(data, first_seq, segment_size)
+
+    @classmethod
     def decode(cls, data: bytes, first_seq: int, segment_size: int) -> SegmentIndex:
         """Parse an index file, checking it describes this segment (raises RecordError)."""
         if len(data) < INDEX_HEADER.size + 8:
@@ -91,18 +106,17 @@ class SegmentIndex:
         if version != FILE_VERSION:
             raise RecordError(Reason.UNSUPPORTED_VERSION, f"index version {version}")
         expect = INDEX_HEADER.size + names_len + count * ENTRY.itemsize + 8
-        if len(data) != expect or names_len > count * (MAX_NAME * 6 + 4) + 2:
+        if len(data) != expect or expect > index_size_limit(segment_size):
             raise RecordError(Reason.BAD_LENGTH, f"index is {len(data)} bytes, expected {expect}")
         (digest,) = struct.unpack_from("<Q", data, len(data) - 8)
-        if digest != xxh3(memoryview(data)[:-8]):
+        if digest != xxh3(memoryview(data)[:-8]) and "index" not in CHECKSUMS_OFF:
             raise RecordError(Reason.PAYLOAD_HASH, "index checksum")
         if seq != first_seq or size != segment_size:
             raise RecordError(Reason.INDEX_MISMATCH, "index describes another version of the segment")
         pos = INDEX_HEADER.size
-        names = json.loads(data[pos : pos + names_len])
+        names = _names(data[pos : pos + names_len], count)
         entries = np.frombuffer(data, ENTRY, count, pos + names_len).copy()
-        if len(entries) and int(entries["stream"].max()) >= len(names):
-            raise RecordError(Reason.BAD_FIELD, "index entry names an unknown stream")
+        _check_entries(entries, len(names), segment_size)
         return cls(names, entries)
 
     def stream_stats(self) -> dict[str, dict[str, int]]:
@@ -119,6 +133,34 @@ class SegmentIndex:
                 "stored_bytes": int(e["length"].sum()),
             }
         return out
+
+
+def _names(raw: bytes, count: int) -> list[str]:
+    """The index's stream names: a JSON list of distinct, non-empty strings."""
+    try:
+        names = json.loads(raw)
+    except (ValueError, RecursionError):  # UnicodeDecodeError is a ValueError
+        raise RecordError(Reason.BAD_FIELD, "index stream names are not JSON") from None
+    if (not isinstance(names, list) or not all(isinstance(n, str) and n for n in names)
+            or len(set(names)) != len(names) or len(names) > count):  # fmt: skip
+        raise RecordError(Reason.BAD_FIELD, "index stream names are not a list of distinct names")
+    return names
+
+
+def _check_entries(entries: np.ndarray, streams: int, segment_size: int) -> None:
+    """Every entry names a known stream and a stretch of the segment a record can fill:
+    reads trust offset and length to size what they read."""
+    if not len(entries):
+        return
+    start, length = entries["offset"], entries["length"]
+    if int(entries["stream"].max()) >= streams:
+        raise RecordError(Reason.BAD_FIELD, "index entry names an unknown stream")
+    bad = ((start < SEGMENT_HEADER_SIZE) | (length < MIN_RECORD) | (length > segment_size)
+           | (start > segment_size - length) | (entries["count"] < 1) | (entries["end"] < entries["start"]))  # fmt: skip
+    if bad.any():
+        e = entries[int(np.argmax(bad))]
+        raise RecordError(Reason.BAD_FIELD, f"index entry of seq {int(e['seq'])} (offset {int(e['offset'])}, "
+                                            f"{int(e['length'])} bytes) lies outside its segment or is empty")  # fmt: skip
 
 
 def merge_stream_stats(total: dict[str, dict[str, int]], stats: dict[str, dict[str, int]]) -> None:

@@ -19,14 +19,17 @@ from ..errors import CorruptionError, StoreError
 from .format import (
     FORMAT_VERSION,
     FORMAT_VERSIONS,
+    Reason,
     RecordError,
     index_name,
+    manifest_size_limit,
     pack_manifest,
     segment_name,
     unpack_manifest,
 )
-from .fs import FileSystem
+from .fs import FileSystem, FileTooLargeError
 from .index import merge_stream_stats
+from .manifest_check import body_version, check_body
 
 
 @dataclass(frozen=True)
@@ -188,17 +191,29 @@ class Manifest(Mapping[str, Any]):
         """Make this version the store's: one atomic replace of the MANIFEST file."""
         fs.write_file_atomic(path, pack_manifest(self._body))
 
+    @staticmethod
+    def read_bytes(fs: FileSystem, path: str) -> bytes:
+        """The MANIFEST file's bytes, its size checked against the format's limit first."""
+        try:
+            return fs.read_file(path, limit=manifest_size_limit())
+        except FileTooLargeError as err:
+            raise CorruptionError(f"{path} is damaged: {Reason.BAD_LENGTH}: {err.strerror}", path=path,
+                                  offset=0, reason=Reason.BAD_LENGTH) from None  # fmt: skip
+
     @classmethod
     def load(cls, fs: FileSystem, path: str) -> tuple[Manifest, bytes]:
-        """Read and check the MANIFEST file; the version and the bytes it was read from."""
-        raw = fs.read_file(path)
+        """Read and check the MANIFEST file (every field: manifest_check); the version and
+        the bytes it was read from."""
+        raw = cls.read_bytes(fs, path)
         try:
-            manifest = cls(unpack_manifest(raw))
+            body = unpack_manifest(raw)
+            version = body_version(body)
+            if version in FORMAT_VERSIONS:  # a newer version may hold what this one does not know
+                check_body(body)
         except RecordError as err:
             raise CorruptionError(f"{path} is damaged: {err}", path=path, offset=0,
                                   reason=err.reason) from err  # fmt: skip
-        version = manifest.get("format_version")
         if version not in FORMAT_VERSIONS:
             raise StoreError(f"{path}: field format_version is {version!r}, which this cclogfs cannot read "
                              f"(it reads versions {', '.join(map(str, FORMAT_VERSIONS))}); use a newer cclogfs")  # fmt: skip
-        return manifest, raw
+        return cls(body), raw

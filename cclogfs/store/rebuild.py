@@ -38,7 +38,11 @@ def rebuild_manifest(fs: FileSystem, path: str, codec_config: dict[str, Any]) ->
         infos.append(info)
         gen_seen = max(gen_seen, seg_gen)
     for _first, _gen, name in chosen[-1:]:
-        head = fs.read_file(os.path.join(path, name))[:SEGMENT_HEADER_SIZE]
+        fd = fs.open(os.path.join(path, name))
+        try:
+            head = fs.pread(fd, SEGMENT_HEADER_SIZE, 0)  # a segment may be gigabytes: its header only
+        finally:
+            fs.close(fd)
         gen_seen = max(gen_seen, segment_manifest_gen(head))
         parsed = unpack_segment_header(head)
         created = parsed[1] if parsed else created

@@ -13,7 +13,15 @@ import threading
 from dataclasses import dataclass, field
 
 from ..errors import CorruptionError
-from .format import MANIFEST, SEGMENT_HEADER_SIZE, Reason, parse_seq_name, segment_manifest_gen, segment_name
+from .format import (
+    MANIFEST,
+    SEGMENT_HEADER_SIZE,
+    Reason,
+    parse_seq_name,
+    segment_manifest_gen,
+    segment_name,
+    unpack_segment_header,
+)
 from .fs import FileSystem
 from . import planted
 from .manifest import Manifest
@@ -57,6 +65,13 @@ def _is_leftover(manifest: Manifest, first_seq: int, gen: int) -> bool:
     return gen > 0 or first_seq in sealed_firsts or first_seq < manifest.first_seq
 
 
+def _dropped_leftover(manifest: Manifest, name: str) -> bool:
+    """A generation-0 segment file that only a dropped segment explains (before first_seq)."""
+    first_seq, kind, gen = parse_seq_name(name)
+    named = {info["first_seq"] for info in manifest.segments}
+    return kind == "seg" and gen == 0 and first_seq < manifest.first_seq and first_seq not in named
+
+
 def _sort_files(names: list[str], manifest: Manifest) -> _Files:
     named = {(info["first_seq"], info.get("gen", 0)) for info in manifest.segments}
     files = _Files()
@@ -92,6 +107,7 @@ class SegmentOpener:
         try:
             files = _sort_files(self.fs.listdir(self.path), manifest)
             self._refuse_rolled_back(manifest, files)
+            self._refuse_disagreeing(manifest, files)
             self._open_sealed(manifest, files)
             self._remove_leftovers(files)
             self._refuse_missing_active(manifest, files)
@@ -122,6 +138,37 @@ class SegmentOpener:
                     "nothing was changed (restore the current MANIFEST)",
                     path=self._file(MANIFEST), reason=Reason.ROLLED_BACK,
                 )  # fmt: skip
+
+    def _refuse_disagreeing(self, manifest: Manifest, files: _Files) -> None:
+        """A manifest whose CRC holds can still disagree with the files (forged, or written
+        by another tool): refuse before acting on it, for what it would make the writer
+        delete or readers skip. (Each field's type and range is checked on load.)"""
+        first = manifest.first_seq
+        dropped = sorted(n for n in files.leftovers if _dropped_leftover(manifest, n))
+        starts_at_first = bool(manifest.segments) or first in files.tail
+        if dropped and not starts_at_first:
+            raise self._disagrees("first_seq", first, f"no segment starts there, yet {dropped[0]} would be "
+                                                      "deleted as a segment dropped before it")  # fmt: skip
+        for seq, name in sorted(files.tail.items()):
+            inside = next((i for i in manifest.segments if i["first_seq"] < seq < i["end_seq"]), None)
+            if inside is not None and self._names_itself(name, seq):
+                i = manifest.segments.index(inside)
+                raise self._disagrees(f"segments[{i}].end_seq", inside["end_seq"], f"{name}, a segment whose "
+                                      f"header says it starts at seq {seq}, lies inside it")  # fmt: skip
+
+    def _names_itself(self, name: str, seq: int) -> bool:
+        """Whether the file's segment header is intact and states the seq its name does."""
+        fd = self.fs.open(self._file(name))
+        try:
+            parsed = unpack_segment_header(self.fs.pread(fd, SEGMENT_HEADER_SIZE, 0))
+        finally:
+            self.fs.close(fd)
+        return parsed is not None and parsed[0] == seq
+
+    def _disagrees(self, field: str, value: int, why: str) -> CorruptionError:
+        return CorruptionError(f"{self._file(MANIFEST)}: field {field} is {value}, but {why}: the manifest "
+                               "does not agree with the segment files; nothing was changed",
+                               path=self._file(MANIFEST), reason=Reason.BAD_FIELD)  # fmt: skip
 
     def _refuse_missing_active(self, manifest: Manifest, files: _Files) -> None:
         """The active segment a clean close proved to hold records must be there: without

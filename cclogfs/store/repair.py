@@ -16,8 +16,8 @@ from dataclasses import dataclass, field
 
 from ..codecs import codec_from_config
 from ..errors import CclogError, CorruptionError
-from .format import AGED_META_KEY, MANIFEST, QUARANTINE, SIDE_FILE, check_fields
-from .fs import FileSystem
+from .format import AGED_META_KEY, MANIFEST, QUARANTINE, SIDE_FILE, check_fields, index_size_limit
+from .fs import FileSystem, FileTooLargeError
 from .records import intact_records
 from .index import SegmentIndex
 from .manifest import Manifest
@@ -79,7 +79,9 @@ def _rebuild_indexes(store: Store, report: RepairReport) -> None:
     for seg in list(store.sealed):
         path = store.file_path(os.path.basename(store._index_path(seg)))
         try:
-            before = store.fs.read_file(path)
+            before = store.fs.read_file(path, limit=index_size_limit(seg.size))
+        except FileTooLargeError:
+            before = b""  # never read: far larger than any index of this segment
         except FileNotFoundError:
             before = None
         seg.set_index(None)

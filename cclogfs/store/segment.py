@@ -147,7 +147,7 @@ class Segment:
         try:
             if self.index_untrusted:
                 raise ValueError("a record did not match its index entry")
-            self._index = SegmentIndex.decode(self.fs.read_file(index_path), self.first_seq, self.size)
+            self._index = SegmentIndex.read(self.fs, index_path, self.first_seq, self.size)
         except (OSError, RecordError, ValueError, TypeError):
             # Damage the manifest declares is known and skipped; any other is corruption.
             result = scan(self, salvage=bool(self.known_damage))

@@ -197,7 +197,7 @@ class Store:
         fd = self.fs.lock(path)
         if fd is None:
             try:
-                holder = self.fs.read_file(path).decode(errors="replace").strip() or "unknown"
+                holder = self.fs.read_file(path, limit=4096).decode(errors="replace").strip() or "unknown"
             except OSError:
                 holder = "unknown"
             raise StoreLockedError(f"{self.path} is locked by another writer ({holder}); "
@@ -220,7 +220,7 @@ class Store:
                 self._open_segments(self.recovery.removed_files)
                 # A reader must see files and manifest of one moment: if the manifest
                 # changed meanwhile, a segment may have been sealed and rewritten under it.
-                if not self.readonly or self.fs.read_file(self.file_path(MANIFEST)) == raw:
+                if not self.readonly or Manifest.read_bytes(self.fs, self.file_path(MANIFEST)) == raw:
                     return
             except (CorruptionError, FileNotFoundError) as err:
                 # A reader that read the manifest before a writer's commit sees later files:

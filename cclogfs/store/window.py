@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..codecs import codec_for_record, codec_numeric_id
-from ..errors import CodecError, CorruptionError, StoreError
+from ..errors import CodecError, CorruptionError, StoreError, UnknownCodecError
 from . import planted
 from .format import AGED_META_KEY, Reason, RecordFlag, RecordHeader
 from .segment import Segment
@@ -84,13 +84,28 @@ class Window:
         """The segment file holding the record."""
         return self._segment.path
 
+    def _json_field(self, field: str, raw: bytes) -> dict[str, Any]:
+        """A record's meta or codec config: a JSON object. The header CRC holds, so anything
+        else was written by another tool or forged: damage, named like any other."""
+        try:
+            value = json.loads(raw)
+        except (ValueError, RecursionError):  # UnicodeDecodeError is a ValueError
+            value = None
+        if not isinstance(value, dict):
+            raise CorruptionError(
+                f"{self._segment.path}: record at offset {self._offset} (seq {self.seq}): its {field} is not "
+                f"a JSON object ({bytes(raw[:40])!r})",
+                path=self._segment.path, offset=self._offset, reason=Reason.BAD_FIELD,
+            )  # fmt: skip
+        return value
+
     @property
     def meta(self) -> dict[str, Any]:
-        return json.loads(self._read()[0].meta)
+        return self._json_field("meta", self._read()[0].meta)
 
     @property
     def codec_config(self) -> dict[str, Any]:
-        return json.loads(self._read()[0].config)
+        return self._json_field("codec config", self._read()[0].config)
 
     @property
     def stored_bytes(self) -> int:
@@ -105,12 +120,20 @@ class Window:
     def aged(self) -> Any:
         """How the texts differ from what was put (meta key "aged"), or None when byte-exact."""
         header = self._read()[0]
-        return json.loads(header.meta).get(AGED_META_KEY) if header.flags & RecordFlag.AGED else None
+        return self._json_field("meta", header.meta).get(AGED_META_KEY) if header.flags & RecordFlag.AGED else None
 
     def messages(self) -> Iterator[tuple[int, str]]:
         """(stamp_ns, JSON text) of each message, exactly as put."""
         header, payload = self._read()
-        codec = codec_for_record(header.config)
+        self._json_field("codec config", header.config)
+        try:
+            codec = codec_for_record(header.config)
+        except UnknownCodecError:
+            raise  # intact, written by a newer cclogfs: not damage
+        except CodecError as err:
+            raise CorruptionError(f"{self._segment.path}: record at offset {self._offset} (seq {self.seq}): "
+                                  f"its codec config cannot be used: {err}", path=self._segment.path,
+                                  offset=self._offset, reason=Reason.BAD_FIELD) from None  # fmt: skip
         if codec_numeric_id(codec) != header.codec:
             raise CorruptionError(
                 f"{self._segment.path}: record at offset {self._offset} names codec "

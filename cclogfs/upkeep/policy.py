@@ -219,7 +219,10 @@ class Policy:
         shape = "".join(blank)
         slots = self._shapes.get(shape)
         if slots is None:
-            slots = self._slots(text)
+            try:
+                slots = self._slots(text)
+            except (IndexError, json.JSONDecodeError):  # the lexer follows JSON's nesting and strings
+                raise InvalidInputError("Cannot age a message that is not JSON (its nesting is broken).") from None
             if len(self._shapes) >= _SHAPE_CACHE_MAX:
                 self._shapes.clear()
             self._shapes[shape] = slots
@@ -255,6 +258,8 @@ class Policy:
             elif punct == "[":
                 stack.append(["arr", None])
             elif punct in ("}", "]"):
+                if not stack:  # a close with nothing open: not JSON (`]`, `{"a":1}}`)
+                    raise InvalidInputError(f"Cannot age a message that is not JSON (character {pos - 1}).")
                 kind, key = stack.pop()
                 if stack and stack[-1][0] == "obj":
                     path.pop()

@@ -256,8 +256,8 @@ class RaceFileSystem(FileSystem):
     def __init__(self, after_manifest):
         self.after_manifest = after_manifest
 
-    def read_file(self, path):
-        data = super().read_file(path)
+    def read_file(self, path, limit=None):
+        data = super().read_file(path, limit)
         if path.endswith(MANIFEST) and self.after_manifest:
             self.after_manifest.pop(0)()
         return data
