@@ -29,6 +29,7 @@ from cclogfs.errors import CclogError
 from cclogfs.store.format import (
     LOCK,
     MANIFEST,
+    RESERVE,
     RecordError,
     parse_seq_name,
     unpack_manifest,
@@ -65,7 +66,8 @@ def build(root: Path, windows: int, segment_records: int) -> Oracle:
         store.sync()
         with cclogfs.open_store(path, readonly=True) as reader:
             seen = {w.seq: (w.name, list(w.messages())) for w in reader.query()}
-        files = {p.name: p.read_bytes() for p in path.iterdir() if p.is_file()}
+        # RESERVE is preallocated space nothing ever reads (FORMAT.md, "Reserve"): no parser to damage.
+        files = {p.name: p.read_bytes() for p in path.iterdir() if p.is_file() and p.name != RESERVE}
     first_seg = files["00000000000000000000.seg"]
     files[SIDE] = first_seg[32:][:2048]  # what recovery keeps when it cuts at the first record
     files[LOCK] = b'{"pid": 1234, "host": "robot"}'
