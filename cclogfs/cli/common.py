@@ -45,7 +45,9 @@ def time_arg(text: str) -> int:
 def add_selection(p: argparse.ArgumentParser) -> None:
     """STORE, --topic, --start, --end: the arguments cat and export share."""
     p.add_argument("store", help="store directory")
-    p.add_argument("--topic", action="append", metavar="T", help="only stream T (repeatable)")
+    p.add_argument("--topic", action="append", metavar="T",
+                   help="only stream T (repeatable); default: every stream but /cclog/runs, the store's "
+                        "record of its recording runs (`cclog info` lists them)")
     p.add_argument("--start", type=time_arg, metavar="TIME", help=f"from this time on ({TIME_RULE})")
     p.add_argument("--end", type=time_arg, metavar="TIME", help="up to this time (inclusive)")
     p.add_argument("--skip-damaged", action="store_true",
@@ -106,13 +108,15 @@ def nothing_matched(store, args: argparse.Namespace) -> InvalidInputError:
 def selected_windows(store, args: argparse.Namespace, skipped: Skipped | None = None):
     """The store's windows for the chosen topics and times, in start order. With
     `skipped` collecting (--skip-damaged), damaged windows are left out and noted there."""
+    from ..runs import hidden_by_default
+
     check_range(args)
     topics = set(args.topic or ())
     name = next(iter(topics)) if len(topics) == 1 else None
     skip = skipped is not None and skipped.skip
     for w in store.query(name, start_ns=args.start, end_ns=args.end, skip_damaged=skip):
-        if topics and w.name not in topics:
-            continue
+        if w.name not in topics if topics else hidden_by_default(w.name):
+            continue  # without --topic, the bookkeeping of runs is left out: only messages
         if skip:
             try:
                 w.check()
