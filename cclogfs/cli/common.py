@@ -102,7 +102,13 @@ def nothing_matched(store, args: argparse.Namespace) -> InvalidInputError:
     wanted = " or ".join(args.topic or ["any topic"])
     times = f" between {args.start if args.start is None else iso_ns(args.start)} and " \
             f"{args.end if args.end is None else iso_ns(args.end)}" if args.start is not None or args.end is not None else ""
-    return InvalidInputError(f"There is no message of {wanted}{times} in {store.path}; {what_exists(store.streams())}.")
+    from ..runs import hidden_by_default
+
+    if not any(hidden_by_default(t) for t in args.topic or ()):  # the runs' wall-clock span only when asked for
+        streams = {n: st for n, st in store.streams().items() if not hidden_by_default(n)}
+    else:
+        streams = store.streams()
+    return InvalidInputError(f"There is no message of {wanted}{times} in {store.path}; {what_exists(streams)}.")
 
 
 def selected_windows(store, args: argparse.Namespace, skipped: Skipped | None = None):

@@ -32,6 +32,10 @@ examples:
   cclog record - --store robot.store --model odom.model --budget 20GiB \\
       --age-older-than 7d --age-error 1e-3      # the disk never fills; old windows shrink
 
+Each run is kept in the store (stream /cclog/runs: source, options, start, end; `cclog info`
+lists them). A file the store holds a run of already (same content, any name) is refused,
+since its messages would be stored twice; --append records it again as a new run.
+
 JSON Lines: one message per line, {"topic": "/odom", "stamp_ns": 1432235695834049087, "msg": {...}}.
 A damaged ROS 1 bag or MCAP file (cut short, index lost) is recorded as far as it can be
 read; stderr says what was lost and the exit code is 4.
@@ -263,12 +267,13 @@ def _begin_run(args: argparse.Namespace, store, source):
 def _end_run(run, stats: RecordStats, received: list[int], error: BaseException | None) -> None:
     """Write the run's end: what it saw and kept, and how it ended. After an error the store
     may have failed too; the error that stopped the run is what the user must see."""
-    status = "error" if error is not None else "interrupted" if stats.interrupted else "done"
+    interrupted = stats.interrupted or isinstance(error, KeyboardInterrupt)
+    status = "interrupted" if interrupted else "error" if error is not None else "done"
     counts = {"messages_in": stats.messages_in, "messages_kept": stats.messages_kept, "windows": stats.windows,
               "topics_kept": dict(sorted(stats.topics_kept.items()))}  # fmt: skip
     if received:
         counts["signal"] = signal.Signals(received[0]).name
-    if error is not None:
+    if error is not None and not interrupted:
         counts["error"] = str(error) or type(error).__name__
     try:
         run.end(status, **counts)

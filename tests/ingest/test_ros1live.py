@@ -24,6 +24,7 @@ from cclogfs.ingest import open_source
 from cclogfs.ingest.ros1live import TopicMatcher
 from cclogfs.ingest.ros1testing import (play, published, roscore, ros1_missing, start, stop, subscribers, wait_for,
                                         write_ros1_bag)  # fmt: skip
+from cclogfs.runs import list_runs
 
 CCLOG = [sys.executable, "-m", "cclogfs"]
 
@@ -56,7 +57,7 @@ def bag_messages(bag, topics=None):
         return by_topic((m.topic, m.text) for m in src)
 
 
-def store_messages(path, skip=("/cclog/summary",)):
+def store_messages(path, skip=("/cclog/summary", "/cclog/runs")):
     with open_store(path, readonly=True) as store:
         return by_topic((w.name, t) for w in store.query() if w.name not in skip for _, t in w.messages())
 
@@ -341,6 +342,29 @@ def test_stop_ends_the_recording_while_a_topic_keeps_publishing(master, tmp_path
     total, topics = lost_lines(err)
     n = store_messages(tmp_path / "s")["/chatter"].total()
     assert n > 0 and topics[0] == f"/chatter: {n:,} received, not checked (std_msgs/String has no header.seq)", err
+
+
+def test_a_live_recording_is_a_run_and_is_never_refused(master, tmp_path):
+    # A live master has no fixed content to compare: recording it again is a new run, not a copy.
+    talker = start(["rostopic", "pub", "-r", "50", "/chatter", "std_msgs/String", "data: hi"], master,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    try:
+        for _ in range(2):
+            rec = recorder(master, tmp_path / "s", "--topic", "/chatter")
+            try:
+                wait_subscribed(master, "/chatter")
+                finish(rec, after_s=1.0)
+            finally:
+                stop(rec)
+    finally:
+        stop(talker)
+    with open_store(tmp_path / "s", readonly=True) as store:
+        runs = list_runs(store)
+        kept = store.streams()["/chatter"]["messages"]
+    assert [(r.number, r.source, r.status) for r in runs] == [(1, "ros1://", "done"), (2, "ros1://", "done")]
+    assert {r.start["master"] for r in runs} == {master["ROS_MASTER_URI"]}
+    assert runs[0].options == {"topic": ["/chatter"]} and runs[0].end["signal"] == "SIGINT"
+    assert runs[0].kept > 0 and runs[0].kept + runs[1].kept == kept
 
 
 def test_topics_that_match_nothing_or_deliver_nothing_are_said(master, tmp_path):
