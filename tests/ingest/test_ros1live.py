@@ -123,7 +123,7 @@ def test_latched_topic_is_received_after_it_was_published(master, shared_data, t
         stop(publisher)
     assert store_messages(tmp_path / "s") == {"/tf_static": bag_messages(bag)["/tf_static"]}, err
     with open_store(tmp_path / "s", readonly=True) as store:
-        assert next(iter(store.query())).meta["latching"] is True
+        assert next(iter(store.query("/tf_static"))).meta["latching"] is True
 
 
 @pytest.fixture(scope="module")
@@ -222,7 +222,7 @@ def test_play_to_ros1_publishes_every_message_with_its_type_and_clock(master, sh
     assert back == store_messages(tmp_path / "orig") == bag_messages(bag)
     stamps = sorted(int(json.loads(t)["clock"]["sec"]) * 10**9 + json.loads(t)["clock"]["nanosec"] for t in clock)
     with open_store(tmp_path / "orig", readonly=True) as store:
-        want = sorted(s for w in store.query() for s, _ in w.messages())
+        want = sorted(s for w in store.query() if w.name != "/cclog/runs" for s, _ in w.messages())
     assert stamps == want  # one /clock per message, at its stamp
     with open_store(tmp_path / "back", readonly=True) as store:
         assert {w.meta["msgtype"] for w in store.query("/tf")} == {"tf2_msgs/msg/TFMessage"}
