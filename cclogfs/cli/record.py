@@ -264,15 +264,20 @@ def _begin_run(args: argparse.Namespace, store, source):
     return begin_run(store, name, fingerprint=fingerprint, options=_options(args), **extra)
 
 
-def _end_run(run, stats: RecordStats, received: list[int], error: BaseException | None) -> None:
-    """Write the run's end: what it saw and kept, and how it ended. After an error the store
-    may have failed too; the error that stopped the run is what the user must see."""
+def _end_run(run, source, stats: RecordStats, received: list[int], error: BaseException | None) -> None:
+    """Write the run's end: what it saw and kept, what the source says it lost, and how it
+    ended. After an error the store may have failed too; the error that stopped the run is
+    what the user must see."""
     interrupted = stats.interrupted or isinstance(error, KeyboardInterrupt)
     status = "interrupted" if interrupted else "error" if error is not None else "done"
     counts = {"messages_in": stats.messages_in, "messages_kept": stats.messages_kept, "windows": stats.windows,
               "topics_kept": dict(sorted(stats.topics_kept.items()))}  # fmt: skip
     if received:
         counts["signal"] = signal.Signals(received[0]).name
+    if getattr(source, "lost", None):  # a damaged file: where reading stopped
+        counts["input_lost"] = source.lost
+    if getattr(source, "seq", None) is not None:  # a live source: messages lost, told from header.seq
+        counts["seq_lost"] = source.seq.lost
     if error is not None and not interrupted:
         counts["error"] = str(error) or type(error).__name__
     try:
@@ -312,9 +317,9 @@ def _run(args: argparse.Namespace) -> int:
             try:
                 rows, final_bytes = _record_run(args, store, source, policy, upkeep, progress, stats)
             except BaseException as err:
-                _end_run(run, stats, received, err)
+                _end_run(run, source, stats, received, err)
                 raise
-            _end_run(run, stats, received, None)
+            _end_run(run, source, stats, received, None)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)

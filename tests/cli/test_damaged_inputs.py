@@ -11,7 +11,7 @@ from rosbags.rosbag1 import Writer as Bag1Writer
 
 import cclogfs
 from cclogfs.cli import main
-from cclogfs.runs import hidden_by_default
+from cclogfs.runs import hidden_by_default, list_runs
 
 
 def many_chunk_bag(src, dst):
@@ -71,6 +71,8 @@ def test_truncated_inputs_keep_what_can_be_read(shared_data, tmp_path, capsys, k
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
         kept = [t["messages"] for n, t in store.streams().items() if not hidden_by_default(n)]  # not the run's records
         assert sum(kept) == len(got)
+        (run,) = list_runs(store)  # the run says what its input lost
+    assert run.status == "done" and "damaged" in run.end["input_lost"] and run.kept == len(got)
 
 
 def test_a_failed_run_leaves_no_empty_store(tmp_path, capsys):

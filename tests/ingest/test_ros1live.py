@@ -364,6 +364,7 @@ def test_a_live_recording_is_a_run_and_is_never_refused(master, tmp_path):
     assert [(r.number, r.source, r.status) for r in runs] == [(1, "ros1://", "done"), (2, "ros1://", "done")]
     assert {r.start["master"] for r in runs} == {master["ROS_MASTER_URI"]}
     assert runs[0].options == {"topic": ["/chatter"]} and runs[0].end["signal"] == "SIGINT"
+    assert runs[0].end["seq_lost"] == 0  # std_msgs/String has no header.seq: nothing known lost
     assert runs[0].kept > 0 and runs[0].kept + runs[1].kept == kept
 
 
