@@ -22,6 +22,7 @@ from cclogfs import open_store
 from cclogfs.errors import InvalidInputError
 from cclogfs.ingest import open_source
 from cclogfs.ingest.ros1live import TopicMatcher
+from cclogfs.ingest.ros1testing import master as master_proxy
 from cclogfs.ingest.ros1testing import (play, published, roscore, ros1_missing, start, stop, subscribers, wait_for,
                                         write_ros1_bag)  # fmt: skip
 from cclogfs.runs import list_runs
@@ -80,6 +81,12 @@ def finish(proc, after_s=1.0, sig=signal.SIGINT, rc=0):
 def played(proc, timeout=120):
     _, err = proc.communicate(timeout=timeout)
     assert proc.returncode == 0, err
+
+
+def recorder_nodes(env):
+    """The recorders' nodes the master knows, from the services each rospy node offers."""
+    _, _, services = master_proxy(env).getSystemState("/cclog_test")[2]
+    return {name.rsplit("/", 1)[0] for name, _ in services if name.startswith("/cclog_record")}
 
 
 def wait_subscribed(env, topic, timeout=30):
@@ -372,7 +379,10 @@ def test_topics_that_match_nothing_or_deliver_nothing_are_said(master, tmp_path)
     # A --topic pattern no topic matches waited in silence, and a subscribed topic that
     # delivered nothing (a non-latched /tf_static published before the subscription) was
     # left out of the report: the user could not tell it had been missed.
+    before = recorder_nodes(master)
     rec = recorder(master, tmp_path / "none.store", "--topic", "/nothing.*")
+    # Its node is on the master: it is past its imports (2 s were not always enough on a loaded machine).
+    wait_for(lambda: recorder_nodes(master) - before, 60, "the recorder's node")
     err = finish(rec, after_s=2.0, sig=signal.SIGTERM, rc=1)  # nothing recorded: an error (issue 12)
     assert "no topic on the master matches" in err.splitlines()[0], err
     rec = recorder(master, tmp_path / "quiet.store", "--topic", "/never_published")
