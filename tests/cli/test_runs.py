@@ -97,25 +97,42 @@ def test_cat_and_export_leave_the_runs_out_unless_named(shared_data, tmp_path, c
 def _feed(proc, n: int) -> None:
     for i in range(n):
         proc.stdin.write(json.dumps({"topic": "/a", "stamp_ns": 10**18 + i, "msg": {"i": i}}) + "\n")
-        proc.stdin.flush()
-        time.sleep(0.01)
+    proc.stdin.flush()
+
+
+def _wait_started(store_path, runs: int, timeout: float = 60) -> None:
+    """Until a reader sees `runs` runs: the start record is synced before the first message
+    is read (a fixed sleep was not enough on a loaded machine)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            with cclogfs.open_store(store_path, readonly=True) as store:
+                if len(list_runs(store)) == runs:
+                    return
+        except cclogfs.CclogError:
+            pass  # not created yet
+        time.sleep(0.1)
+    raise TimeoutError(f"{store_path}: not {runs} runs after {timeout} s")
 
 
 def test_an_interrupted_and_a_killed_run_are_told_apart(tmp_path, capsys):
     store = tmp_path / "s"
-    for sig in (signal.SIGINT, signal.SIGKILL):
+    stored = []
+    for n, sig in enumerate((signal.SIGINT, signal.SIGKILL), start=1):
         proc = subprocess.Popen([*CCLOG, "record", "-", "--store", str(store), "--sync-ms", "50"],
                                 stdin=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)  # fmt: skip
         try:
-            _feed(proc, 100)
-            time.sleep(1.0)  # the start record is synced before the first message is read
+            _feed(proc, 100)  # the pipe stays open: the run waits for more
+            _wait_started(store, runs=n)
+            time.sleep(0.5)
             proc.send_signal(sig)
         finally:
             proc.wait(timeout=60)
         assert proc.returncode == (130 if sig == signal.SIGINT else -9)
+        stored.append(messages(store))
     runs = info_json(store, capsys)["runs"]
     assert [(r["run"], r["source"], r["status"]) for r in runs] == [(1, "-", "interrupted"), (2, "-", "unfinished")]
-    assert runs[0]["signal"] == "SIGINT" and runs[0]["messages_kept"] == 100
+    assert runs[0]["signal"] == "SIGINT" and runs[0]["messages_kept"] == stored[0] > 0  # what it stored
     assert runs[1]["end_ns"] is None and "messages_kept" not in runs[1]
     assert main(["info", str(store)]) == 0
     out = capsys.readouterr().out
