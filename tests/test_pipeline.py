@@ -124,12 +124,12 @@ def test_malformed_line_stops_and_keeps_what_came_before(tmp_path):
     out, err = proc.communicate("".join(lines), timeout=60)
     assert proc.returncode == 1 and "line 31" in err
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
-        assert [t for w in store.query() for t, _ in w.messages()] == list(range(30))
+        assert [t for w in store.query("/odom") for t, _ in w.messages()] == list(range(30))
     proc = run_cli("record", "-", "--store", str(tmp_path / "s2"), "--on-error", "skip")
     out, err = proc.communicate("".join(lines), timeout=60)
     assert proc.returncode == 0 and "skipped" in err and "line 31" in err
     with cclogfs.open_store(tmp_path / "s2", readonly=True) as store:
-        assert sum(w.count for w in store.query()) == 50
+        assert sum(w.count for w in store.query("/odom")) == 50
 
 
 def test_sigterm_flushes_and_closes_cleanly(tmp_path):
@@ -147,7 +147,7 @@ def test_sigterm_flushes_and_closes_cleanly(tmp_path):
     assert proc.returncode == 143 and "interrupted" in err, err  # 128 + SIGTERM, as shells expect (issue 12)
     with cclogfs.open_store(tmp_path / "s") as store:
         assert store.recovery.clean, err  # closed cleanly, nothing torn
-        assert [t for w in store.query() for t, _ in w.messages()] == list(range(20)), err
+        assert [t for w in store.query("/odom") for t, _ in w.messages()] == list(range(20)), err
 
 
 def test_logger_embedded_in_a_live_program(tmp_path, shared_data):

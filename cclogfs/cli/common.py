@@ -45,7 +45,9 @@ def time_arg(text: str) -> int:
 def add_selection(p: argparse.ArgumentParser) -> None:
     """STORE, --topic, --start, --end: the arguments cat and export share."""
     p.add_argument("store", help="store directory")
-    p.add_argument("--topic", action="append", metavar="T", help="only stream T (repeatable)")
+    p.add_argument("--topic", action="append", metavar="T",
+                   help="only stream T (repeatable); default: every stream but /cclog/runs, the store's "
+                        "record of its recording runs (`cclog info` lists them)")
     p.add_argument("--start", type=time_arg, metavar="TIME", help=f"from this time on ({TIME_RULE})")
     p.add_argument("--end", type=time_arg, metavar="TIME", help="up to this time (inclusive)")
     p.add_argument("--skip-damaged", action="store_true",
@@ -100,19 +102,27 @@ def nothing_matched(store, args: argparse.Namespace) -> InvalidInputError:
     wanted = " or ".join(args.topic or ["any topic"])
     times = f" between {args.start if args.start is None else iso_ns(args.start)} and " \
             f"{args.end if args.end is None else iso_ns(args.end)}" if args.start is not None or args.end is not None else ""
-    return InvalidInputError(f"There is no message of {wanted}{times} in {store.path}; {what_exists(store.streams())}.")
+    from ..runs import hidden_by_default
+
+    if not any(hidden_by_default(t) for t in args.topic or ()):  # the runs' wall-clock span only when asked for
+        streams = {n: st for n, st in store.streams().items() if not hidden_by_default(n)}
+    else:
+        streams = store.streams()
+    return InvalidInputError(f"There is no message of {wanted}{times} in {store.path}; {what_exists(streams)}.")
 
 
 def selected_windows(store, args: argparse.Namespace, skipped: Skipped | None = None):
     """The store's windows for the chosen topics and times, in start order. With
     `skipped` collecting (--skip-damaged), damaged windows are left out and noted there."""
+    from ..runs import hidden_by_default
+
     check_range(args)
     topics = set(args.topic or ())
     name = next(iter(topics)) if len(topics) == 1 else None
     skip = skipped is not None and skipped.skip
     for w in store.query(name, start_ns=args.start, end_ns=args.end, skip_damaged=skip):
-        if topics and w.name not in topics:
-            continue
+        if w.name not in topics if topics else hidden_by_default(w.name):
+            continue  # without --topic, the bookkeeping of runs is left out: only messages
         if skip:
             try:
                 w.check()

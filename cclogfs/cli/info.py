@@ -16,7 +16,8 @@ EXAMPLES = """examples:
 HELP = "streams, windows, messages, time span and sizes of a store"
 DESCRIPTION = (
     "Show what a store holds: per stream the windows, messages, time span, "
-    "stored bytes, codec and the ratio against the messages' JSON."
+    "stored bytes, codec and the ratio against the messages' JSON; then the recording runs "
+    "(/cclog/runs: when, how each ended, what it kept, source and options)."
 )
 
 
@@ -29,11 +30,13 @@ def store_info(path: str) -> dict:
     """Everything `cclog info` prints, as a dict."""
     # Imported here, not at the top: `cclog --help` imports every subcommand module.
     from ..classifier.summary import SUMMARY_TOPIC
+    from ..runs import hidden_by_default, list_runs
     from ..store import open_store
     from ..store.store import describe_damage
 
     with open_store(path, readonly=True) as store:
-        streams = store.streams()
+        # The runs' bookkeeping is listed as runs, not counted as messages
+        streams = {name: st for name, st in store.streams().items() if not hidden_by_default(name)}
         for name, st in streams.items():
             last = None
             for last in store.query(name, start_ns=st["end_ns"], end_ns=st["end_ns"], skip_damaged=True):
@@ -52,6 +55,7 @@ def store_info(path: str) -> dict:
             "disk_bytes": store.disk_bytes(),
             "json_bytes": sum(s["json_bytes"] for s in streams.values()),
             "streams": streams,
+            "runs": [run.as_dict() for run in list_runs(store)],
             "recovery": [str(p) for p in store.recovery.problems],
             "damage": [describe_damage(d) for d in store.damage()],
         }
@@ -74,6 +78,33 @@ def summary_totals(store) -> dict:
     return total
 
 
+STATUS = {"done": "done", "interrupted": "interrupted", "error": "error",
+          "unfinished": "interrupted: no end (killed, power lost, or still recording)"}  # fmt: skip
+
+
+def _flags(options: dict) -> str:
+    """A run's options as the command line gave them."""
+    words = []
+    for key, value in options.items():
+        flag = "--" + key.replace("_", "-")
+        for v in value if isinstance(value, list) else [value]:
+            words.append(flag if v is True else f"{flag} {v}")
+    return " ".join(words) or "-"
+
+
+def runs_table(runs: list[dict]) -> str:
+    """The recording runs as a table: when, how each ended, what it kept, source and options."""
+    rows = []
+    for r in runs:
+        status = STATUS.get(r["status"], r["status"])
+        if r.get("signal"):
+            status += f" ({r['signal']})"
+        took = f"{(r['end_ns'] - r['start_ns']) / 1e9:.1f} s" if r["end_ns"] is not None else "-"
+        kept = f"{r['messages_kept']:,} of {r['messages_in']:,}" if "messages_kept" in r else "-"
+        rows.append([r["run"], iso_ns(r["start_ns"]), took, status, kept, r["source"], _flags(r["options"])])
+    return table(rows, ["run", "start (UTC)", "took", "status", "messages kept", "source", "options"])
+
+
 def run(args: argparse.Namespace) -> int:
     from ..classifier.summary import SUMMARY_TOPIC
 
@@ -90,6 +121,9 @@ def run(args: argparse.Namespace) -> int:
                      (st["codec"] or {}).get("id", "?"), st["msgtype"] or "-"])  # fmt: skip
     print(f"store {info['path']}  ({info['segments']} segments, {human_bytes(info['disk_bytes'])} on disk)")
     print(table(rows, ["stream", "windows", "messages", "start (UTC)", "span", "JSON", "stored", "% of JSON", "codec", "type"]))
+    if info["runs"]:
+        print(f"runs ({len(info['runs'])}, stream /cclog/runs):")
+        print(runs_table(info["runs"]))
     if info["summary"]:
         t = info["summary"]
         print(f"summary ({SUMMARY_TOPIC}, {t['minutes']} periods): {t['distance_m'] / 1000:.3f} km driven, "

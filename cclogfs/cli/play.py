@@ -33,7 +33,8 @@ DESCRIPTION = "Play a store back: its messages in time order at their recorded p
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("store", help="store directory")
-    p.add_argument("--topic", action="append", metavar="T", help="only stream T (repeatable)")
+    p.add_argument("--topic", action="append", metavar="T",
+                   help="only stream T (repeatable); default: every stream but /cclog/runs")
     p.add_argument("--start", type=time_arg, metavar="TIME", help=f"from this time on ({TIME_RULE})")
     p.add_argument("--end", type=time_arg, metavar="TIME", help="up to this time (inclusive)")
     p.add_argument("--rate", type=float, default=1.0, help="speed factor (default 1: the recorded pace)")
@@ -51,6 +52,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..play.pace import paced, store_messages, stream_types
+    from ..runs import hidden_by_default
     from ..store import open_store
 
     if not args.rate > 0:
@@ -61,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"--to {args.to!r}: write - (stdout) or ros1://[HOST:PORT]")
     check_range(args)
     with open_store(args.store, readonly=True) as store:
-        names = sorted(n for n in store.streams() if args.topic is None or n in args.topic)
+        names = sorted(n for n in store.streams() if (n in args.topic if args.topic else not hidden_by_default(n)))
         if not names:
             raise nothing_matched(store, args)
         types = stream_types(store, names)

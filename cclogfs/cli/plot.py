@@ -37,10 +37,11 @@ def run(args: argparse.Namespace) -> int:
 
     # Imported here, not at the top: `cclog --help` imports every subcommand module.
     from ..plot.store import plot_data, plot_store
+    from ..runs import hidden_by_default
     from ..store import open_store
 
     with open_store(args.store, readonly=True) as store:
-        if not store.streams():  # else an empty windows.png and exit 0
+        if all(hidden_by_default(n) for n in store.streams()):  # else an empty windows.png and exit 0
             raise InvalidInputError(f"{args.store} holds no messages: nothing to plot")
         data = plot_data(store, args.topic)
     paths = plot_store(data, out)

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import CclogError, InvalidInputError
 from ..times import parse_duration
-from .common import (Progress, check_topics_exist, damaged_exit, human_bytes, load_labels, model_fits,
+from .common import (Progress, check_topics_exist, damaged_exit, human_bytes, iso_ns, load_labels, model_fits,
                      no_source_message, parse_size)
 
 # The engine, sources and classifier are imported where they are used, not here:
@@ -31,6 +31,10 @@ examples:
   cclog record ros1://localhost:11311 --store s --topic /odom --topic '/tf.*' --exclude '/rosout.*'
   cclog record - --store robot.store --model odom.model --budget 20GiB \\
       --age-older-than 7d --age-error 1e-3      # the disk never fills; old windows shrink
+
+Each run is kept in the store (stream /cclog/runs: source, options, start, end; `cclog info`
+lists them). A file the store holds a run of already (same content, any name) is refused,
+since its messages would be stored twice; --append records it again as a new run.
 
 JSON Lines: one message per line, {"topic": "/odom", "stamp_ns": 1432235695834049087, "msg": {...}}.
 A damaged ROS 1 bag or MCAP file (cut short, index lost) is recorded as far as it can be
@@ -69,6 +73,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--exclude", action="append", default=[], metavar="RE",
                    help="with ros1://: leave out topics that fully match RE (repeatable)")
     p.add_argument("--store", required=True, help="store directory (created when missing)")
+    p.add_argument("--append", action="store_true",
+                   help="record a source the store holds a run of already (else refused: its messages "
+                        "would be stored twice)")
     p.add_argument("--topic", action="append", metavar="T", help="record topic T (repeatable; default all)")
     p.add_argument("--model", help="smart logging with this model directory (from `cclog train`)")
     p.add_argument("--before", default=WINDOW_BEFORE, help="window context before an anomaly: N messages or Ds (default %(default)s)")
@@ -217,29 +224,78 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _remove_if_empty(path: str) -> None:
+    from ..runs import hidden_by_default
     from ..store import open_store
 
     try:
         with open_store(path, readonly=True) as store:
-            if store.streams():
-                return
+            if any(not hidden_by_default(name) for name in store.streams()):
+                return  # messages were stored (the run's own start record does not count)
     except CclogError:
         return  # not a store we can read: leave it for the user to look at
     shutil.rmtree(path, ignore_errors=True)
 
 
+def _options(args: argparse.Namespace) -> dict:
+    """The options this run was given that differ from their defaults, as the run keeps them."""
+    p = argparse.ArgumentParser(add_help=False)
+    add_arguments(p)
+    defaults = vars(p.parse_args([args.source, "--store", args.store]))
+    return {k: v for k, v in vars(args).items()
+            if k in defaults and k not in ("source", "store") and v != defaults[k]}  # fmt: skip
+
+
+def _begin_run(args: argparse.Namespace, store, source):
+    """Refuse a source the store has a run of already (unless --append); write this run's start."""
+    from ..runs import begin_run, earlier_run, source_fingerprint
+
+    fingerprint = source_fingerprint(args.source)
+    earlier = earlier_run(store, fingerprint)
+    if earlier is not None and not args.append:
+        kept = "its end not recorded" if earlier.kept is None else f"{earlier.kept:,} messages kept"
+        raise InvalidInputError(
+            f"{args.source} was recorded into {args.store} already, as run {earlier.number} "
+            f"({iso_ns(earlier.start_ns)}, {earlier.status}, {kept}); recording it again would store its "
+            "messages twice: pass --append to record it again, or record into another --store.")  # fmt: skip
+    if fingerprint is None:  # stdin or a live master: named as given (a master by its URI)
+        name, extra = args.source, ({"master": source.master} if hasattr(source, "master") else {})
+    else:
+        name, extra = os.path.abspath(args.source), {}
+    return begin_run(store, name, fingerprint=fingerprint, options=_options(args), **extra)
+
+
+def _end_run(run, source, stats: RecordStats, received: list[int], error: BaseException | None) -> None:
+    """Write the run's end: what it saw and kept, what the source says it lost, and how it
+    ended. After an error the store may have failed too; the error that stopped the run is
+    what the user must see."""
+    interrupted = stats.interrupted or isinstance(error, KeyboardInterrupt)
+    status = "interrupted" if interrupted else "error" if error is not None else "done"
+    counts = {"messages_in": stats.messages_in, "messages_kept": stats.messages_kept, "windows": stats.windows,
+              "topics_kept": dict(sorted(stats.topics_kept.items()))}  # fmt: skip
+    if received:
+        counts["signal"] = signal.Signals(received[0]).name
+    if getattr(source, "lost", None):  # a damaged file: where reading stopped
+        counts["input_lost"] = source.lost
+    if getattr(source, "seq", None) is not None:  # a live source: messages lost, told from header.seq
+        counts["seq_lost"] = source.seq.lost
+    if error is not None and not interrupted:
+        counts["error"] = str(error) or type(error).__name__
+    try:
+        run.end(status, **counts)
+    except CclogError:
+        if error is None:
+            raise
+
+
 def _run(args: argparse.Namespace) -> int:
-    from ..jsontext.rostypes import StreamTypes
-    from ..pipeline import RecordStats, interrupt_handler, record
+    from ..pipeline import RecordStats, interrupt_handler
     from ..store import open_store
-    from ..upkeep import compact
 
     policy, read_topics = _logging_policy(args)
     upkeep = _upkeep(args)
     if not args.window_max_s > 0:
         raise InvalidInputError(f"--window-max-s must be positive, not {args.window_max_s}")
     store_options = upkeep.store_options() if upkeep is not None else {}
-    final_bytes = None  # the store's size once upkeep is done
     source = _open(args, read_topics)
     if not args.source.startswith("ros1://"):
         check_topics_exist(source, args.source, read_topics)
@@ -256,36 +312,14 @@ def _run(args: argparse.Namespace) -> int:
                                 **store_options) as store, \
                 Progress("recording", total=getattr(source, "message_count", None)) as progress:  # fmt: skip
             _warn_damage(store)
-            last = [0]
-
-            def tick(stats):
-                progress(stats.messages_in - last[0])
-                last[0] = stats.messages_in
-
+            run = _begin_run(args, store, source)
             stats = RecordStats()
-            rows: list = []
-            messages = _tee_odometry(source, args.odom_topic, rows) if args.features_out else source
-            ended = False  # the input ran out, with no error or interrupt
             try:
-                record(messages, store, policy, check_json=False, progress=tick, stats=stats, upkeep=upkeep,
-                       types=StreamTypes(getattr(source, "describe", None)), window_s=args.window_max_s)
-                ended = not stats.interrupted
-                tick(stats)  # the last count (progress is told every 4,096 messages)
-            except KeyboardInterrupt:  # arrived once the input had ended: all was stored
-                stats.interrupted = True
-            finally:
-                if upkeep is not None:
-                    # Before the store closes: its thread may be reading segments. At the end
-                    # of the input it finishes what is due (the last flush may have sealed a
-                    # segment); after an error, Ctrl-C or SIGTERM it stops at once.
-                    if ended:
-                        upkeep.after_put(store)
-                    upkeep.close(finish=ended)
-            if upkeep is not None:
-                if upkeep.budget is not None:
-                    compact(store, budget=upkeep.budget)  # the final flush may have sealed one
-                store.sync()  # the active segment's buffered records count too
-                final_bytes = store.data_bytes()
+                rows, final_bytes = _record_run(args, store, source, policy, upkeep, progress, stats)
+            except BaseException as err:
+                _end_run(run, source, stats, received, err)
+                raise
+            _end_run(run, source, stats, received, None)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
@@ -293,6 +327,46 @@ def _run(args: argparse.Namespace) -> int:
         _write_dataset(args, rows)
     _print_summary(args, source, stats, upkeep, final_bytes)
     return _exit_status(args, source, stats, policy, read_topics, received)
+
+
+def _record_run(args: argparse.Namespace, store, source, policy, upkeep: Upkeep | None, progress,
+                stats: RecordStats) -> tuple[list, int | None]:  # fmt: skip
+    """Record the source into the open store, counting into `stats`; the odometry rows kept
+    for --features-out and the store's size once upkeep is done (None without upkeep)."""
+    from ..jsontext.rostypes import StreamTypes
+    from ..pipeline import record
+    from ..upkeep import compact
+
+    last = [0]
+
+    def tick(stats):
+        progress(stats.messages_in - last[0])
+        last[0] = stats.messages_in
+
+    rows: list = []
+    messages = _tee_odometry(source, args.odom_topic, rows) if args.features_out else source
+    ended = False  # the input ran out, with no error or interrupt
+    try:
+        record(messages, store, policy, check_json=False, progress=tick, stats=stats, upkeep=upkeep,
+               types=StreamTypes(getattr(source, "describe", None)), window_s=args.window_max_s)
+        ended = not stats.interrupted
+        tick(stats)  # the last count (progress is told every 4,096 messages)
+    except KeyboardInterrupt:  # arrived once the input had ended: all was stored
+        stats.interrupted = True
+    finally:
+        if upkeep is not None:
+            # Before the store closes: its thread may be reading segments. At the end of the
+            # input it finishes what is due (the last flush may have sealed a segment); after
+            # an error, Ctrl-C or SIGTERM it stops at once.
+            if ended:
+                upkeep.after_put(store)
+            upkeep.close(finish=ended)
+    if upkeep is None:
+        return rows, None
+    if upkeep.budget is not None:
+        compact(store, budget=upkeep.budget)  # the final flush may have sealed one
+    store.sync()  # the active segment's buffered records count too
+    return rows, store.data_bytes()
 
 
 def _exit_status(args: argparse.Namespace, source, stats: RecordStats, policy, read_topics, received: list[int]) -> int:

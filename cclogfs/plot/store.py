@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..runs import hidden_by_default
 from .figures import pyplot
 
 POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped")
@@ -81,6 +82,8 @@ def plot_data(store: Any, topic: str | None = None) -> PlotData:
     topic = topic or pose_topic(store)
     rows, window_of, windows, peaks, summary = [], [], {}, {}, []
     for w in store.query():
+        if hidden_by_default(w.name):
+            continue  # the runs' bookkeeping, stamped in wall time: not the robot's time line
         windows.setdefault(w.name, []).append((w.start_ns, w.end_ns))
         meta = w.meta
         if w.name == SUMMARY:

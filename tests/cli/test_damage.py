@@ -91,7 +91,7 @@ def test_a_read_checks_the_record_against_its_index_entry(tmp_path, capsys):
 
 def test_record_into_a_damaged_store_says_so_every_time(tmp_path, capsys):
     _damaged_active(tmp_path / "s")
-    (tmp_path / "in.jsonl").write_text(json.dumps({"topic": "/b", "stamp_ns": 10**12, "msg": {"x": 1}}) + "\n")
-    for _ in range(2):
+    for i in range(2):  # two inputs: the same one again would be refused as recorded already
+        (tmp_path / "in.jsonl").write_text(json.dumps({"topic": "/b", "stamp_ns": 10**12 + i, "msg": {"x": 1}}) + "\n")
         assert main(["record", str(tmp_path / "in.jsonl"), "--store", str(tmp_path / "s")]) == 0
         assert "damage below the synced point" in capsys.readouterr().err

@@ -11,6 +11,7 @@ from rosbags.rosbag1 import Writer as Bag1Writer
 
 import cclogfs
 from cclogfs.cli import main
+from cclogfs.runs import hidden_by_default, list_runs
 
 
 def many_chunk_bag(src, dst):
@@ -68,7 +69,10 @@ def test_truncated_inputs_keep_what_can_be_read(shared_data, tmp_path, capsys, k
     assert main(["record", str(damaged), "--store", str(tmp_path / "s")]) == 4
     assert "damaged" in capsys.readouterr().err
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
-        assert sum(t["messages"] for t in store.streams().values()) == len(got)
+        kept = [t["messages"] for n, t in store.streams().items() if not hidden_by_default(n)]  # not the run's records
+        assert sum(kept) == len(got)
+        (run,) = list_runs(store)  # the run says what its input lost
+    assert run.status == "done" and "damaged" in run.end["input_lost"] and run.kept == len(got)
 
 
 def test_a_failed_run_leaves_no_empty_store(tmp_path, capsys):

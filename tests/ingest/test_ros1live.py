@@ -22,8 +22,10 @@ from cclogfs import open_store
 from cclogfs.errors import InvalidInputError
 from cclogfs.ingest import open_source
 from cclogfs.ingest.ros1live import TopicMatcher
+from cclogfs.ingest.ros1testing import master as master_proxy
 from cclogfs.ingest.ros1testing import (play, published, roscore, ros1_missing, start, stop, subscribers, wait_for,
                                         write_ros1_bag)  # fmt: skip
+from cclogfs.runs import list_runs
 
 CCLOG = [sys.executable, "-m", "cclogfs"]
 
@@ -56,7 +58,7 @@ def bag_messages(bag, topics=None):
         return by_topic((m.topic, m.text) for m in src)
 
 
-def store_messages(path, skip=("/cclog/summary",)):
+def store_messages(path, skip=("/cclog/summary", "/cclog/runs")):
     with open_store(path, readonly=True) as store:
         return by_topic((w.name, t) for w in store.query() if w.name not in skip for _, t in w.messages())
 
@@ -79,6 +81,12 @@ def finish(proc, after_s=1.0, sig=signal.SIGINT, rc=0):
 def played(proc, timeout=120):
     _, err = proc.communicate(timeout=timeout)
     assert proc.returncode == 0, err
+
+
+def recorder_nodes(env):
+    """The recorders' nodes the master knows, from the services each rospy node offers."""
+    _, _, services = master_proxy(env).getSystemState("/cclog_test")[2]
+    return {name.rsplit("/", 1)[0] for name, _ in services if name.startswith("/cclog_record")}
 
 
 def wait_subscribed(env, topic, timeout=30):
@@ -122,7 +130,7 @@ def test_latched_topic_is_received_after_it_was_published(master, shared_data, t
         stop(publisher)
     assert store_messages(tmp_path / "s") == {"/tf_static": bag_messages(bag)["/tf_static"]}, err
     with open_store(tmp_path / "s", readonly=True) as store:
-        assert next(iter(store.query())).meta["latching"] is True
+        assert next(iter(store.query("/tf_static"))).meta["latching"] is True
 
 
 @pytest.fixture(scope="module")
@@ -221,7 +229,7 @@ def test_play_to_ros1_publishes_every_message_with_its_type_and_clock(master, sh
     assert back == store_messages(tmp_path / "orig") == bag_messages(bag)
     stamps = sorted(int(json.loads(t)["clock"]["sec"]) * 10**9 + json.loads(t)["clock"]["nanosec"] for t in clock)
     with open_store(tmp_path / "orig", readonly=True) as store:
-        want = sorted(s for w in store.query() for s, _ in w.messages())
+        want = sorted(s for w in store.query() if w.name != "/cclog/runs" for s, _ in w.messages())
     assert stamps == want  # one /clock per message, at its stamp
     with open_store(tmp_path / "back", readonly=True) as store:
         assert {w.meta["msgtype"] for w in store.query("/tf")} == {"tf2_msgs/msg/TFMessage"}
@@ -343,11 +351,38 @@ def test_stop_ends_the_recording_while_a_topic_keeps_publishing(master, tmp_path
     assert n > 0 and topics[0] == f"/chatter: {n:,} received, not checked (std_msgs/String has no header.seq)", err
 
 
+def test_a_live_recording_is_a_run_and_is_never_refused(master, tmp_path):
+    # A live master has no fixed content to compare: recording it again is a new run, not a copy.
+    talker = start(["rostopic", "pub", "-r", "50", "/chatter", "std_msgs/String", "data: hi"], master,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    try:
+        for _ in range(2):
+            rec = recorder(master, tmp_path / "s", "--topic", "/chatter")
+            try:
+                wait_subscribed(master, "/chatter")
+                finish(rec, after_s=1.0)
+            finally:
+                stop(rec)
+    finally:
+        stop(talker)
+    with open_store(tmp_path / "s", readonly=True) as store:
+        runs = list_runs(store)
+        kept = store.streams()["/chatter"]["messages"]
+    assert [(r.number, r.source, r.status) for r in runs] == [(1, "ros1://", "done"), (2, "ros1://", "done")]
+    assert {r.start["master"] for r in runs} == {master["ROS_MASTER_URI"]}
+    assert runs[0].options == {"topic": ["/chatter"]} and runs[0].end["signal"] == "SIGINT"
+    assert runs[0].end["seq_lost"] == 0  # std_msgs/String has no header.seq: nothing known lost
+    assert runs[0].kept > 0 and runs[0].kept + runs[1].kept == kept
+
+
 def test_topics_that_match_nothing_or_deliver_nothing_are_said(master, tmp_path):
     # A --topic pattern no topic matches waited in silence, and a subscribed topic that
     # delivered nothing (a non-latched /tf_static published before the subscription) was
     # left out of the report: the user could not tell it had been missed.
+    before = recorder_nodes(master)
     rec = recorder(master, tmp_path / "none.store", "--topic", "/nothing.*")
+    # Its node is on the master: it is past its imports (2 s were not always enough on a loaded machine).
+    wait_for(lambda: recorder_nodes(master) - before, 60, "the recorder's node")
     err = finish(rec, after_s=2.0, sig=signal.SIGTERM, rc=1)  # nothing recorded: an error (issue 12)
     assert "no topic on the master matches" in err.splitlines()[0], err
     rec = recorder(master, tmp_path / "quiet.store", "--topic", "/never_published")

@@ -12,6 +12,7 @@ import pytest
 
 from cclogfs import open_store
 from cclogfs.plot.store import plot_data
+from cclogfs.runs import hidden_by_default
 
 CCLOG = [sys.executable, "-m", "cclogfs"]
 
@@ -48,7 +49,7 @@ def test_plot_draws_the_stored_odometry_windows_and_scores(smart_store, tmp_path
     with open_store(smart_store, readonly=True) as store:
         data = plot_data(store)
         odom = [(s, json.loads(t)) for w in store.query("/odom") for s, t in w.messages()]
-        spans = {n: [(w.start_ns, w.end_ns) for w in store.query(n)] for n in store.streams()}
+        spans = {n: [(w.start_ns, w.end_ns) for w in store.query(n)] for n in store.streams() if not hidden_by_default(n)}
         metas = [w.meta for w in store.query("/odom")]
         summary = [json.loads(t) for w in store.query("/cclog/summary") for _, t in w.messages()]
     assert data.topic == "/odom" and len(odom) == len(data.x) > 0

@@ -1,0 +1,166 @@
+"""Recording runs: who put what into a store, from which source, with which options.
+
+Each `cclog record` is a *run*, kept as two JSON texts on the bookkeeping stream
+`/cclog/runs` (docs/JSON.md, "The runs stream"): a start record written and synced before
+the first message is stored, and an end record written when the run closes. A run killed
+with SIGKILL or cut by a power loss has no end record, so it is still seen, as unfinished.
+Being ordinary windows, the records share the store's checksums, crash recovery and fsck;
+no new file kind. Readers (`cat`, `export`, `play`, `plot`) leave the stream out unless it
+is named (`hidden_by_default`), so a store's messages read back exactly as they were put.
+
+A file source is identified by a fingerprint of its content (size and SHA-256 of its first
+and last MiB, per file for a ROS 2 bag directory), not by its path: a copy of a bag is the
+same source, a bag rewritten under the same name is not. `earlier_run` finds the run that
+recorded a source already, so that the CLI can refuse to store it twice.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import socket
+import time
+import uuid
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from . import __version__
+
+if TYPE_CHECKING:
+    from .store import Store
+
+RUNS_STREAM = "/cclog/runs"
+_EDGE = 1 << 20  # bytes hashed at each end of a file: cheap on a 10 GB bag, and a bag's
+# header (first MiB) and index (last MiB) differ between any two recordings
+
+__all__ = ["RUNS_STREAM", "Run", "RunInfo", "begin_run", "earlier_run", "hidden_by_default", "list_runs",
+           "source_fingerprint"]  # fmt: skip
+
+
+def hidden_by_default(name: str) -> bool:
+    """A stream readers leave out unless asked for it by name: bookkeeping, not messages."""
+    return name == RUNS_STREAM
+
+
+def _hash_file(path: str, h: Any) -> int:
+    """Feed a file's size, first and last MiB into `h`; its size."""
+    with open(path, "rb") as f:
+        size = os.fstat(f.fileno()).st_size
+        h.update(size.to_bytes(8, "little"))
+        h.update(f.read(_EDGE))
+        if size > _EDGE:
+            f.seek(max(size - _EDGE, _EDGE))
+            h.update(f.read(_EDGE))
+    return size
+
+
+def source_fingerprint(path: str) -> dict[str, Any] | None:
+    """What identifies a file or ROS 2 bag directory's content; None for what has no
+    fixed content (stdin `-`, a live `ros1://` source)."""
+    if path == "-" or "://" in path:
+        return None
+    h = hashlib.sha256()
+    if os.path.isdir(path):  # a ROS 2 bag: metadata.yaml and its storage files
+        names = sorted(os.path.join(d, f) for d, _, files in os.walk(path) for f in files)
+        size = 0
+        for name in names:
+            h.update(os.path.relpath(name, path).encode() + b"\0")
+            size += _hash_file(name, h)
+        return {"bytes": size, "files": len(names), "sha256": h.hexdigest()}
+    return {"bytes": _hash_file(path, h), "sha256": h.hexdigest()}
+
+
+@dataclass
+class RunInfo:
+    """One run of a store, from its start record and (when it has one) its end record."""
+
+    number: int
+    id: str
+    start_ns: int
+    source: str
+    fingerprint: dict[str, Any] | None
+    options: dict[str, Any]
+    start: dict[str, Any] = field(repr=False)
+    end: dict[str, Any] | None = None
+    end_ns: int | None = None
+
+    @property
+    def status(self) -> str:
+        """done, interrupted (Ctrl-C/SIGTERM), error, or unfinished: no end record (killed,
+        lost power, or still recording)."""
+        return "unfinished" if self.end is None else self.end.get("status", "done")
+
+    @property
+    def kept(self) -> int | None:
+        return None if self.end is None else self.end.get("messages_kept")
+
+    def as_dict(self) -> dict[str, Any]:
+        """The run as `cclog info --json` prints it."""
+        return {"run": self.number, "id": self.id, "start_ns": self.start_ns, "end_ns": self.end_ns,
+                "status": self.status, **{k: v for k, v in self.start.items() if k not in ("event", "run", "id")},
+                **{k: v for k, v in (self.end or {}).items() if k not in ("event", "run", "id", "status")}}  # fmt: skip
+
+
+def list_runs(store: Store) -> list[RunInfo]:
+    """The store's runs in start order. Damaged records are left out (the store names its
+    damage; `cclog info` prints it); a record that is not a run's JSON is skipped."""
+    runs: dict[str, RunInfo] = {}
+    for w in store.query(RUNS_STREAM, skip_damaged=True):
+        for stamp, text in w.messages():
+            try:
+                rec = json.loads(text)
+                if rec.get("event") == "start":
+                    runs[rec["id"]] = RunInfo(int(rec["run"]), rec["id"], stamp, rec.get("source", "?"),
+                                              rec.get("fingerprint"), rec.get("options", {}), rec)  # fmt: skip
+                elif rec.get("event") == "end" and rec.get("id") in runs:
+                    runs[rec["id"]].end, runs[rec["id"]].end_ns = rec, stamp
+            except (ValueError, KeyError, TypeError, AttributeError):
+                continue  # someone else's text on the stream: not a run
+    return sorted(runs.values(), key=lambda r: (r.start_ns, r.number))
+
+
+def earlier_run(store: Store, fingerprint: Mapping[str, Any] | None) -> RunInfo | None:
+    """The first run that recorded a source with this fingerprint and may have kept some of
+    it (a run that ended keeping nothing does not count); None for none, or no fingerprint."""
+    if fingerprint is None:
+        return None
+    for run in list_runs(store):
+        if run.fingerprint == fingerprint and run.kept != 0:
+            return run
+    return None
+
+
+class Run:
+    """A run in progress: `begin_run` wrote its start; `end()` writes its end."""
+
+    def __init__(self, store: Store, number: int, run_id: str):
+        self.store, self.number, self.id = store, number, run_id
+        self.ended = False
+
+    def end(self, status: str = "done", **counts: Any) -> None:
+        """Write the end record (`status`: done, interrupted or error; `counts`: what the
+        run saw, e.g. messages_in, messages_kept, windows, error) and sync it. Once only."""
+        if self.ended:
+            return
+        self.ended = True
+        rec = {"event": "end", "run": self.number, "id": self.id, "status": status, **counts}
+        self.store.put_window(RUNS_STREAM, [(time.time_ns(), json.dumps(rec))], {"kind": "run"})
+        self.store.sync()
+
+
+def begin_run(store: Store, source: str, *, fingerprint: Mapping[str, Any] | None = None,
+              options: Mapping[str, Any] | None = None, **extra: Any) -> Run:  # fmt: skip
+    """Write a run's start record (source, fingerprint, options, cclog version, host, pid,
+    and `extra`, e.g. the master of a live source) and sync it, so that even a run killed
+    at once is seen. Its number is one past the highest in the store."""
+    number = max((r.number for r in list_runs(store)), default=0) + 1
+    run = Run(store, number, uuid.uuid4().hex)
+    rec = {"event": "start", "run": number, "id": run.id, "source": source,
+           "fingerprint": None if fingerprint is None else dict(fingerprint),
+           "options": dict(options or {}), "cclog": __version__, "host": socket.gethostname(),
+           "pid": os.getpid(), **extra}  # fmt: skip
+    store.put_window(RUNS_STREAM, [(time.time_ns(), json.dumps(rec))], {"kind": "run"})
+    store.sync()
+    return run
