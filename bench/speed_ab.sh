@@ -2,11 +2,11 @@
 # Whole-process A/B of issue 14's commands: this checkout (A) against an older commit (B),
 # in alternating pairs with farm-bench (medians; quote the CPU ratio on a shared machine).
 #   bash bench/speed_ab.sh [REV]      (REV default 8f10a52: main before issue 14)
-# Needs the inputs of `python3 dev.py bench speed` (out/speed-data-300000-1000000-5).
+# Needs the inputs of `python3 dev.py bench speed` (out/speed-data-300000-1000000-5-v2).
 set -e
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 REV=${1:-8f10a52}
-D=$ROOT/out/speed-data-300000-1000000-5
+D=$ROOT/out/speed-data-300000-1000000-5-v2
 PY=$ROOT/.venv/bin/python
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT

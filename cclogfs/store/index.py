@@ -72,6 +72,14 @@ class SegmentIndex:
     def __len__(self) -> int:
         return len(self.entries)
 
+    def rows(self) -> list[tuple[str, int, int, int, int, int, int, int]]:
+        """The (name, count, seq, start, end, offset, length, raw_len) rows it was built from,
+        in log (offset) order."""
+        names = self.names
+        out = [(names[e[0]], *e[1:]) for e in self.entries.tolist()]
+        out.sort(key=lambda r: r[5])
+        return out
+
     def encode(self, first_seq: int, segment_size: int) -> bytes:
         names = json.dumps(self.names).encode()
         head = INDEX_HEADER.pack(
