@@ -116,6 +116,6 @@ def forge_index_offsets(store_dir, seg_name: str) -> None:
     size = seg.stat().st_size
     index = SegmentIndex.decode(idx.read_bytes(), 0, size)
     e = index.entries
-    rows = [(index.names[int(x["stream"])], int(x["count"]), int(x["seq"]), int(x["start"]), int(x["end"]),
-             int(y["offset"]), int(y["length"]), int(x["raw_len"])) for x, y in zip(e, e[::-1])]  # fmt: skip
+    rows = [(index.names[x.stream], x.count, x.seq, x.start, x.end, y.offset, y.length, x.raw_len)
+            for x, y in zip(e, e[::-1])]  # fmt: skip
     idx.write_bytes(SegmentIndex.build(rows).encode(0, size))

@@ -226,15 +226,17 @@ def _check_past_damage(store: Store, fs: FileSystem, info: SealedSegment, seg: S
                                                        "cannot be framed")  # fmt: skip
         return
     bad = good = 0
-    for e in index.entries[index.entries["offset"] > offset]:
+    for e in index.entries:
+        if e.offset <= offset:
+            continue
         try:
-            seg.read_record(int(e["offset"]), int(e["length"]))
+            seg.read_record(e.offset, e.length)
             good += 1
             report.records += 1
-            report.messages += int(e["count"])
+            report.messages += e.count
         except CclogError as err:
             bad += 1
-            report.add("error", f"{os.path.basename(seg.path)}@{int(e['offset'])}", str(err))
+            report.add("error", f"{os.path.basename(seg.path)}@{e.offset}", str(err))
     report.add("warning", os.path.basename(seg.path), f"{good} records after the damage are intact and "
                                                       f"readable through the index, {bad} are not")  # fmt: skip
 
@@ -274,7 +276,7 @@ def _check_index(store: Store, fs: FileSystem, info: SealedSegment, seg: Segment
     except Exception as err:  # noqa: BLE001 - any failure to parse is the same finding
         report.add("warning", where, f"damaged ({err}); the writer rebuilds it from the segment")
         return
-    if stored.names != scanned.names or stored.entries.tobytes() != scanned.entries.tobytes():
+    if stored.names != scanned.names or stored.entries != scanned.entries:
         report.add("warning", where, "does not match the segment; the writer rebuilds it")
 
 

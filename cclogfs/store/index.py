@@ -3,21 +3,25 @@
 Entries of a stream are sorted by (start, seq). With the running maximum of `end` (derived
 on load, never stored), "records overlapping [t0, t1]" is two binary searches and a scan of
 only the candidates between them, whatever the size of the segment.
+
+Plain Python (struct, bisect), no numpy: a reader that asks for one second of a store
+loads one or two indexes, and importing numpy would cost it more than everything else.
 """
 
 from __future__ import annotations
 
 import json
 import struct
-from collections.abc import Iterable
-from typing import Any
-from dataclasses import dataclass
-
-import numpy as np
+from bisect import bisect_left, bisect_right
+from collections.abc import Iterable, Sequence
+from functools import cached_property
+from itertools import accumulate, groupby
+from operator import attrgetter
+from typing import Any, NamedTuple
 
 from .format import (
     FILE_VERSION,
-    INDEX_ENTRY_FIELDS,
+    INDEX_ENTRY,
     INDEX_HEADER,
     INDEX_MAGIC,
     MAX_NAME,
@@ -26,66 +30,83 @@ from .format import (
     xxh3,
 )
 
-ENTRY = np.dtype(INDEX_ENTRY_FIELDS)
+Row = tuple[str, int, int, int, int, int, int, int]  # (name, count, seq, start, end, offset, length, raw_len)
 
 
-def overlap_slice(starts: np.ndarray, run_max_end: np.ndarray, t0: int, t1: int) -> slice:
+class Entry(NamedTuple):
+    """One record in the index (FORMAT.md, "Time index"); `stream` indexes the names."""
+
+    stream: int
+    count: int
+    seq: int
+    start: int
+    end: int
+    offset: int
+    length: int
+    raw_len: int
+
+
+_ORDER = attrgetter("stream", "start", "seq")
+
+
+def overlap_slice(starts: Sequence[int], run_max_end: Sequence[int], t0: int, t1: int) -> slice:
     """Candidates overlapping [t0, t1] among items sorted by start (a superset: filter by end)."""
-    hi = int(np.searchsorted(starts, t1, side="right"))
-    lo = int(np.searchsorted(run_max_end, t0, side="left"))
+    hi = bisect_right(starts, t1)
+    lo = bisect_left(run_max_end, t0)
     return slice(lo, max(lo, hi))
 
 
-@dataclass
 class StreamEntries:
     """The entries of one stream in one segment, sorted by (start, seq)."""
 
-    entries: np.ndarray
-    run_max_end: np.ndarray
+    def __init__(self, entries: list[Entry]):
+        self.entries = entries
 
-    def overlapping(self, t0: int, t1: int) -> np.ndarray:
-        cand = self.entries[overlap_slice(self.entries["start"], self.run_max_end, t0, t1)]
-        return cand[cand["end"] >= t0]
+    @cached_property
+    def _search(self) -> tuple[list[int], list[int]]:
+        """Starts and the running maximum of ends, built on the first query only."""
+        return [e.start for e in self.entries], list(accumulate((e.end for e in self.entries), max))
+
+    @property
+    def run_max_end(self) -> list[int]:
+        return self._search[1]
+
+    def overlapping(self, t0: int, t1: int) -> list[Entry]:
+        starts, run_max_end = self._search
+        return [e for e in self.entries[overlap_slice(starts, run_max_end, t0, t1)] if e.end >= t0]
 
 
 class SegmentIndex:
     """Index of one segment: stream names and their sorted entries."""
 
-    def __init__(self, names: list[str], entries: np.ndarray):
+    def __init__(self, names: list[str], entries: Iterable[Entry]):
         self.names = names
-        order = np.lexsort((entries["seq"], entries["start"], entries["stream"]))
-        self.entries = entries[order]
-        self.streams: dict[str, StreamEntries] = {}
-        bounds = np.searchsorted(self.entries["stream"], np.arange(len(names) + 1))
-        for i, name in enumerate(names):
-            part = self.entries[bounds[i] : bounds[i + 1]]
-            if len(part):
-                self.streams[name] = StreamEntries(part, np.maximum.accumulate(part["end"]))
+        self.entries = sorted(entries, key=_ORDER)
+        self.streams: dict[str, StreamEntries] = {
+            names[stream]: StreamEntries(list(part)) for stream, part in groupby(self.entries, attrgetter("stream"))
+        }
 
     @classmethod
-    def build(cls, rows: Iterable[tuple[str, int, int, int, int, int, int, int]]) -> SegmentIndex:
+    def build(cls, rows: Iterable[Row]) -> SegmentIndex:
         """From (name, count, seq, start, end, offset, length, raw_len) rows in any order."""
         ids: dict[str, int] = {}
-        table = [(ids.setdefault(r[0], len(ids)), *r[1:]) for r in rows]
-        return cls(list(ids), np.array(table, dtype=ENTRY) if table else np.zeros(0, ENTRY))
+        entries = [Entry(ids.setdefault(r[0], len(ids)), *r[1:]) for r in rows]
+        return cls(list(ids), entries)
 
     def __len__(self) -> int:
         return len(self.entries)
 
-    def rows(self) -> list[tuple[str, int, int, int, int, int, int, int]]:
-        """The (name, count, seq, start, end, offset, length, raw_len) rows it was built from,
-        in log (offset) order."""
+    def rows(self) -> list[Row]:
+        """The rows it was built from, in log (offset) order."""
         names = self.names
-        out = [(names[e[0]], *e[1:]) for e in self.entries.tolist()]
-        out.sort(key=lambda r: r[5])
-        return out
+        return sorted(((names[e.stream], *e[1:]) for e in self.entries), key=lambda r: r[5])
 
     def encode(self, first_seq: int, segment_size: int) -> bytes:
         names = json.dumps(self.names).encode()
         head = INDEX_HEADER.pack(
             INDEX_MAGIC, FILE_VERSION, 0, first_seq, segment_size, len(self.entries), len(names)
         )
-        body = head + names + self.entries.astype(ENTRY).tobytes()
+        body = b"".join([head, names, *(INDEX_ENTRY.pack(*e) for e in self.entries)])
         return body + struct.pack("<Q", xxh3(body))
 
     @classmethod
@@ -98,7 +119,7 @@ class SegmentIndex:
             raise RecordError(Reason.BAD_MAGIC, f"not an index: {magic!r}")
         if version != FILE_VERSION:
             raise RecordError(Reason.UNSUPPORTED_VERSION, f"index version {version}")
-        expect = INDEX_HEADER.size + names_len + count * ENTRY.itemsize + 8
+        expect = INDEX_HEADER.size + names_len + count * INDEX_ENTRY.size + 8
         if len(data) != expect or names_len > count * (MAX_NAME * 6 + 4) + 2:
             raise RecordError(Reason.BAD_LENGTH, f"index is {len(data)} bytes, expected {expect}")
         (digest,) = struct.unpack_from("<Q", data, len(data) - 8)
@@ -108,8 +129,8 @@ class SegmentIndex:
             raise RecordError(Reason.INDEX_MISMATCH, "index describes another version of the segment")
         pos = INDEX_HEADER.size
         names = json.loads(data[pos : pos + names_len])
-        entries = np.frombuffer(data, ENTRY, count, pos + names_len).copy()
-        if len(entries) and int(entries["stream"].max()) >= len(names):
+        entries = list(map(Entry._make, INDEX_ENTRY.iter_unpack(memoryview(data)[pos + names_len : -8])))
+        if entries and max(e.stream for e in entries) >= len(names):
             raise RecordError(Reason.BAD_FIELD, "index entry names an unknown stream")
         return cls(names, entries)
 
@@ -120,11 +141,11 @@ class SegmentIndex:
             e = s.entries
             out[name] = {
                 "windows": len(e),
-                "messages": int(e["count"].sum()),
-                "start_ns": int(e["start"].min()),
-                "end_ns": int(e["end"].max()),
-                "raw_bytes": int(e["raw_len"].sum()),
-                "stored_bytes": int(e["length"].sum()),
+                "messages": sum(x.count for x in e),
+                "start_ns": min(x.start for x in e),
+                "end_ns": max(x.end for x in e),
+                "raw_bytes": sum(x.raw_len for x in e),
+                "stored_bytes": sum(x.length for x in e),
             }
         return out
 
@@ -152,11 +173,11 @@ class SegmentSpans:
         for first_seq, seg, streams in items:
             for stream, st in streams.items():
                 by_stream.setdefault(stream, []).append((st["start_ns"], st["end_ns"], first_seq, seg))
-        self._streams: dict[str, tuple[np.ndarray, np.ndarray, list[Any]]] = {}
+        self._streams: dict[str, tuple[list[int], list[int], list[Any]]] = {}
         for stream, spans in by_stream.items():
             spans.sort(key=lambda x: (x[0], x[2]))
-            starts = np.array([x[0] for x in spans], dtype=np.int64)
-            run_max = np.maximum.accumulate(np.array([x[1] for x in spans], dtype=np.int64))
+            starts = [x[0] for x in spans]
+            run_max = list(accumulate((x[1] for x in spans), max))
             self._streams[stream] = (starts, run_max, [x[3] for x in spans])
 
     def overlapping(self, name: str, t0: int, t1: int) -> list[Any]:

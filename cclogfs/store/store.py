@@ -517,8 +517,7 @@ class Store:
                 raise InvalidInputError(f"{self.path}: no segment starts at seq {first_seq}")
             seg = found[0]
             index = self._sealed_index(seg) if seg in self.sealed else seg.index()
-        return [Window(index.names[int(e["stream"])], int(e["seq"]), int(e["start"]), int(e["end"]),
-                       int(e["count"]), seg, int(e["offset"]), int(e["length"]))
+        return [Window(index.names[e.stream], e.seq, e.start, e.end, e.count, seg, e.offset, e.length)
                 for e in index.entries]  # fmt: skip
 
     def _sealed_candidates(self, name: str, t0: int, t1: int) -> list[Segment]:
@@ -589,11 +588,10 @@ class Store:
                     entries = index.streams.get(stream)
                     if entries is not None:
                         hits = entries.overlapping(t0, t1)
-                        if len(hits):
-                            runs.append([(int(e["start"]), int(e["seq"]), stream, e, seg) for e in hits])
+                        if hits:
+                            runs.append([(e.start, e.seq, stream, e, seg) for e in hits])
         for start, seq, stream, e, seg in heapq.merge(*runs, key=lambda r: (r[0], r[1])):
-            yield Window(stream, seq, start, int(e["end"]), int(e["count"]), seg,
-                         int(e["offset"]), int(e["length"]))  # fmt: skip
+            yield Window(stream, seq, start, e.end, e.count, seg, e.offset, e.length)
 
     def refresh(self) -> None:
         """Reader: see what the writer has committed since this store was opened."""
