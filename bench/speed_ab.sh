@@ -13,6 +13,9 @@ trap 'rm -rf "$TMP"' EXIT
 # B in a subdirectory: `python -m` puts the working directory first on sys.path.
 mkdir "$TMP/old" "$TMP/s" && git -C "$ROOT" archive "$REV" cclogfs | tar -x -C "$TMP/old"
 head -30000 "$D/odom.jsonl" > "$TMP/odom30k.jsonl"
+# Bytecode compiled for both, as an install would (PYTHONDONTWRITEBYTECODE=1 otherwise
+# makes every run compile every module).
+$PY -m compileall -q "$ROOT/cclogfs" "$TMP/old/cclogfs" > /dev/null
 read -r start end _ < "$D/one_s" || true  # the file has no final newline
 A="env PYTHONPATH=$ROOT $PY -m cclogfs"
 B="env PYTHONPATH=$TMP/old $PY -m cclogfs"
