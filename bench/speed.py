@@ -286,7 +286,8 @@ def measure(args, data: Path, work: Path) -> int:
         "MCAP writer (JSON)": (n, lambda: timed(lambda: write_mcap(work / "w.mcap", msgs))),
         "record JSONL, columnar": (n, lambda: run_cli(["record", str(jsonl), "--store", store()])),
         "record JSONL, zstd": (n, lambda: run_cli(["record", str(jsonl), "--store", store(), "--codec", "zstd"])),
-        "record JSONL, smart": (n, lambda: run_cli(["record", str(jsonl), "--store", store(), "--model", str(model)])),
+        "record JSONL, smart": (n, lambda: run_cli(["record", str(jsonl), "--store", store(), "--model", str(model),
+                                                     "--force-model"])),  # a simulated robot's model on real /odom
         "rosbags read+deserialise": (n_bag, lambda: timed(lambda: rosbags_read(bag))),
         "record ROS 1 bag, columnar": (n_bag, lambda: run_cli(["record", str(bag), "--store", store()])),
         "cat 1 s, whole process": (n_one_s, lambda: whole_process(

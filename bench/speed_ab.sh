@@ -27,7 +27,7 @@ farm-bench -n 7 --timeout 200 --vs "$B cat $D/big.store --start $start --end $en
   $A cat "$D/big.store" --start "$start" --end "$end" 2>&1 | show
 echo "=== cat of the 300k-message store (full scan)"
 farm-bench -n 3 --timeout 400 --vs "$B cat $D/small.store" -- $A cat "$D/small.store" 2>&1 | show
-for args in "odom30k.jsonl" "$D/sim.bag" "odom30k.jsonl --model $D/model"; do
+for args in "odom30k.jsonl" "$D/sim.bag" "odom30k.jsonl --model $D/model --force-model"; do
   echo "=== record $args"
   farm-bench -n 5 --timeout 600 \
     --vs "sh -c 'rm -rf s/b; PYTHONPATH=$TMP/old exec $PY -m cclogfs record $args --store s/b'" -- \
