@@ -226,17 +226,17 @@ def _check_past_damage(store: Store, fs: FileSystem, info: SealedSegment, seg: S
                                                        "cannot be framed")  # fmt: skip
         return
     bad = good = 0
-    for e in index.entries:
-        if e.offset <= offset:
+    for _stream, count, _seq, _start, _end, at, length, _raw_len in index.entries:
+        if at <= offset:
             continue
         try:
-            seg.read_record(e.offset, e.length)
+            seg.read_record(at, length)
             good += 1
             report.records += 1
-            report.messages += e.count
+            report.messages += count
         except CclogError as err:
             bad += 1
-            report.add("error", f"{os.path.basename(seg.path)}@{e.offset}", str(err))
+            report.add("error", f"{os.path.basename(seg.path)}@{at}", str(err))
     report.add("warning", os.path.basename(seg.path), f"{good} records after the damage are intact and "
                                                       f"readable through the index, {bad} are not")  # fmt: skip
 

@@ -273,10 +273,10 @@ class SegmentOpener:
             return None
         rows = index.rows()  # in offset order
         pos, seq = SEGMENT_HEADER_SIZE, seg.first_seq
-        for row in rows:
-            if row[5] != pos or row[2] != seq:
+        for _name, _count, row_seq, _start, _end, offset, length, _raw_len in rows:
+            if offset != pos or row_seq != seq:
                 return None
-            pos, seq = pos + row[6], seq + 1
+            pos, seq = pos + length, seq + 1
         return (index, rows) if (pos, seq) == (synced, next_seq) else None
 
     def _keep_tail(self, seg: Segment, offset: int) -> str:

@@ -45,7 +45,7 @@ from .format import (
     segment_name,
 )
 from .fs import FileSystem
-from .index import SegmentIndex, SegmentSpans, merge_stream_stats
+from .index import SEQ, START, SegmentIndex, SegmentSpans, merge_stream_stats
 from .manifest import Manifest, SealedSegment
 from .recovery import Recovery, SegmentOpener
 from .segment import WRITE_BUFFER, Segment
@@ -517,8 +517,8 @@ class Store:
                 raise InvalidInputError(f"{self.path}: no segment starts at seq {first_seq}")
             seg = found[0]
             index = self._sealed_index(seg) if seg in self.sealed else seg.index()
-        return [Window(index.names[e.stream], e.seq, e.start, e.end, e.count, seg, e.offset, e.length)
-                for e in index.entries]  # fmt: skip
+        return [Window(index.names[stream], seq, start, end, count, seg, offset, length)
+                for stream, count, seq, start, end, offset, length, _raw_len in index.entries]  # fmt: skip
 
     def _sealed_candidates(self, name: str, t0: int, t1: int) -> list[Segment]:
         """Sealed segments whose stream `name` may overlap [t0, t1], by binary search."""
@@ -589,9 +589,10 @@ class Store:
                     if entries is not None:
                         hits = entries.overlapping(t0, t1)
                         if hits:
-                            runs.append([(e.start, e.seq, stream, e, seg) for e in hits])
+                            runs.append([(e[START], e[SEQ], stream, e, seg) for e in hits])
         for start, seq, stream, e, seg in heapq.merge(*runs, key=lambda r: (r[0], r[1])):
-            yield Window(stream, seq, start, e.end, e.count, seg, e.offset, e.length)
+            _id, count, _seq, _start, end, offset, length, _raw_len = e
+            yield Window(stream, seq, start, end, count, seg, offset, length)
 
     def refresh(self) -> None:
         """Reader: see what the writer has committed since this store was opened."""

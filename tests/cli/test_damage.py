@@ -84,8 +84,7 @@ def test_a_read_checks_the_record_against_its_index_entry(tmp_path, capsys):
     seg_size = (tmp_path / "s" / SEG).stat().st_size
     index = SegmentIndex.decode(idx.read_bytes(), 0, seg_size)
     e = index.entries
-    rows = [(index.names[x.stream], x.count, x.seq, x.start, x.end, y.offset, y.length, x.raw_len)
-            for x, y in zip(e, e[::-1])]  # fmt: skip
+    rows = [(index.names[x[0]], *x[1:5], *y[5:7], x[7]) for x, y in zip(e, e[::-1])]  # offset, length of another
     idx.write_bytes(SegmentIndex.build(rows).encode(0, seg_size))
     assert main(["cat", str(tmp_path / "s")]) == 1
     assert "the time index says" in capsys.readouterr().err

@@ -402,10 +402,11 @@ def test_record_of_another_length_than_its_index_entry(tmp_path):
     size = (tmp_path / "s" / SEG).stat().st_size
     index = SegmentIndex.decode(idx_path.read_bytes(), 0, size)
     entries = list(index.entries)
-    entries[1] = entries[1]._replace(length=entries[1].length + 1)
+    stream, count, seq, start, end, offset, length, raw_len = entries[1]
+    entries[1] = (stream, count, seq, start, end, offset, length + 1, raw_len)
     idx_path.write_bytes(SegmentIndex(index.names, entries).encode(0, size))
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
-        (w,) = [w for w in store.query() if w.seq == entries[1].seq]
+        (w,) = [w for w in store.query() if w.seq == seq]
         with pytest.raises(CorruptionError) as err:
             list(w.messages())
         assert err.value.reason == Reason.INDEX_MISMATCH

@@ -6,7 +6,7 @@ import struct
 import pytest
 
 from cclogfs.store.format import INDEX_ENTRY, INDEX_HEADER, Reason, RecordError
-from cclogfs.store.index import SegmentIndex, merge_stream_stats
+from cclogfs.store.index import OFFSET, SEQ, START, SegmentIndex, merge_stream_stats
 
 
 def rows(n=200, seed=1):
@@ -27,7 +27,7 @@ def test_overlapping_matches_brute_force():
         t0 = rnd.randrange(-1500, 1500)
         t1 = t0 + rnd.randrange(0, 400)
         for name in ("/a", "/b", "/c"):
-            got = sorted(e.seq for e in index.streams[name].overlapping(t0, t1))
+            got = sorted(e[SEQ] for e in index.streams[name].overlapping(t0, t1))
             want = sorted(r[2] for r in rs if r[0] == name and r[3] <= t1 and r[4] >= t0)
             assert got == want, (name, t0, t1)
 
@@ -35,7 +35,7 @@ def test_overlapping_matches_brute_force():
 def test_entries_of_a_stream_are_sorted_by_start_then_seq():
     index = SegmentIndex.build([("/a", 1, 2, 5, 5, 0, 1, 1), ("/a", 1, 1, 5, 9, 0, 1, 1), ("/a", 1, 0, 7, 7, 0, 1, 1)])
     e = index.streams["/a"].entries
-    assert [(x.start, x.seq) for x in e] == [(5, 1), (5, 2), (7, 0)]
+    assert [(x[START], x[SEQ]) for x in e] == [(5, 1), (5, 2), (7, 0)]
     assert list(index.streams["/a"].run_max_end) == [9, 9, 9]
 
 
@@ -78,7 +78,7 @@ def test_decode_refuses_the_index_of_another_version_of_the_segment():
 def test_decode_refuses_an_entry_naming_an_unknown_stream():
     index = SegmentIndex.build(rows(20))
     entries = list(index.entries)
-    entries[0] = entries[0]._replace(stream=7)
+    entries[0] = (7, *entries[0][1:])
     names = b'["/a","/b","/c"]'
     body = INDEX_HEADER.pack(b"CCLI", 1, 0, 10, 12345, len(entries), len(names)) + names
     body += b"".join(INDEX_ENTRY.pack(*e) for e in entries)
@@ -99,7 +99,7 @@ def test_stream_stats_and_merge():
     assert total["/a"] == {"windows": 3, "messages": 6, "start_ns": -4, "end_ns": 30, "raw_bytes": 131,
                            "stored_bytes": 162}  # fmt: skip
     assert total["/b"] == stats["/b"] and total["/b"] is not stats["/b"]  # copied, not aliased
-    assert all(e.offset > 0 for e in SegmentIndex.build(rs).entries)
+    assert all(e[OFFSET] > 0 for e in SegmentIndex.build(rs).entries)
 
 
 def test_golden_indexes_encode_back_byte_for_byte():
