@@ -77,7 +77,7 @@ def build(root: Path, windows: int, segment_records: int) -> Oracle:
             seg = files[name[:-4] + ".seg"]
             sizes[name] = len(seg)
             idx = SegmentIndex.decode(data, parse_seq_name(name)[0], len(seg))
-            indexes[name] = (idx.names, idx.entries.tobytes())
+            indexes[name] = (idx.names, list(idx.entries))
     starts = {}
     for name, data in files.items():
         if name.endswith(".seg"):
@@ -102,7 +102,7 @@ def changed_by(oracle: Oracle, name: str, data: bytes, lo: int = 0) -> int:
             return int(body != oracle.body)
         if name.endswith(".idx"):
             idx = SegmentIndex.decode(data, parse_seq_name(name)[0], oracle.sizes[name])
-            return int((idx.names, idx.entries.tobytes()) != oracle.indexes[name])
+            return int((idx.names, list(idx.entries)) != oracle.indexes[name])
         if name == LOCK:
             data.decode(errors="replace").strip()
             return 0

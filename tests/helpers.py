@@ -116,6 +116,5 @@ def forge_index_offsets(store_dir, seg_name: str) -> None:
     size = seg.stat().st_size
     index = SegmentIndex.decode(idx.read_bytes(), 0, size)
     e = index.entries
-    rows = [(index.names[int(x["stream"])], int(x["count"]), int(x["seq"]), int(x["start"]), int(x["end"]),
-             int(y["offset"]), int(y["length"]), int(x["raw_len"])) for x, y in zip(e, e[::-1])]  # fmt: skip
+    rows = [(index.names[x[0]], *x[1:5], *y[5:7], x[7]) for x, y in zip(e, e[::-1])]  # offset, length of another
     idx.write_bytes(SegmentIndex.build(rows).encode(0, size))

@@ -22,6 +22,8 @@ except ImportError:  # the fast float parser is optional: float() gives the same
     simdjson = None
 
 from ..errors import CodecError
+from .columns_read import Reader, b64_token as _b64_token, read_blob as _read_blob, read_column, read_decimal, read_packed
+from .columns_read import render_decimals as _render_decimals, render_floats
 from .columnar_format import (
     DECIMAL_DIGITS,
     DECIMAL_ORDERS,
@@ -66,57 +68,9 @@ _NONFINITE = {"NaN": math.nan, "Infinity": math.inf, "-Infinity": -math.inf}
 _DECIMAL_LIMIT = 10**15
 
 
-class Reader:
-    """Reads a body front to back; every length is checked before anything is allocated."""
-
-    def __init__(self, data: bytes):
-        self.view = memoryview(data)
-        self.pos = 0
-
-    def take(self, n: int, what: str) -> memoryview:
-        if n < 0 or n > len(self.view) - self.pos:
-            raise CodecError(
-                f"columnar payload is corrupt: {what} at body offset {self.pos} needs {n} "
-                f"bytes, {len(self.view) - self.pos} are left"
-            )
-        self.pos += n
-        return self.view[self.pos - n : self.pos]
-
-    def u32(self, what: str) -> int:
-        return U32.unpack(self.take(4, what))[0]
-
-    def array(self, dtype: str, n: int, what: str) -> np.ndarray:
-        size = np.dtype(dtype).itemsize
-        return np.frombuffer(self.take(size * n, what), dtype=dtype)
-
-
-def _float_text(value: float) -> str:
-    """A float the way json.dumps writes it."""
-    if value != value:
-        return "NaN"
-    if value in (math.inf, -math.inf):
-        return "Infinity" if value > 0 else "-Infinity"
-    return repr(value)
-
-
 def _render_floats(values: np.ndarray) -> list[str]:
-    """Each value as json.dumps writes it (repr; NaN, Infinity), the text the encoder checked.
-
-    orjson writes a float array 6-10x faster than repr, in the same shortest round-trip
-    digits, but spells two ranges differently: exponents ("1e-7" for repr's "1e-07") and
-    the decade below 1e-4, which it writes in full ("0.00001" for "1e-05"); NaN and
-    infinities it writes as null. Those items, rare in robot data, are rendered by
-    _float_text. tests/codecs/test_float_text.py holds this to json.dumps.
-    """
-    if len(values) == 0:
-        return []
-    text = orjson.dumps(np.ascontiguousarray(values, dtype=np.float64), option=orjson.OPT_SERIALIZE_NUMPY).decode()
-    texts = text[1:-1].split(",")
-    if "e" in text or "n" in text or "0.0000" in text:  # one scan of the whole column first
-        for i, t in enumerate(texts):
-            if "e" in t or "n" in t or t.startswith(("0.0000", "-0.0000")):
-                texts[i] = _float_text(float(values[i]))
-    return texts
+    """Each value as json.dumps writes it: the text the decoder will render (columns_read)."""
+    return render_floats(np.ascontiguousarray(values, dtype=np.float64))
 
 
 def _simdjson_parser():
@@ -246,15 +200,6 @@ def _as_decimals(tokens: tuple[str, ...]) -> tuple[int, np.ndarray] | None:
     return d, np.array(values, dtype=np.int64)
 
 
-def _render_decimals(values: list[int], d: int) -> list[str]:
-    """m with its point d digits from the right: -5, 3 -> "-0.005"; zero has no sign."""
-    out = []
-    for m in values:
-        digits = str(-m if m < 0 else m).zfill(d + 1)
-        out.append(("-" if m < 0 else "") + digits[:-d] + "." + digits[-d:])
-    return out
-
-
 def _decimal_words(values: np.ndarray, order: int) -> np.ndarray:
     """The values with order - 1 repeated differences taken (first value kept; wraps)."""
     words = values.astype("<i8", copy=True)
@@ -282,20 +227,6 @@ def write_decimal(d: int, values: np.ndarray, out: bytearray) -> None:
             best_cost, best, order = cost, words, r
     out += bytes((d, order))
     write_packed(best, out, offset=True)
-
-
-def read_decimal(reader: "Reader", n: int) -> list[str]:
-    """The rendered tokens of a DECIMAL column."""
-    d, order = reader.take(2, "decimal column header").tolist()
-    if d not in DECIMAL_DIGITS or order not in DECIMAL_ORDERS:
-        raise CodecError(
-            f"columnar payload is corrupt: a decimal column names {d} digits "
-            f"and delta order {order}"
-        )
-    words = read_packed(reader, n, "decimal column", offset=True)
-    for _ in range(order - 1):
-        words = np.cumsum(words, dtype="<i8")  # wraps like the encoder's differences
-    return _render_decimals(words.tolist(), d)
 
 
 def slot_floats(entry: np.ndarray | str | None, n: int) -> np.ndarray | None:
@@ -327,22 +258,11 @@ def _shuffle(words: np.ndarray) -> bytes:
     return words.view(np.uint8).reshape(len(words), 8).T.tobytes()
 
 
-def _unshuffle(planes: np.ndarray, n: int) -> np.ndarray:
-    return planes.reshape(8, n).T.copy().view("<u8").reshape(n)
-
-
 def _zigzag_delta(words: np.ndarray, order: int) -> np.ndarray:
     d = words.astype("<i8", copy=True)
     for _ in range(order):
         d[1:] = np.diff(d)  # wraps modulo 2**64, which undo_delta reverses exactly
     return ((d << 1) ^ (d >> 63)).view("<u8")
-
-
-def _undo_zigzag_delta(z: np.ndarray, order: int) -> np.ndarray:
-    d = ((z >> 1) ^ (np.uint64(0) - (z & 1))).view("<i8")
-    for _ in range(order):
-        d = np.cumsum(d, dtype="<i8")
-    return d
 
 
 def write_packed(words: np.ndarray, out: bytearray, offset: bool = False) -> None:
@@ -377,31 +297,6 @@ def write_packed(words: np.ndarray, out: bytearray, offset: bool = False) -> Non
     else:
         out += PACKED_HEADER.pack(int(words[0]), step, width)
     out += z.view(np.uint8).reshape(n - 1, 8)[:, :width].T.tobytes()
-
-
-def read_packed(reader: "Reader", n: int, what: str, offset: bool = False) -> np.ndarray:
-    """The n i64 values write_packed wrote."""
-    if n == 0:
-        return np.zeros(0, dtype="<i8")
-    if offset:
-        first, step, base, width = OFFSET_HEADER.unpack(reader.take(OFFSET_HEADER.size, f"{what} header"))
-    else:
-        first, step, width = PACKED_HEADER.unpack(reader.take(PACKED_HEADER.size, f"{what} header"))
-        base = 0
-    if width > 8 or step > _I64_MAX:
-        raise CodecError(f"columnar payload is corrupt: {what} claims step {step} and {width}-byte deltas")
-    planes = reader.array("u1", width * (n - 1), what).reshape(width, n - 1)
-    full = np.zeros((n - 1, 8), dtype=np.uint8)
-    full[:, :width] = planes.T
-    z = full.view("<u8").reshape(n - 1)
-    if offset:
-        q = z.view("<i8") + np.int64(base)  # wraps like the encoder's subtraction
-    else:
-        q = ((z >> 1) ^ (np.uint64(0) - (z & 1))).view("<i8")
-    values = np.empty(n, dtype="<i8")
-    values[0] = first
-    values[1:] = q * np.int64(step)  # wraps like the deltas did
-    return np.cumsum(values, dtype="<i8")
 
 
 def float_deltas(bits: np.ndarray) -> tuple[list[int], list[bytes]]:
@@ -467,78 +362,3 @@ def write_column(kind: ColumnKind, values: Any, out: bytearray) -> None:
         _write_blob(values, [len(v) for v in values], out)
     else:  # pragma: no cover - classify only returns the kinds above
         raise CodecError(f"columnar codec cannot write column kind {kind!r}")
-
-
-def _read_blob(reader: Reader, n: int, what: str) -> tuple[np.ndarray, memoryview]:
-    counts = reader.array("<u4", n, f"{what} lengths")
-    blob = reader.take(reader.u32(f"{what} size"), what)
-    return counts, blob
-
-
-def read_column(
-    kind: int, reader: Reader, n: int, floats: list[np.ndarray | None]
-) -> tuple[list[str] | str, np.ndarray | None]:
-    """(rendered tokens, or one token for CONST; float values or None) of one column.
-
-    `floats` holds, for the slots read so far, what `slot_floats` takes (QUAT_W needs three).
-    """
-    if kind == ColumnKind.CONST:
-        data = reader.take(reader.u32("constant size"), "constant")
-        return _utf8(data, "constant"), None
-    if kind == ColumnKind.TEXT:
-        counts, blob = _read_blob(reader, n, "text column")
-        text = _utf8(blob, "text column")
-        if int(counts.sum(dtype=np.uint64)) != len(text):
-            raise CodecError("columnar payload is corrupt: text column lengths do not add up")
-        ends = np.cumsum(counts, dtype=np.int64).tolist()
-        return [text[a:b] for a, b in zip([0] + ends[:-1], ends)], None
-    if kind == ColumnKind.INT:
-        ints = _undo_zigzag_delta(_unshuffle(reader.array("u1", 8 * n, "int column"), n), 1)
-        return list(map(str, ints.tolist())), None
-    if kind == ColumnKind.INT_PACKED:
-        return list(map(str, read_packed(reader, n, "int column").tolist())), None
-    if kind == ColumnKind.INT_OFFSET:
-        return list(map(str, read_packed(reader, n, "int column", offset=True).tolist())), None
-    if kind in (ColumnKind.FLOAT, ColumnKind.FLOAT_DELTA):
-        order = 2
-        if kind == ColumnKind.FLOAT_DELTA:
-            order = int(reader.take(1, "float delta order")[0])
-            if order not in FLOAT_ORDERS:
-                raise CodecError(f"columnar payload is corrupt: a float column names delta order {order}")
-        words = _undo_zigzag_delta(_unshuffle(reader.array("u1", 8 * n, "float column"), n), order)
-        values = words.view("<f8")
-        return _render_floats(values), values
-    if kind == ColumnKind.DECIMAL:
-        return read_decimal(reader, n), None
-    if kind == ColumnKind.QUAT_W:
-        xyz = [slot_floats(f, n) for f in floats[-3:]]
-        if len(xyz) < 3 or any(f is None for f in xyz):
-            raise CodecError("columnar payload is corrupt: a quaternion column lacks x, y, z")
-        x, y, z = xyz
-        residual = _unshuffle(reader.array("u1", 8 * n, "quaternion column"), n)
-        values = (residual ^ quaternion_prediction(x, y, z).view("<u8")).view("<f8")
-        return _render_floats(values), values
-    if kind == ColumnKind.BOOL:
-        flags = reader.array("u1", n, "bool column")
-        if (flags > 1).any():
-            raise CodecError("columnar payload is corrupt: a bool column holds a value above 1")
-        return [("false", "true")[f] for f in flags.tolist()], None
-    if kind == ColumnKind.BASE64:
-        counts, blob = _read_blob(reader, n, "base64 column")
-        if int(counts.sum(dtype=np.uint64)) != len(blob):
-            raise CodecError("columnar payload is corrupt: base64 column lengths do not add up")
-        ends = np.cumsum(counts, dtype=np.int64).tolist()
-        data = bytes(blob)
-        return [_b64_token(data[a:b]) for a, b in zip([0] + ends[:-1], ends)], None
-    raise CodecError(f"columnar payload is corrupt: unknown column kind {kind}")
-
-
-def _b64_token(data: bytes) -> str:
-    return '"' + binascii.b2a_base64(data, newline=False).decode("ascii") + '"'
-
-
-def _utf8(data: memoryview, what: str) -> str:
-    try:
-        return str(data, "utf-8")
-    except UnicodeDecodeError as err:
-        raise CodecError(f"columnar payload is corrupt: {what} is not UTF-8") from err

@@ -370,6 +370,7 @@ INDEX_ENTRY_FIELDS = [
     ("length", "<u8"),
     ("raw_len", "<u8"),
 ]
+INDEX_ENTRY = struct.Struct("<" + "".join({"<u4": "I", "<u8": "Q", "<i8": "q"}[t] for _, t in INDEX_ENTRY_FIELDS))
 
 # -- manifest ------------------------------------------------------------------------------
 

@@ -3,21 +3,25 @@
 Entries of a stream are sorted by (start, seq). With the running maximum of `end` (derived
 on load, never stored), "records overlapping [t0, t1]" is two binary searches and a scan of
 only the candidates between them, whatever the size of the segment.
+
+Plain Python (struct, bisect), no numpy: a reader that asks for one second of a store
+loads one or two indexes, and importing numpy would cost it more than everything else.
 """
 
 from __future__ import annotations
 
 import json
 import struct
-from collections.abc import Iterable
+from bisect import bisect_left, bisect_right
+from collections.abc import Iterable, Sequence
+from functools import cached_property
+from itertools import accumulate, groupby
+from operator import itemgetter
 from typing import Any
-from dataclasses import dataclass
-
-import numpy as np
 
 from .format import (
     FILE_VERSION,
-    INDEX_ENTRY_FIELDS,
+    INDEX_ENTRY,
     INDEX_HEADER,
     INDEX_MAGIC,
     MIN_RECORD,
@@ -30,58 +34,76 @@ from .format import (
 )
 from .fs import FileSystem, FileTooLargeError
 
-ENTRY = np.dtype(INDEX_ENTRY_FIELDS)
+Row = tuple[str, int, int, int, int, int, int, int]  # (name, count, seq, start, end, offset, length, raw_len)
+# One record in the index (FORMAT.md, "Time index"): (stream, count, seq, start, end,
+# offset, length, raw_len), `stream` indexing the names. Plain tuples, as struct gives
+# them: a named tuple per entry made loading an index of 5,000 entries 15 times slower.
+Entry = tuple[int, int, int, int, int, int, int, int]
+STREAM, COUNT, SEQ, START, END, OFFSET, LENGTH, RAW_LEN = range(8)
+
+_ORDER = itemgetter(STREAM, START, SEQ)
 
 
-def overlap_slice(starts: np.ndarray, run_max_end: np.ndarray, t0: int, t1: int) -> slice:
+def overlap_slice(starts: Sequence[int], run_max_end: Sequence[int], t0: int, t1: int) -> slice:
     """Candidates overlapping [t0, t1] among items sorted by start (a superset: filter by end)."""
-    hi = int(np.searchsorted(starts, t1, side="right"))
-    lo = int(np.searchsorted(run_max_end, t0, side="left"))
+    hi = bisect_right(starts, t1)
+    lo = bisect_left(run_max_end, t0)
     return slice(lo, max(lo, hi))
 
 
-@dataclass
 class StreamEntries:
     """The entries of one stream in one segment, sorted by (start, seq)."""
 
-    entries: np.ndarray
-    run_max_end: np.ndarray
+    def __init__(self, entries: list[Entry]):
+        self.entries = entries
 
-    def overlapping(self, t0: int, t1: int) -> np.ndarray:
-        cand = self.entries[overlap_slice(self.entries["start"], self.run_max_end, t0, t1)]
-        return cand[cand["end"] >= t0]
+    @cached_property
+    def _search(self) -> tuple[list[int], list[int]]:
+        """Starts and the running maximum of ends, built on the first query only."""
+        return list(map(itemgetter(START), self.entries)), list(accumulate(map(itemgetter(END), self.entries), max))
+
+    @property
+    def run_max_end(self) -> list[int]:
+        return self._search[1]
+
+    def overlapping(self, t0: int, t1: int) -> list[Entry]:
+        starts, run_max_end = self._search
+        return [e for e in self.entries[overlap_slice(starts, run_max_end, t0, t1)] if e[END] >= t0]
 
 
 class SegmentIndex:
     """Index of one segment: stream names and their sorted entries."""
 
-    def __init__(self, names: list[str], entries: np.ndarray):
+    def __init__(self, names: list[str], entries: Iterable[Entry]):
         self.names = names
-        order = np.lexsort((entries["seq"], entries["start"], entries["stream"]))
-        self.entries = entries[order]
-        self.streams: dict[str, StreamEntries] = {}
-        bounds = np.searchsorted(self.entries["stream"], np.arange(len(names) + 1))
-        for i, name in enumerate(names):
-            part = self.entries[bounds[i] : bounds[i + 1]]
-            if len(part):
-                self.streams[name] = StreamEntries(part, np.maximum.accumulate(part["end"]))
+        self.entries = sorted(entries, key=_ORDER)
+        self.streams: dict[str, StreamEntries] = {
+            names[stream]: StreamEntries(list(part)) for stream, part in groupby(self.entries, itemgetter(STREAM))
+        }
 
     @classmethod
-    def build(cls, rows: Iterable[tuple[str, int, int, int, int, int, int, int]]) -> SegmentIndex:
+    def build(cls, rows: Iterable[Row]) -> SegmentIndex:
         """From (name, count, seq, start, end, offset, length, raw_len) rows in any order."""
         ids: dict[str, int] = {}
-        table = [(ids.setdefault(r[0], len(ids)), *r[1:]) for r in rows]
-        return cls(list(ids), np.array(table, dtype=ENTRY) if table else np.zeros(0, ENTRY))
+        entries = [(ids.setdefault(r[0], len(ids)), *r[1:]) for r in rows]
+        return cls(list(ids), entries)
 
     def __len__(self) -> int:
         return len(self.entries)
+
+    def rows(self) -> list[Row]:
+        """The rows it was built from, in log (offset) order."""
+        names = self.names
+        return [(names[stream], count, seq, start, end, offset, length, raw_len)
+                for stream, count, seq, start, end, offset, length, raw_len
+                in sorted(self.entries, key=itemgetter(OFFSET))]  # fmt: skip
 
     def encode(self, first_seq: int, segment_size: int) -> bytes:
         names = json.dumps(self.names).encode()
         head = INDEX_HEADER.pack(
             INDEX_MAGIC, FILE_VERSION, 0, first_seq, segment_size, len(self.entries), len(names)
         )
-        body = head + names + self.entries.astype(ENTRY).tobytes()
+        body = b"".join([head, names, *(INDEX_ENTRY.pack(*e) for e in self.entries)])
         return body + struct.pack("<Q", xxh3(body))
 
     @classmethod
@@ -105,7 +127,7 @@ class SegmentIndex:
             raise RecordError(Reason.BAD_MAGIC, f"not an index: {magic!r}")
         if version != FILE_VERSION:
             raise RecordError(Reason.UNSUPPORTED_VERSION, f"index version {version}")
-        expect = INDEX_HEADER.size + names_len + count * ENTRY.itemsize + 8
+        expect = INDEX_HEADER.size + names_len + count * INDEX_ENTRY.size + 8
         if len(data) != expect or expect > index_size_limit(segment_size):
             raise RecordError(Reason.BAD_LENGTH, f"index is {len(data)} bytes, expected {expect}")
         (digest,) = struct.unpack_from("<Q", data, len(data) - 8)
@@ -115,7 +137,7 @@ class SegmentIndex:
             raise RecordError(Reason.INDEX_MISMATCH, "index describes another version of the segment")
         pos = INDEX_HEADER.size
         names = _names(data[pos : pos + names_len], count)
-        entries = np.frombuffer(data, ENTRY, count, pos + names_len).copy()
+        entries = list(INDEX_ENTRY.iter_unpack(memoryview(data)[pos + names_len : -8]))
         _check_entries(entries, len(names), segment_size)
         return cls(names, entries)
 
@@ -126,11 +148,11 @@ class SegmentIndex:
             e = s.entries
             out[name] = {
                 "windows": len(e),
-                "messages": int(e["count"].sum()),
-                "start_ns": int(e["start"].min()),
-                "end_ns": int(e["end"].max()),
-                "raw_bytes": int(e["raw_len"].sum()),
-                "stored_bytes": int(e["length"].sum()),
+                "messages": sum(map(itemgetter(COUNT), e)),
+                "start_ns": min(map(itemgetter(START), e)),
+                "end_ns": max(map(itemgetter(END), e)),
+                "raw_bytes": sum(map(itemgetter(RAW_LEN), e)),
+                "stored_bytes": sum(map(itemgetter(LENGTH), e)),
             }
         return out
 
@@ -147,20 +169,17 @@ def _names(raw: bytes, count: int) -> list[str]:
     return names
 
 
-def _check_entries(entries: np.ndarray, streams: int, segment_size: int) -> None:
+def _check_entries(entries: list[Entry], streams: int, segment_size: int) -> None:
     """Every entry names a known stream and a stretch of the segment a record can fill:
     reads trust offset and length to size what they read."""
-    if not len(entries):
-        return
-    start, length = entries["offset"], entries["length"]
-    if int(entries["stream"].max()) >= streams:
-        raise RecordError(Reason.BAD_FIELD, "index entry names an unknown stream")
-    bad = ((start < SEGMENT_HEADER_SIZE) | (length < MIN_RECORD) | (length > segment_size)
-           | (start > segment_size - length) | (entries["count"] < 1) | (entries["end"] < entries["start"]))  # fmt: skip
-    if bad.any():
-        e = entries[int(np.argmax(bad))]
-        raise RecordError(Reason.BAD_FIELD, f"index entry of seq {int(e['seq'])} (offset {int(e['offset'])}, "
-                                            f"{int(e['length'])} bytes) lies outside its segment or is empty")  # fmt: skip
+    for e in entries:
+        offset, length = e[OFFSET], e[LENGTH]
+        if e[STREAM] >= streams:
+            raise RecordError(Reason.BAD_FIELD, "index entry names an unknown stream")
+        if (offset < SEGMENT_HEADER_SIZE or length < MIN_RECORD or length > segment_size
+                or offset > segment_size - length or e[COUNT] < 1 or e[END] < e[START]):  # fmt: skip
+            raise RecordError(Reason.BAD_FIELD, f"index entry of seq {e[SEQ]} (offset {offset}, "
+                                                f"{length} bytes) lies outside its segment or is empty")  # fmt: skip
 
 
 def merge_stream_stats(total: dict[str, dict[str, int]], stats: dict[str, dict[str, int]]) -> None:
@@ -186,11 +205,11 @@ class SegmentSpans:
         for first_seq, seg, streams in items:
             for stream, st in streams.items():
                 by_stream.setdefault(stream, []).append((st["start_ns"], st["end_ns"], first_seq, seg))
-        self._streams: dict[str, tuple[np.ndarray, np.ndarray, list[Any]]] = {}
+        self._streams: dict[str, tuple[list[int], list[int], list[Any]]] = {}
         for stream, spans in by_stream.items():
             spans.sort(key=lambda x: (x[0], x[2]))
-            starts = np.array([x[0] for x in spans], dtype=np.int64)
-            run_max = np.maximum.accumulate(np.array([x[1] for x in spans], dtype=np.int64))
+            starts = [x[0] for x in spans]
+            run_max = list(accumulate((x[1] for x in spans), max))
             self._streams[stream] = (starts, run_max, [x[3] for x in spans])
 
     def overlapping(self, name: str, t0: int, t1: int) -> list[Any]:

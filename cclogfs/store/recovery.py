@@ -17,6 +17,8 @@ from .format import (
     MANIFEST,
     SEGMENT_HEADER_SIZE,
     Reason,
+    RecordError,
+    index_name,
     parse_seq_name,
     segment_manifest_gen,
     segment_name,
@@ -24,6 +26,7 @@ from .format import (
 )
 from .fs import FileSystem
 from . import planted
+from .index import SegmentIndex
 from .manifest import Manifest
 from .records import count_intact
 from .segment import Problem, Segment, intact_after, open_segment, scan
@@ -93,8 +96,12 @@ def _sort_files(names: list[str], manifest: Manifest) -> _Files:
 class SegmentOpener:
     """Opens the segments of one manifest version; a writer also repairs the tail."""
 
-    def __init__(self, fs: FileSystem, path: str, readonly: bool, lock: threading.RLock):
+    def __init__(self, fs: FileSystem, path: str, readonly: bool, lock: threading.RLock, *,
+                 trust_checkpoint: bool = False):  # fmt: skip
         self.fs, self.path, self.readonly, self.lock = fs, path, readonly, lock
+        # A reader may take the part of the active segment a clean close proved durable from
+        # the index that close wrote, instead of scanning it (FORMAT.md, "Checkpoint index").
+        self.trust_checkpoint = trust_checkpoint
         self.recovery = Recovery()
         self.sealed: list[Segment] = []
         self.tail: list[Segment] = []
@@ -250,7 +257,12 @@ class SegmentOpener:
         """Scan one tail segment; keep every intact record below the synced point (damage
         there is declared in `seg.damage`, never cut) and cut an unsynced torn tail. True
         when it had to be cut."""
-        result = scan(seg, salvage=True)
+        prefix = self._checkpointed_prefix(seg, checkpoint)
+        if prefix is None:
+            result = scan(seg, salvage=True)
+        else:  # only what was written after the last clean close is scanned
+            result = scan(seg, salvage=True, start=(checkpoint["synced"], checkpoint["next_seq"]))
+            result.rows[:0] = prefix[1]
         self.recovery.skipped.extend(result.skipped)
         seg.synced = max(result.synced, SEGMENT_HEADER_SIZE)
         if checkpoint.get("first_seq") == seg.first_seq:
@@ -267,6 +279,8 @@ class SegmentOpener:
         self.recovery.damage.extend(seg.damage)
         end = cut.offset if cut is not None else seg.fs.size(seg.fd)
         seg.rows = [r for r in result.rows if r[5] < end]
+        if prefix is not None and len(seg.rows) == len(prefix[1]):
+            seg.set_index(prefix[0])  # nothing was added after the checkpoint: no rebuild
         seg.next_seq = max([r[2] + 1 for r in seg.rows] + [p.seqs[1] for p in seg.damage] + [seg.first_seq])
         if cut is None:
             seg.size = end
@@ -280,6 +294,30 @@ class SegmentOpener:
             self.fs.fsync(seg.fd)
         seg.size = cut.offset
         return True
+
+    def _checkpointed_prefix(self, seg: Segment, checkpoint: dict) -> tuple[SegmentIndex, list[tuple]] | None:
+        """The index a clean close wrote of the segment's first `checkpoint["synced"]` bytes
+        and its rows, when it describes exactly those bytes: every seq from the segment's first to the
+        checkpoint's `next_seq`, in records that tile the bytes from the segment header to
+        the synced point. None otherwise (no checkpoint of this segment, no index, a damaged
+        or stale one, a file shorter than the checkpoint): the segment is scanned whole."""
+        if not self.trust_checkpoint or checkpoint.get("first_seq") != seg.first_seq:
+            return None
+        synced, next_seq = checkpoint["synced"], checkpoint["next_seq"]
+        if seg.size < synced:
+            return None
+        try:
+            data = self.fs.read_file(self._file(index_name(seg.first_seq)))
+            index = SegmentIndex.decode(data, seg.first_seq, synced)
+        except (OSError, RecordError, ValueError, TypeError):
+            return None
+        rows = index.rows()  # in offset order
+        pos, seq = SEGMENT_HEADER_SIZE, seg.first_seq
+        for _name, _count, row_seq, _start, _end, offset, length, _raw_len in rows:
+            if offset != pos or row_seq != seq:
+                return None
+            pos, seq = pos + length, seq + 1
+        return (index, rows) if (pos, seq) == (synced, next_seq) else None
 
     def _keep_tail(self, seg: Segment, offset: int) -> str:
         """Copy the bytes recovery is about to cut to a side file, when intact records lie

@@ -192,8 +192,9 @@ def open_segment(fs: FileSystem, path: str, *, write: bool,
     return Segment(fs, path, first_seq, created_ns, fd, size, lock=lock), parsed is not None
 
 
-def scan(segment: Segment, *, salvage: bool = False) -> ScanResult:
-    """Read every record from the start, checking all of it, up to the first that fails.
+def scan(segment: Segment, *, salvage: bool = False, start: tuple[int, int] | None = None) -> ScanResult:
+    """Read every record from the start (or from `start`: an offset and the seq of the
+    record there), checking all of it, up to the first that fails.
 
     Records of unknown kind or version whose checksums hold are skipped and reported;
     the first record that fails a check ends the valid prefix (recovery truncates there).
@@ -202,8 +203,8 @@ def scan(segment: Segment, *, salvage: bool = False) -> ScanResult:
     """
     fs, fd = segment.fs, segment.fd
     size = fs.size(fd)
-    result = ScanResult(next_seq=segment.first_seq)
-    pos, seq = SEGMENT_HEADER_SIZE, segment.first_seq
+    pos, seq = start or (SEGMENT_HEADER_SIZE, segment.first_seq)
+    result = ScanResult(end=pos, next_seq=seq)
     while True:
         try:
             for rec in records(ChunkReader(fs, fd), pos, size, seq):

@@ -49,7 +49,7 @@ from .format import (
     segment_name,
 )
 from .fs import FileSystem
-from .index import SegmentIndex, SegmentSpans, merge_stream_stats
+from .index import SEQ, START, SegmentIndex, SegmentSpans, merge_stream_stats
 from .manifest import Manifest, SealedSegment
 from .recovery import Recovery, SegmentOpener
 from .segment import WRITE_BUFFER, Segment
@@ -65,8 +65,9 @@ class Store:
 
     def __init__(self, path: str, fs: FileSystem, readonly: bool, codecs: Codecs,
                  sync_every_ms: float | None, sync_every_bytes: int | None, segment_bytes: int,
-                 segment_age_s: float, segment_records: int):  # fmt: skip
+                 segment_age_s: float, segment_records: int, verify: bool = False):  # fmt: skip
         self.path = path
+        self.verify = verify  # a reader scans the whole active segment, checkpoint or not
         self.fs = fs
         self.readonly = readonly
         self.codecs = codecs
@@ -242,7 +243,10 @@ class Store:
             seg.fd = -1
 
     def _open_segments(self, removed: list[str]) -> None:
-        opener = SegmentOpener(self.fs, self.path, self.readonly, self.lock)
+        # The writer scans the active segment whole: damage below the synced point must be
+        # found and sealed before it appends (FORMAT.md, "Checkpoint index").
+        opener = SegmentOpener(self.fs, self.path, self.readonly, self.lock,
+                               trust_checkpoint=self.readonly and not self.verify)  # fmt: skip
         opener.recovery.removed_files = removed
         opener.open(self.manifest)
         self.recovery, self.sealed = opener.recovery, opener.sealed
@@ -479,6 +483,9 @@ class Store:
         seg = self.active
         mark = {"first_seq": seg.first_seq, "synced": seg.synced, "next_seq": seg.next_seq}
         if self._dirty and self.manifest.checkpoint != mark:
+            # Its index first, so that a reader need not scan it: a crash before the manifest
+            # leaves an index no checkpoint matches, which readers ignore.
+            self.fs.write_file_atomic(self._index_path(seg), seg.index().encode(seg.first_seq, seg.size))
             self.commit_manifest(self.manifest.with_checkpoint(**mark))
 
     def _start_flusher(self) -> None:
@@ -552,9 +559,8 @@ class Store:
                 raise InvalidInputError(f"{self.path}: no segment starts at seq {first_seq}")
             seg = found[0]
             index = self._sealed_index(seg) if seg in self.sealed else seg.index()
-        return [Window(index.names[int(e["stream"])], int(e["seq"]), int(e["start"]), int(e["end"]),
-                       int(e["count"]), seg, int(e["offset"]), int(e["length"]))
-                for e in index.entries]  # fmt: skip
+        return [Window(index.names[stream], seq, start, end, count, seg, offset, length)
+                for stream, count, seq, start, end, offset, length, _raw_len in index.entries]  # fmt: skip
 
     def _sealed_candidates(self, name: str, t0: int, t1: int) -> list[Segment]:
         """Sealed segments whose stream `name` may overlap [t0, t1], by binary search."""
@@ -624,11 +630,11 @@ class Store:
                     entries = index.streams.get(stream)
                     if entries is not None:
                         hits = entries.overlapping(t0, t1)
-                        if len(hits):
-                            runs.append([(int(e["start"]), int(e["seq"]), stream, e, seg) for e in hits])
+                        if hits:
+                            runs.append([(e[START], e[SEQ], stream, e, seg) for e in hits])
         for start, seq, stream, e, seg in heapq.merge(*runs, key=lambda r: (r[0], r[1])):
-            yield Window(stream, seq, start, int(e["end"]), int(e["count"]), seg,
-                         int(e["offset"]), int(e["length"]))  # fmt: skip
+            _id, count, _seq, _start, end, offset, length, _raw_len = e
+            yield Window(stream, seq, start, end, count, seg, offset, length)
 
     def refresh(self) -> None:
         """Reader: see what the writer has committed since this store was opened."""
@@ -686,13 +692,15 @@ def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: 
                codec: Any = "columnar", stream_codecs: Mapping[str, Any] | None = None,
                sync_every_ms: float | None = 200, sync_every_bytes: int | None = 4 << 20,
                segment_bytes: int = 64 << 20, segment_age_s: float = 3600.0,
-               segment_records: int = 16384, fs: FileSystem | None = None) -> Store:  # fmt: skip
+               segment_records: int = 16384, fs: FileSystem | None = None, verify: bool = False) -> Store:  # fmt: skip
     """Open (or with create=True make) the store at `path`; recovers after a crash.
 
     codec: default codec (id or config dict) for new records; stream_codecs: per-stream
     overrides. sync_every_ms / sync_every_bytes: the group-commit policy (see FORMAT.md).
     segment_bytes / segment_records / segment_age_s: when the active segment is sealed; they
-    bound what recovery has to scan after a crash.
+    bound what recovery has to scan after a crash. verify: a reader checks every record of
+    the active segment on open even after a clean close (fsck), instead of taking what the
+    close proved durable from its checkpoint index.
     """
     if sync_every_ms is not None and sync_every_ms < 0:
         raise InvalidInputError("sync_every_ms must be >= 0 or None")
@@ -701,6 +709,7 @@ def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: 
     codecs = Codecs(codec_from_config(codec), {k: codec_from_config(v) for k, v in (stream_codecs or {}).items()})
     store = Store(
         os.fspath(path), fs or FileSystem(), readonly, codecs, sync_every_ms, sync_every_bytes, segment_bytes, segment_age_s, segment_records,
+        verify,
     )  # fmt: skip
     for name in codecs.per_stream:
         check_stream_name(name)

@@ -58,7 +58,7 @@ def test_packed_integers_round_trip(values, offset):
     out = bytearray()
     write_packed(np.array(values, dtype="<i8"), out, offset=offset)
     reader = Reader(bytes(out))
-    assert read_packed(reader, len(values), "t", offset=offset).tolist() == values
+    assert read_packed(reader, len(values), "t", offset=offset) == values
     assert reader.pos == len(out)
 
 

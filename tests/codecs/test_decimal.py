@@ -51,7 +51,7 @@ def written_kinds(data: bytes, count: int) -> tuple[list[int], int]:
     """(column kinds, body offset of the first column) of the first group, read from the bytes."""
     reader = columns.Reader(body_of(data))
     assert reader.u32("groups") >= 1
-    reader.array("<u2", count, "ids")
+    reader.ints("H", count, "ids")
     columns.read_packed(reader, count, "stamps", offset=True)
     _, slots = GROUP_HEADER.unpack(reader.take(GROUP_HEADER.size, "group header"))
     columns._read_blob(reader, slots + 1, "literals")
@@ -62,7 +62,7 @@ def written_kinds(data: bytes, count: int) -> tuple[list[int], int]:
 def first_group_rows(data: bytes, count: int) -> int:
     reader = columns.Reader(body_of(data))
     reader.u32("groups")
-    reader.array("<u2", count, "ids")
+    reader.ints("H", count, "ids")
     columns.read_packed(reader, count, "stamps", offset=True)
     rows, _ = GROUP_HEADER.unpack(reader.take(GROUP_HEADER.size, "group header"))
     return rows

@@ -76,7 +76,8 @@ def test_rewrite_replaces_downsamples_and_keeps(tmp_path):
                                              "00000000000000000003-1.idx", "00000000000000000003-1.seg",
                                              "00000000000000000006-1.idx", "00000000000000000006-1.seg",
                                              "00000000000000000009-1.idx", "00000000000000000009-1.seg",
-                                             "00000000000000000010.seg", "LOCK", MANIFEST, "RESERVE"]  # fmt: skip
+                                             "00000000000000000010.idx", "00000000000000000010.seg",  # a checkpoint index
+                                             "LOCK", MANIFEST, "RESERVE"]  # fmt: skip
 
 
 def test_a_segment_whose_records_are_all_kept_is_not_rewritten(tmp_path):
@@ -158,7 +159,8 @@ def test_drop_oldest_moves_the_start_of_the_log(tmp_path):
     with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
         assert store.recovery.clean and [w.seq for w in store.query()] == [11]
         assert store.first_seq == 11 and store.dropped()["segments"] == 5
-    assert sorted(files(tmp_path / "s")) == ["00000000000000000011.seg", "LOCK", MANIFEST, "RESERVE"]
+    assert sorted(files(tmp_path / "s")) == ["00000000000000000011.idx", "00000000000000000011.seg", "LOCK",
+                                             MANIFEST, "RESERVE"]  # the .idx: the active segment's checkpoint index
     report = check_store(str(tmp_path / "s"))
     assert not report.findings and report.records == 1
 

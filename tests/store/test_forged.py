@@ -10,7 +10,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 import cclogfs
@@ -29,7 +28,9 @@ from cclogfs.store.format import (
     unpack_manifest,
     xxh3,
 )
-from cclogfs.store.index import ENTRY, SegmentIndex
+from cclogfs.store import index as index_mod
+from cclogfs.store.format import INDEX_ENTRY
+from cclogfs.store.index import SegmentIndex
 from cclogfs.upkeep.policy import Policy, parse_rule
 
 GiB = 1 << 30
@@ -227,10 +228,10 @@ except StoreLockedError as err:
 # -- item 5: forged indexes -------------------------------------------------------------
 
 
-def _forged_index(names: bytes, entries: np.ndarray | None, first_seq: int, size: int) -> bytes:
-    entries = np.zeros(0, ENTRY) if entries is None else entries
+def _forged_index(names: bytes, entries: list | None, first_seq: int, size: int) -> bytes:
+    entries = entries or []
     head = INDEX_HEADER.pack(INDEX_MAGIC, 1, 0, first_seq, size, len(entries), len(names))
-    body = head + names + entries.tobytes()
+    body = head + names + b"".join(INDEX_ENTRY.pack(*e) for e in entries)
     return body + struct.pack("<Q", xxh3(body))
 
 
@@ -238,9 +239,11 @@ def _entries_with(path, **change):
     idx = path / "00000000000000000000.idx"
     size = (path / "00000000000000000000.seg").stat().st_size
     index = SegmentIndex.decode(idx.read_bytes(), 0, size)
-    entries = index.entries.copy()
-    for key, value in change.items():
-        entries[key][0] = value
+    entries = list(index.entries)
+    first = list(entries[0])
+    for key, value in change.items():  # a field of the first entry, by its name in FORMAT.md
+        first[getattr(index_mod, key.upper())] = value
+    entries[0] = tuple(first)
     return index.names, entries, size
 
 

@@ -71,7 +71,7 @@ def test_flat_namespace_names_are_data(tmp_path):
             store.put_window(name, [(i, "{}")])
     assert sorted(os.listdir(tmp_path)) == ["s"]
     files = sorted(os.listdir(tmp_path / "s"))
-    assert files == ["00000000000000000000.seg", "LOCK", "MANIFEST", "RESERVE"]
+    assert files == ["00000000000000000000.idx", "00000000000000000000.seg", "LOCK", "MANIFEST", "RESERVE"]
     with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
         assert sorted(store.streams()) == sorted(names)
 

@@ -1,0 +1,167 @@
+"""The columnar codec's encoder: groups of one shape become a template plus typed columns.
+
+Apart from the codec (columnar.py) because it needs numpy, which readers do not import
+(issue 14). The payload layout is specified in docs/CODEC_COLUMNAR.md.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+
+import numpy as np
+import xxhash
+import zstandard
+
+from ..errors import CodecError
+from .base import encode_texts, utf8_size
+from .columnar_format import BODY_FACTOR, BODY_SLACK, GROUP_HEADER, HEADER, MAX_GROUPS, RAW_GROUP, U32, ColumnKind
+from .columns import (
+    _shuffle,
+    _write_blob,
+    _zigzag_delta,
+    classify,
+    float_deltas,
+    quaternion_prediction,
+    slot_floats,
+    write_column,
+    write_packed,
+)
+from .shapes import ShapeMatcher
+
+
+# A float slot after three float slots is coded as a quaternion's w when at least this
+# share of its rows has x^2 + y^2 + z^2 + w^2 within 1e-6 of 1.
+_QUATERNION_SHARE = 0.9
+# A string slot with at most this many distinct values splits its group (see _split_by_label).
+_MAX_LABELS = 8
+
+
+def _split_by_label(
+    literals: tuple[str, ...], indices: list[int], rows: list[tuple[str, ...]]
+) -> list[tuple[tuple[str, ...], list[int], list[tuple[str, ...]]]]:
+    """Split a group by its first string slot with a few values (a frame id, say).
+
+    /tf interleaves transforms of different frames; apart, each frame's values form a
+    smooth series that delta coding shrinks, together they alternate and do not.
+    """
+    if len(rows) < 2 * _MAX_LABELS:
+        return [(literals, indices, rows)]
+    for j, token in enumerate(rows[0]):
+        if token[:1] != '"':
+            continue
+        labels = {row[j] for row in rows}
+        if 1 < len(labels) <= _MAX_LABELS:
+            parts: dict[str, tuple[list[int], list]] = {}
+            for i, row in zip(indices, rows):
+                part = parts.setdefault(row[j], ([], []))
+                part[0].append(i)
+                part[1].append(row)
+            return [(literals, idx, part_rows) for idx, part_rows in parts.values()]
+    return [(literals, indices, rows)]
+
+
+def _maybe_unit(xyz: list, w: np.ndarray) -> bool:
+    """Whether the first or middle row of x, y, z, w is near unit: a cheap filter.
+
+    A quaternion column has at least 90% unit rows, so it all but always passes; most
+    float columns fail here without the numpy work of the full test.
+    """
+    for row in (0, len(w) // 2):
+        try:
+            parts = [float(e[row] if isinstance(e, np.ndarray) else e) for e in xyz]
+        except (TypeError, ValueError):
+            return False
+        parts.append(float(w[row]))
+        if abs(sum(c * c for c in parts) - 1.0) < 1e-6:  # c * c overflows to inf, not an error
+            return True
+    return False
+
+
+def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]], version: int) -> bytes:
+    """One group: header, literals, kinds, then each column's data."""
+    n = len(rows)
+    kinds, values = [], []
+    floats: list[np.ndarray | str | None] = []  # what slot_floats takes, per slot
+    for tokens in zip(*rows):
+        kind, vals = classify(tokens, decimal=version >= 4)
+        fl = vals if kind in (ColumnKind.FLOAT, ColumnKind.CONST) else None
+        if kind is ColumnKind.FLOAT and len(floats) >= 3 and _maybe_unit(floats[-3:], vals):
+            xyz = [slot_floats(f, n) for f in floats[-3:]]
+            if all(f is not None for f in xyz):
+                x, y, z = xyz
+                with np.errstate(all="ignore"):
+                    near_unit = np.abs(x * x + y * y + z * z + vals * vals - 1.0) < 1e-6
+                if near_unit.mean() >= _QUATERNION_SHARE:
+                    kind = ColumnKind.QUAT_W
+                    vals = vals.view("<u8") ^ quaternion_prediction(x, y, z).view("<u8")
+        if kind is ColumnKind.FLOAT and version >= 3:
+            kind = ColumnKind.FLOAT_DELTA
+        elif kind is ColumnKind.INT and version >= 2:
+            kind = ColumnKind.INT_OFFSET if version >= 3 else ColumnKind.INT_PACKED
+        kinds.append(kind)
+        values.append(vals)
+        floats.append(fl)
+    deltas = [j for j, kind in enumerate(kinds) if kind is ColumnKind.FLOAT_DELTA]
+    if deltas:
+        orders, planes = float_deltas(np.stack([values[j] for j in deltas]).view("<i8"))
+        for j, order, data in zip(deltas, orders, planes):
+            values[j] = (order, data)
+    out = bytearray(GROUP_HEADER.pack(n, len(kinds)))
+    _write_blob([lit.encode() for lit in literals], [len(lit) for lit in literals], out)
+    out += bytes(kinds)
+    for kind, vals in zip(kinds, values):
+        write_column(kind, vals, out)
+    return bytes(out)
+
+
+# A surrogate code point: an escaped byte that is not UTF-8 (see base), or a stray one.
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+def _shapeable(texts: Sequence[str]) -> list[str | None]:
+    """The texts the shape matcher may see: those with a surrogate are stored verbatim."""
+    if "".join(texts).isascii():
+        return list(texts)
+    return [None if _SURROGATE.search(t) else t for t in texts]
+
+
+def encode_window(compressor: zstandard.ZstdCompressor, matcher: ShapeMatcher, version: int,
+                  stamps: Sequence[int], texts: Sequence[str]) -> bytes:  # fmt: skip
+    """The payload of one window (`ColumnarCodec.encode`)."""
+    count = len(stamps)
+    if len(texts) != count:
+        raise CodecError(f"a window needs one stamp per text, got {count} and {len(texts)}")
+    try:
+        stamp_words = np.array(stamps, dtype="<i8")
+    except OverflowError as err:
+        raise CodecError("a window stamp does not fit in a signed 64-bit integer") from err
+    groups, _ = matcher.group_window(_shapeable(texts))
+    ids = np.full(count, RAW_GROUP, dtype="<u2")
+    bodies = []
+    parts = [part for literals, indices, rows in groups for part in _split_by_label(literals, indices, rows)]
+    # No trial decode: a match rebuilds its text from the literals by construction,
+    # and classify() keeps a column kind only if rendering it gives every token back.
+    for literals, indices, rows in parts[:MAX_GROUPS]:
+        if len(indices) == count:  # the usual window: one group holds every message
+            ids.fill(len(bodies))
+        else:
+            ids[indices] = len(bodies)
+        bodies.append(_encode_group(literals, rows, version))
+    raw_indices = np.flatnonzero(ids == RAW_GROUP).tolist()
+    body = bytearray(U32.pack(len(bodies)))
+    body += ids.tobytes()
+    if version == 1:
+        body += _shuffle(_zigzag_delta(stamp_words, 1))
+    else:
+        write_packed(stamp_words, body, offset=version >= 3)
+    for data in bodies:
+        body += data
+    raw_texts = encode_texts([texts[i] for i in raw_indices])
+    _write_blob(raw_texts, [len(t) for t in raw_texts], body)
+    raw_len = 4 + 12 * count + utf8_size(texts)
+    if len(body) > BODY_FACTOR * raw_len + BODY_SLACK:  # pragma: no cover - cannot happen
+        raise CodecError("columnar body would exceed its decoding bound")
+    frame = compressor.compress(bytes(body))
+    return HEADER.pack(version, len(body), xxhash.xxh32_intdigest(frame)) + frame
+
