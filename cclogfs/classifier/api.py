@@ -73,14 +73,32 @@ def robot_thresholds(runs: list[OdomArrays]) -> dict:
     return {"dir_flip": max(0.01, 4 * noise)}
 
 
+# The second stage's default: a flag stands only where some feature is beyond this many
+# times the most the robot showed in training (or the feature's noise floor).
+LIMIT_FACTOR = 2.0
+
+
+def robot_limits(X: np.ndarray, factor: float) -> np.ndarray:
+    """Per default feature, `factor` x the largest value in the nominal vectors X (at least
+    the noise floor): a flag that no feature confirms beyond its limit is the robot doing
+    what it did in training, only a little more. Braking is limited by the harder of the
+    robot's acceleration and braking: a base that can speed up at 1 m/s^2 stops at least
+    as hard at a goal, whether or not the training minutes showed a stop."""
+    top = np.maximum(np.nanmax(X, axis=0) if len(X) else 0.0, DEFAULT_FLOORS)
+    top[2] = max(top[1], top[2])  # brake_max: at least accel_max
+    return factor * top
+
+
 def train(
-    sources: Iterable, *, labels=None, features: dict | str | None = "default", **params
-) -> OneClassModel:
+    sources: Iterable, *, labels=None, features: dict | str | None = "default",
+    limit_factor: float | None = LIMIT_FACTOR, **params,
+) -> OneClassModel:  # fmt: skip
     """A model trained on odometry runs (OdomArrays, or lists of JSON texts/dicts).
 
     `labels`: None, one {"events": [...]} for all runs (stamps are absolute), or a list
     with one per run. Vectors that depend on an event are left out of the nominal set; the
-    ones inside events select nu/gamma. `params` go to OneClassModel.
+    ones inside events select nu/gamma. `params` go to OneClassModel. Default features get
+    a second stage (`robot_limits` with `limit_factor`; None or 0: none).
     """
     sources = [_as_odom(s) for s in sources]
     feature_set = make_features(features)
@@ -101,7 +119,11 @@ def train(
     model = OneClassModel(feature_config=feature_set.get_config(), **params)
     model.training = robot_stats(sources)
     Xa = np.concatenate(anomalous)
-    return model.fit(np.concatenate(nominal), Xa if len(Xa) else None)
+    Xn = np.concatenate(nominal)
+    model.fit(Xn, Xa if len(Xa) else None)
+    if feature_set.id == "default" and limit_factor:
+        model.set_limits(robot_limits(Xn[np.isfinite(Xn).all(axis=1)], limit_factor))
+    return model
 
 
 class Detector:
