@@ -212,6 +212,15 @@ class Detector:
         return self.update_row(*self.parse(msg))
 
 
+# Windows in seconds mode (bench/classifier_long.py, issue 15): an anomaly whose context
+# comes within MERGE_S of a closed window joins it (a collision's stop and its restart up
+# to 4 s later stay one window), and a window stays open while the score is above
+# HOLD_SCORE (hysteresis: the tail of a mild event scores just below 0), so that the
+# context before and after can be 1 s.
+MERGE_S = 3.0
+HOLD_SCORE = -0.3
+
+
 class SmartLogger:
     """Turns a stream of (topic, stamp_ns, json_text) into PendingWindows to store.
 
@@ -231,6 +240,8 @@ class SmartLogger:
         self.detector = detector
         self.odom_topic = odom_topic
         window_args.setdefault("lookback_max_s", detector.lookback_max_s)
+        window_args.setdefault("merge_s", MERGE_S)
+        window_args.setdefault("hold_score", HOLD_SCORE)
         self.windows = WindowBuilder(trigger_topic=odom_topic,
                                      model_id=detector.model.model_id_, **window_args)  # fmt: skip
         self.summary = SummaryBuilder(period_s=summary_period_s) if summary_period_s else None
