@@ -216,7 +216,7 @@ class Detector:
 # comes within MERGE_S of a closed window joins it (a collision's stop and its restart up
 # to 4 s later stay one window), and a window stays open while the score is above
 # HOLD_SCORE (hysteresis: the tail of a mild event scores just below 0), so that the
-# context before and after can be 1 s.
+# context after can be 1 s.
 MERGE_S = 3.0
 HOLD_SCORE = -0.3
 
