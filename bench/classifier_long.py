@@ -273,8 +273,9 @@ def _plot_hall_starts_and_stops(axes, hall: OdomArrays) -> None:
     v = hall.raw[:, 7]
     dv = np.diff(v) / (np.diff(t) / NS)
     later = np.arange(1, len(t)) > np.searchsorted(t, t[0] + 120 * NS)
-    start = int(np.argmax(np.where(later & (v[:-1] < 0.02), dv, -np.inf))) + 1
-    stop = int(np.argmax(np.where(later & (v[1:] < 0.02), -dv, -np.inf))) + 1
+    # The largest one-message step up from below creep speed, and down to below it.
+    start = int(np.argmax(np.where(later & (v[:-1] < 0.1), dv, -np.inf))) + 1
+    stop = int(np.argmax(np.where(later & (v[1:] < 0.1), -dv, -np.inf))) + 1
     for ax, i, what in ((axes[0], start, "start from standstill"), (axes[1], stop, "stop")):
         sl = slice(max(i - 25, 0), i + 25)
         sec = (t[sl] - t[i]) / NS
