@@ -241,7 +241,9 @@ class SmartLogger:
         self.odom_topic = odom_topic
         window_args.setdefault("lookback_max_s", detector.lookback_max_s)
         window_args.setdefault("merge_s", MERGE_S)
-        window_args.setdefault("hold_score", HOLD_SCORE)
+        # The level is in the two-stage score's units: a model without limits (older
+        # files, limit_factor=0) scores ordinary driving above it, and would keep all.
+        window_args.setdefault("hold_score", HOLD_SCORE if detector.model.limits_ is not None else None)
         self.windows = WindowBuilder(trigger_topic=odom_topic,
                                      model_id=detector.model.model_id_, **window_args)  # fmt: skip
         self.summary = SummaryBuilder(period_s=summary_period_s) if summary_period_s else None

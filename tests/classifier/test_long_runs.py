@@ -181,3 +181,14 @@ def test_second_stage_limits_saved_and_confirm_flags(tmp_path):
     assert loaded.model_id_ == model.model_id_
     one = [loaded.score_one(x) for x in X[ok][::50]]
     np.testing.assert_allclose(one, s1[::50], atol=1e-9)
+
+
+def test_hysteresis_only_for_models_with_limits():
+    """The hold level is in the two-stage score's units: a model without limits (an older
+    file) keeps the windows it had."""
+    from cclogfs.classifier import SmartLogger
+    from cclogfs.classifier.api import HOLD_SCORE
+
+    part = manoeuvres().take(slice(0, 190))
+    assert SmartLogger(Detector(train([part])), before_s=2.0, after_s=1.0).windows.hold_score == HOLD_SCORE
+    assert SmartLogger(Detector(train([part], limit_factor=0)), before_s=2.0, after_s=1.0).windows.hold_score is None
