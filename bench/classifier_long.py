@@ -217,7 +217,7 @@ def plot_episodes(runs: dict[str, OdomArrays], path: Path) -> None:
     from cclogfs.classifier.api import Detector
     from cclogfs.classifier.features import _median3
 
-    fig, axes = plt.subplots(2, 2, figsize=(13, 7))
+    fig, axes = plt.subplots(3, 2, figsize=(13, 10))
     hall = runs["tuc_lecture_hall"]
     v = hall.raw[:, 7]
     # The despiked speed the features use (DefaultFeatures, despike_s = 0.1 s).
@@ -256,8 +256,36 @@ def plot_episodes(runs: dict[str, OdomArrays], path: Path) -> None:
     ax.axhline(0, color="grey", ls=":")
     ax.set_title("score of a model trained on the first 2 min (> 0: anomalous)", fontsize=9)
     ax.set_xlabel("s since the first message")
+    _plot_hall_starts_and_stops(axes[2], hall)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
+
+
+def _plot_hall_starts_and_stops(axes, hall: OdomArrays) -> None:
+    """tuc_lecture_hall's hardest start from standstill and hardest stop after its first
+    2 minutes, with the scores of a model trained on those 2 minutes: the false windows
+    the second stage leaves on this run."""
+    from cclogfs.classifier.api import Detector
+
+    t = hall.stamp_ns
+    model = train([hall.take(t < t[0] + 120 * NS)])
+    scores, _ = Detector(model).score_batch(hall)
+    v = hall.raw[:, 7]
+    dv = np.diff(v) / (np.diff(t) / NS)
+    later = np.arange(1, len(t)) > np.searchsorted(t, t[0] + 120 * NS)
+    # The largest one-message step up from below creep speed, and down to below it.
+    start = int(np.argmax(np.where(later & (v[:-1] < 0.1), dv, -np.inf))) + 1
+    stop = int(np.argmax(np.where(later & (v[1:] < 0.1), -dv, -np.inf))) + 1
+    for ax, i, what in ((axes[0], start, "start from standstill"), (axes[1], stop, "stop")):
+        sl = slice(max(i - 25, 0), i + 25)
+        sec = (t[sl] - t[i]) / NS
+        ax.plot(sec, v[sl], "o-", ms=3, color="k", label="twist.linear.x m/s")
+        ax.plot(sec, scores[sl], color="tab:green", label="score (> 0: anomalous)")
+        ax.axhline(0, color="grey", ls=":")
+        ax.set_title(f"tuc_lecture_hall, {(t[i] - t[0]) / NS:.1f} s: hardest {what} "
+                     f"({dv[i - 1]:+.1f} m/s^2 in one message)", fontsize=9)  # fmt: skip
+        ax.set_xlabel("s")
+        ax.legend(fontsize=8)
 
 
 def main() -> None:

@@ -29,11 +29,12 @@ from .upkeep import Upkeep
 # flagged message: a feature seen over an 8 s window (a spin's net rotation, a stuck robot's
 # reversals) makes the window reach 8 s further back (WindowBuilder lookback), so the slow
 # anomalies recognised seconds after they start keep their start without 8 s of context
-# around every jolt. 2 s after: the flagged stretches of one event merge when less than 4 s
-# apart, and the window closes soon after the score falls (bench/classifier_long.py,
-# docs/CLASSIFIER.md).
+# around every jolt (1 s lost the simulator's back-and-forth events, whose first flags
+# come late). 1 s after, with hysteresis and a 3 s merge gap (classifier.api HOLD_SCORE,
+# MERGE_S): the window closes soon after the score falls, and the flagged stretches of one
+# event stay one window (bench/classifier_long.py, docs/CLASSIFIER.md).
 WINDOW_BEFORE = "2s"
-WINDOW_AFTER = "2s"
+WINDOW_AFTER = "1s"
 
 
 class WindowPolicy(Protocol):

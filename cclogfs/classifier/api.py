@@ -73,14 +73,45 @@ def robot_thresholds(runs: list[OdomArrays]) -> dict:
     return {"dir_flip": max(0.01, 4 * noise)}
 
 
+# The second stage's default: a flag stands only where some feature is beyond this many
+# times the most the robot showed in training (or the feature's noise floor).
+LIMIT_FACTOR = 1.5
+
+
+# The least limit per default feature, whatever training showed: manoeuvres of the TUC
+# robot's ordinary driving that its first 2 minutes happened not to show
+# (bench/classifier_long.py): stops at goals (0.41 m/s to 0 in 0.2 s, up to 2.6 m/s^2;
+# an injected collision at 10 Hz is 4 m/s^2, the TurtleBot's 0.3 m/s stop in one message
+# at 28 Hz 3.5 m/s^2 after the despike), a U-turn in place (pi rad; a spin is more), the
+# angular acceleration of starting one (up to 2.5 rad/s^2), and the few cm/s (rad/s) by
+# which a pose integrated from the twist by another scheme disagrees with ours at
+# one-message speed glitches (up to 0.07 m/s). Injected slips and pose jumps start at
+# 0.16 and 0.4 m/s of mismatch.
+LIMIT_MIN = np.array([0.0, 0.0, 3.0, 3.0, 0.0, 0.0, 0.08, 0.1, np.pi, 0.0, 0.0])
+
+
+def robot_limits(X: np.ndarray, factor: float) -> np.ndarray:
+    """Per default feature, `factor` x the largest value in the nominal vectors X (at least
+    the noise floor): a flag that no feature confirms beyond its limit is the robot doing
+    what it did in training, only a little more. Braking is limited by the larger of the
+    speed-up and braking limits: a base that can speed up at 1 m/s^2 can stop as hard,
+    whether or not the training minutes showed a stop. None is below LIMIT_MIN."""
+    top = np.maximum(np.nanmax(X, axis=0) if len(X) else 0.0, DEFAULT_FLOORS)
+    out = factor * top
+    out[2] = max(out[1], out[2])
+    return np.maximum(out, LIMIT_MIN)
+
+
 def train(
-    sources: Iterable, *, labels=None, features: dict | str | None = "default", **params
-) -> OneClassModel:
+    sources: Iterable, *, labels=None, features: dict | str | None = "default",
+    limit_factor: float | None = LIMIT_FACTOR, **params,
+) -> OneClassModel:  # fmt: skip
     """A model trained on odometry runs (OdomArrays, or lists of JSON texts/dicts).
 
     `labels`: None, one {"events": [...]} for all runs (stamps are absolute), or a list
     with one per run. Vectors that depend on an event are left out of the nominal set; the
-    ones inside events select nu/gamma. `params` go to OneClassModel.
+    ones inside events select nu/gamma. `params` go to OneClassModel. Default features get
+    a second stage (`robot_limits` with `limit_factor`; None or 0: none).
     """
     sources = [_as_odom(s) for s in sources]
     feature_set = make_features(features)
@@ -101,7 +132,11 @@ def train(
     model = OneClassModel(feature_config=feature_set.get_config(), **params)
     model.training = robot_stats(sources)
     Xa = np.concatenate(anomalous)
-    return model.fit(np.concatenate(nominal), Xa if len(Xa) else None)
+    Xn = np.concatenate(nominal)
+    model.fit(Xn, Xa if len(Xa) else None)
+    if feature_set.id == "default" and limit_factor:
+        model.set_limits(robot_limits(Xn[np.isfinite(Xn).all(axis=1)], limit_factor))
+    return model
 
 
 class Detector:
@@ -177,6 +212,15 @@ class Detector:
         return self.update_row(*self.parse(msg))
 
 
+# Windows in seconds mode (bench/classifier_long.py, issue 15): an anomaly whose context
+# comes within MERGE_S of a closed window joins it (a collision's stop and its restart up
+# to 4 s later stay one window), and a window stays open while the score is above
+# HOLD_SCORE (hysteresis: the tail of a mild event scores just below 0), so that the
+# context after can be 1 s.
+MERGE_S = 3.0
+HOLD_SCORE = -0.3
+
+
 class SmartLogger:
     """Turns a stream of (topic, stamp_ns, json_text) into PendingWindows to store.
 
@@ -196,6 +240,10 @@ class SmartLogger:
         self.detector = detector
         self.odom_topic = odom_topic
         window_args.setdefault("lookback_max_s", detector.lookback_max_s)
+        window_args.setdefault("merge_s", MERGE_S)
+        # The level is in the two-stage score's units: a model without limits (older
+        # files, limit_factor=0) scores ordinary driving above it, and would keep all.
+        window_args.setdefault("hold_score", HOLD_SCORE if detector.model.limits_ is not None else None)
         self.windows = WindowBuilder(trigger_topic=odom_topic,
                                      model_id=detector.model.model_id_, **window_args)  # fmt: skip
         self.summary = SummaryBuilder(period_s=summary_period_s) if summary_period_s else None

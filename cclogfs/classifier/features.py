@@ -276,7 +276,7 @@ class _PaperStream:
 # goes or how fast it chose to drive), so minutes of training cover its nominal range.
 DEFAULT_NAMES = (
     "yaw_rate",  # |angular twist z| now, rad/s
-    "accel_max",  # max |dv/dt| over the short window, m/s^2
+    "accel_max",  # max speeding up, d|v|/dt, over the short window, m/s^2 (v3/v4: max |dv/dt|)
     "brake_max",  # max deceleration along the body x axis, m/s^2 (abrupt stops)
     "ang_accel_max",  # max |dw/dt|, rad/s^2 (sudden twisting)
     "lateral_max",  # max |v * w|, m/s^2 (turning harder than the planner allows)
@@ -328,7 +328,7 @@ class DefaultFeatures:
     """
 
     id = "default"
-    version = 4
+    version = 5
     names = DEFAULT_NAMES
 
     def __init__(
@@ -346,18 +346,24 @@ class DefaultFeatures:
         dir_flip: float = 0.01,
         gate_s: float | None = 1.0,
         despike_s: float | None = 0.1,
+        speedup: bool = True,
     ):
         values = dict(deriv_s=deriv_s, match_s=match_s, short_s=short_s, long_s=long_s,
                       flip_s=flip_s, gap_s=gap_s, warmup_s=warmup_s, creep_mps=creep_mps,
                       yaw_flip=yaw_flip, dir_flip=dir_flip)  # fmt: skip
         # Version 4 gates the long-window features on what happens now (see `_segment`);
         # a version 3 config has neither gate_s nor despike_s and keeps its vectors.
+        # Version 5 splits acceleration by sign: `accel_max` is speeding up only, braking
+        # stays in `brake_max`, so that the second stage (api.robot_limits) can allow a
+        # robot's hard stops at goals without allowing a lurch forward.
         if gate_s is not None and despike_s is not None:
             values["gate_s"], values["despike_s"] = gate_s, despike_s
-        elif gate_s is None and despike_s is None:
+            self.version = 5 if speedup else 4
+        elif gate_s is None and despike_s is None and not speedup:
             self.version = 3
         else:
-            raise InvalidInputError("Feature parameters gate_s and despike_s go together.")
+            raise InvalidInputError("Feature parameters gate_s and despike_s go together (version 4 on).")
+        self.speedup = speedup
         for name, value in values.items():
             if not value > 0:
                 raise InvalidInputError(f"Feature parameter {name} must be > 0, got {value!r}.")
@@ -460,7 +466,7 @@ class DefaultFeatures:
 
         k, span = back(self._deriv)
         ax = (fvx - fvx[k]) / span
-        accel = np.hypot(ax, (fvy - fvy[k]) / span)
+        accel = (speed - speed[k]) / span if self.speedup else np.hypot(ax, (fvy - fvy[k]) / span)
         alpha = np.abs((fwz - fwz[k]) / span)
         m, mspan = back(self._match)
         dpose = pos - pos[m]
@@ -470,6 +476,8 @@ class DefaultFeatures:
         inst = np.column_stack([accel, -ax, alpha, speed * np.abs(fwz), -fvx, mis_lin, mis_yaw])
         short = _window_max(inst, np.searchsorted(t, t - self._short, side="left"))
         short[:, 4] = np.maximum(short[:, 4], 0.0)  # reverse speed: none is 0, not -speed
+        if self.speedup:
+            short[:, 0] = np.maximum(short[:, 0], 0.0)  # only slowing down: 0
 
         j = np.searchsorted(t, t - self._long, side="left")
         f = np.searchsorted(t, t - self._flip, side="left")
@@ -538,6 +546,7 @@ class _DefaultStream:
         self.deriv_ns, self.match_ns, self.short_ns = f._deriv, f._match, f._short
         self.long_ns, self.flip_ns, self.gap_ns, self.warmup_ns = f._long, f._flip, f._gap, f._warmup
         self.gate_ns, self.despike_ns = f._gate, f._despike
+        self.speedup = f.speedup
         self.last: tuple[np.ndarray, bool] | None = None
         self.prev: tuple | None = None  # (t, yaw, vx, vy, wz) of the last accepted message
         self._reset()
@@ -625,7 +634,7 @@ class _DefaultStream:
         mt, mx, my, m0, m1, m2, m3 = m[0]
         mspan = (t - mt) * 1e-9 if t > mt else inf
         inst = (
-            hypot(ax, (vy - kvy) / span),  # accel
+            (hypot(vx, vy) - hypot(kvx, kvy)) / span if self.speedup else hypot(ax, (vy - kvy) / span),  # accel
             -ax,  # brake
             abs((wz - kwz) / span),  # angular acceleration
             hypot(vx, vy) * abs(wz),  # lateral
@@ -644,6 +653,8 @@ class _DefaultStream:
             vec.append(q[0][1])
         if vec[5] < 0.0:
             vec[5] = 0.0  # reverse speed: none is 0, not -speed
+        if vec[1] < 0.0 and self.speedup:
+            vec[1] = 0.0  # only slowing down: 0
 
         lq = self.long
         lq.append((t, c4))
@@ -702,7 +713,9 @@ def make_features(config: dict | str | None = None) -> DefaultFeatures | PaperFe
     version = config.get("version", cls.version)
     params = dict(config.get("params", {}))
     if fid == "default" and version == 3 and not {"gate_s", "despike_s"} & set(params):
-        return _make(cls, fid, params | {"gate_s": None, "despike_s": None})  # older models
+        return _make(cls, fid, params | {"gate_s": None, "despike_s": None, "speedup": False})  # older models
+    if fid == "default" and version == 4 and {"gate_s", "despike_s"} <= set(params):
+        return _make(cls, fid, params | {"speedup": False})  # models of issue 15's first pass
     if version != cls.version:
         raise InvalidInputError(
             f"Feature set {fid!r} version {version} is not supported (this is version {cls.version})."

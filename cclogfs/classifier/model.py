@@ -74,6 +74,9 @@ class OneClassModel:
         self.nu_grid = nu_grid
         self.gamma_grid = gamma_grid
         self.random_state = random_state
+        # Second stage (set by the caller after `fit`, None: none): per feature, the value
+        # a vector must exceed in at least one feature for a flag to stand.
+        self.limits_: np.ndarray | None = None
 
     # -- training ---------------------------------------------------------------------
 
@@ -168,12 +171,20 @@ class OneClassModel:
             np.maximum(z, 0.0, out=z)
         d2 = np.maximum(z @ z + self._sv_sq - 2.0 * (sv @ z), 0.0)
         d = float(np.exp(-self.gamma_ * d2) @ self.dual_coef_) + self.intercept_
-        return (self.threshold_ - d) / max(-self.intercept_, 1e-12)
+        s = (self.threshold_ - d) / max(-self.intercept_, 1e-12)
+        if self.limits_ is not None:
+            s = min(s, float(np.max(x / self.limits_)) - 1.0)
+        return s
 
     def score(self, X: np.ndarray) -> np.ndarray:
         """Anomaly score: how far below the threshold, in units of rho (so comparable
-        across models); > 0 is anomalous, NaN rows give NaN."""
-        return (self.threshold_ - self.decision_function(X)) / max(-self.intercept_, 1e-12)
+        across models); > 0 is anomalous, NaN rows give NaN. With limits (the second
+        stage), the smaller of that and how far the vector's largest feature is beyond
+        its limit (a fraction of the limit): both must say anomalous."""
+        s = (self.threshold_ - self.decision_function(X)) / max(-self.intercept_, 1e-12)
+        if self.limits_ is not None:
+            s = np.minimum(s, np.max(np.atleast_2d(X) / self.limits_, axis=1) - 1.0)
+        return s
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         """True where a vector is anomalous."""
@@ -182,10 +193,21 @@ class OneClassModel:
     # -- persistence ------------------------------------------------------------------
 
     def _arrays(self) -> dict[str, np.ndarray]:
-        return {
+        out = {
             "mean": self.mean_, "scale": self.scale_, "support_vectors": self.support_vectors_,
             "dual_coef": self.dual_coef_, "intercept": np.array([self.intercept_]),
         }  # fmt: skip
+        if self.limits_ is not None:
+            out["limits"] = self.limits_
+        return out
+
+    def set_limits(self, limits: np.ndarray | None) -> OneClassModel:
+        """Set the second stage (None: none) and the model id, which covers it."""
+        self.limits_ = None if limits is None else np.asarray(limits, dtype=np.float64)
+        if self.limits_ is not None and (self.limits_.shape != (self.n_features_in_,) or not (self.limits_ > 0).all()):
+            raise ModelError(f"Limits need {self.n_features_in_} positive values, got {self.limits_}.")
+        self.model_id_ = self._digest()[:16]
+        return self
 
     def _header(self) -> dict:
         import sklearn
@@ -258,6 +280,7 @@ class OneClassModel:
         try:
             with np.load(io.BytesIO(blob), allow_pickle=False) as z:
                 arrays = {k: z[k] for k in _ARRAYS}
+                limits = z["limits"] if "limits" in z.files else None
             model = cls(feature_config=header["feature_config"], one_sided=header["one_sided"],
                         false_alarm_rate=header["false_alarm_rate"],
                         topic=str(header.get("topic", "/odom")))  # fmt: skip
@@ -269,9 +292,12 @@ class OneClassModel:
             model.n_features_in_, model.n_train_ = int(header["n_features"]), int(header["n_train"])
             model.model_id_ = str(header["model_id"])
             model.training = header.get("training")  # absent in files written before it was kept
+            model.limits_ = limits
         except (KeyError, ValueError, TypeError) as err:
             raise ModelError(f"Model {path} is malformed: missing or bad field {err}.") from err
         sv = model.support_vectors_
         if sv.ndim != 2 or sv.shape[1] != model.n_features_in_ or len(model.dual_coef_) != len(sv):
             raise ModelError(f"{npath}: support vector shapes do not match n_features/n_support.")
+        if limits is not None and (limits.shape != (model.n_features_in_,) or not (limits > 0).all()):
+            raise ModelError(f"{npath}: 'limits' must hold {model.n_features_in_} positive values.")
         return model

@@ -86,6 +86,8 @@ class WindowBuilder:
         max_pending: int = 100_000,
         max_ring: int = 100_000,
         lookback_max_s: float = 0.0,
+        merge_s: float = 0.0,
+        hold_score: float | None = None,
         model_id: str = "",
     ):
         if before < 0 or after < 0 or max_part < 1 or max_ring < 1:
@@ -101,6 +103,13 @@ class WindowBuilder:
         # Seconds mode: an anomaly may say how far back its evidence reaches (`lookback_ns`
         # in push); the ring then keeps that much more context, up to lookback_max_s.
         self.lookback_max_ns = int(lookback_max_s * 1e9) if before_s is not None else 0
+        # Seconds mode: an anomaly whose context comes within merge_s of a closed window
+        # joins it (the gap is logged): one event flagged twice (a collision's stop and
+        # restart seconds later) stays one window, with short context around each.
+        self.merge_ns = int(merge_s * 1e9) if before_s is not None else 0
+        # Hysteresis (seconds mode): while a window is open, a message scoring above
+        # hold_score (below 0: not anomalous, but close) keeps it open like an anomaly.
+        self.hold_score = hold_score if after_s is not None else None
         self.max_part = max_part
         self.max_pending = max_pending
         self.max_ring = max_ring
@@ -152,12 +161,14 @@ class WindowBuilder:
             if anomalous:
                 self._trigger(stamp_ns, score)
             else:
+                if self.hold_score is not None and score > self.hold_score:
+                    w.until_ns = max(w.until_ns, stamp_ns + self.after_ns)
                 w.left -= 1
                 if (w.left <= 0) if self.after_ns is None else (stamp_ns >= w.until_ns):
                     w.closing = True
         else:
             self.ring.append((stamp_ns, text))
-            if anomalous and self.lookback_max_ns and stamp_ns - reach - self.before_ns > w.last_ns:
+            if anomalous and self.lookback_max_ns and stamp_ns - reach - self.before_ns - self.merge_ns > w.last_ns:
                 self._close(out)  # its context does not reach the held window: a new one
                 self._start(stamp_ns, reach, score, out)
             elif anomalous:  # its context reaches back into the held window: merge
@@ -170,7 +181,7 @@ class WindowBuilder:
             elif (
                 len(self.ring) > self.before
                 if self.before_ns is None
-                else stamp_ns - w.last_ns > self.before_ns + self.lookback_max_ns
+                else stamp_ns - w.last_ns > self.before_ns + self.merge_ns + self.lookback_max_ns
                 or len(self.ring) > self.max_ring
             ):
                 self._close(out)

@@ -60,7 +60,7 @@ def test_batch_equals_stream(config, rate):
 
 def test_version_3_configs_keep_their_vectors():
     v3, v4 = make_features(V3), make_features("default")
-    assert v3.get_config() == V3 and v4.get_config()["version"] == 4
+    assert v3.get_config() == V3 and v4.get_config()["version"] == 5
     odom = manoeuvres()
     X3, ok = v3.batch(odom)
     s = (odom.stamp_ns - odom.stamp_ns[0]) * 1e-9
@@ -145,3 +145,50 @@ def test_flip_threshold_learnt_from_the_robots_noise():
     model = train([noisy.take(slice(0, 400))])
     assert model.feature_config["params"]["dir_flip"] == robot_thresholds([noisy.take(slice(0, 400))])["dir_flip"]
     assert train([noisy.take(slice(0, 400))], features=V3).feature_config == V3  # explicit: kept
+
+
+def test_version_5_counts_speeding_up_only_and_version_4_configs_load():
+    """Version 5's accel_max is speeding up (braking is brake_max's); a version 4 config
+    (issue 15's first pass) still gives |dv/dt|."""
+    odom = manoeuvres()
+    v4_config = make_features("default").get_config() | {"version": 4}
+    v4, v5 = make_features(v4_config), make_features("default")
+    assert v4.get_config() == v4_config and not v4.speedup and v5.speedup
+    stop, _ = inject(odom, "stop", int(10 * NS + odom.stamp_ns[0]), 2.0)
+    s = (odom.stamp_ns - odom.stamp_ns[0]) * 1e-9
+    braking = (s >= 10.2) & (s < 10.6)
+    X4, X5 = v4.batch(stop)[0], v5.batch(stop)[0]
+    assert X4[braking, COL["accel_max"]].max() > 2 and X5[braking, COL["brake_max"]].max() > 2
+    assert X5[braking, COL["accel_max"]].max() < 0.5
+
+
+def test_second_stage_limits_saved_and_confirm_flags(tmp_path):
+    """A flag stands only where a feature is beyond its limit; the limits live in
+    model.npz (the model id covers them) and a model without them scores as before."""
+    odom = manoeuvres()
+    train_part = odom.take(odom.stamp_ns < odom.stamp_ns[0] + 19 * NS)
+    model = train([train_part])
+    plain = train([train_part], limit_factor=0)
+    assert model.limits_ is not None and plain.limits_ is None and model.model_id_ != plain.model_id_
+    X, ok = make_features(model.feature_config).batch(odom)
+    s1, s0 = model.score(X[ok]), plain.score(X[ok])
+    assert (s1 <= s0 + 1e-12).all()
+    beyond = (X[ok] / model.limits_).max(axis=1) > 1
+    np.testing.assert_array_equal(s1 > 0, (s0 > 0) & beyond)
+    loaded = OneClassModel.load(model.save(tmp_path / "m"))
+    np.testing.assert_array_equal(loaded.limits_, model.limits_)
+    np.testing.assert_allclose(loaded.score(X[ok]), s1, atol=1e-12)
+    assert loaded.model_id_ == model.model_id_
+    one = [loaded.score_one(x) for x in X[ok][::50]]
+    np.testing.assert_allclose(one, s1[::50], atol=1e-9)
+
+
+def test_hysteresis_only_for_models_with_limits():
+    """The hold level is in the two-stage score's units: a model without limits (an older
+    file) keeps the windows it had."""
+    from cclogfs.classifier import SmartLogger
+    from cclogfs.classifier.api import HOLD_SCORE
+
+    part = manoeuvres().take(slice(0, 190))
+    assert SmartLogger(Detector(train([part])), before_s=2.0, after_s=1.0).windows.hold_score == HOLD_SCORE
+    assert SmartLogger(Detector(train([part], limit_factor=0)), before_s=2.0, after_s=1.0).windows.hold_score is None

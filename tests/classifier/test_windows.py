@@ -146,3 +146,27 @@ def test_latched_topic_keeps_the_newest_texts():
     (latched,) = [w for w in out if w.topic == "/tf_static"]
     assert [t for _, t in latched.messages] == [f"static{i}" for i in range(70 - 64, 70)]
     assert latched.meta["latched_dropped"] == 6
+
+
+def test_anomalies_within_the_merge_gap_join_one_window():
+    """merge_s: a second anomaly whose context comes within merge_s of the closed window
+    joins it, the gap logged; farther, it is a window of its own."""
+    flags = [False] * 600
+    flags[100] = flags[200] = flags[450] = True  # context 0.2 s, after 0.1 s
+    args = dict(before_s=0.2, after_s=0.1, lookback_max_s=0.5, merge_s=0.9)
+    first, second = odom_indices(feed(WindowBuilder(**args), flags))
+    assert first == list(range(80, 211)) and second == list(range(430, 461))
+    apart = odom_indices(feed(WindowBuilder(**(args | {"merge_s": 0.0})), flags))
+    assert apart[0] == list(range(80, 111)) and len(apart) == 3
+
+
+def test_hold_score_keeps_a_window_open_while_the_score_is_close():
+    """Hysteresis: messages scoring above hold_score extend an open window like an
+    anomaly; they open none."""
+    b = WindowBuilder(before_s=0.0, after_s=0.05, hold_score=-0.5)
+    out = []
+    for i in range(100):
+        score = 1.0 if i == 20 else (-0.2 if 20 < i < 40 or i == 70 else -2.0)
+        out += b.push("/odom", i * 10 * MS, f"odom{i}", anomalous=score > 0, score=score)
+    (w,) = odom_indices(out + b.flush())
+    assert w == list(range(20, 45))
