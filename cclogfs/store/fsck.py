@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 from ..errors import CclogError, UnknownCodecError
 from .format import LOCK, MANIFEST, QUARANTINE, SIDE_FILE, TMP_SUFFIX, index_name, parse_seq_name, segment_name
-from .records import count_intact
+from .records import count_intact_in
 from .fs import FileSystem
 from .index import SegmentIndex
 from .manifest import SealedSegment
@@ -96,8 +96,7 @@ def _check_names(path: str, fs: FileSystem, leftovers: set[str], report: FsckRep
                 and segment_name(parsed[0], parsed[2]) not in names):  # fmt: skip
             report.add("warning", name, "index of a segment that does not exist")
         elif SIDE_FILE.match(name):
-            data = fs.read_file(os.path.join(path, name))
-            intact = count_intact(b"\0" + data)  # count_intact looks past the first byte
+            intact = _count_side_file(fs, os.path.join(path, name))
             if intact:
                 report.add("error", name, f"bytes recovery cut from the log hold {intact} intact records "
                                           "(perhaps acknowledged): they are not in the store")  # fmt: skip
@@ -106,6 +105,15 @@ def _check_names(path: str, fs: FileSystem, leftovers: set[str], report: FsckRep
         elif not parsed and name not in (MANIFEST, LOCK, QUARANTINE) and not name.endswith(TMP_SUFFIX):
             report.add("warning", name, "not a file a cclogfs store holds")
 
+
+
+def _count_side_file(fs: FileSystem, path: str) -> int:
+    """Intact records in a side file, streamed: it may be as large as the tail it was cut from."""
+    fd = fs.open(path)
+    try:
+        return count_intact_in(fs, fd, 0, fs.size(fd))
+    finally:
+        fs.close(fd)
 
 
 def _decode_all(store: Store, report: FsckReport) -> None:

@@ -17,7 +17,7 @@ from .format import MANIFEST, SEGMENT_HEADER_SIZE, Reason, parse_seq_name, segme
 from .fs import FileSystem
 from . import planted
 from .manifest import Manifest
-from .records import count_intact
+from .records import intact_in
 from .segment import Problem, Segment, intact_after, open_segment, scan
 
 
@@ -218,7 +218,7 @@ class SegmentOpener:
             if problem.seqs is None:  # damage up to the end: only the checkpoint knows the seqs lost
                 problem.seqs = (result.next_seq, max(ours.get("next_seq", 0), result.next_seq + 1))
         self.recovery.damage.extend(seg.damage)
-        end = cut.offset if cut is not None else seg.fs.size(seg.fd)
+        end = cut.offset if cut is not None else seg.size  # the size scanned, never a later one
         seg.rows = [r for r in result.rows if r[5] < end]
         seg.next_seq = max([r[2] + 1 for r in seg.rows] + [p.seqs[1] for p in seg.damage] + [seg.first_seq])
         if cut is None:
@@ -240,8 +240,7 @@ class SegmentOpener:
         synced record was damaged (bit rot). The log keeps its prefix guarantee either
         way, and no byte is destroyed."""
         name = f"{os.path.basename(seg.path)}.tail-{offset}"
-        data = self.fs.pread(seg.fd, self.fs.size(seg.fd) - offset, offset)
-        self.fs.write_file_atomic(self._file(name), data)
+        self.fs.copy_range_atomic(seg.fd, offset, seg.size, self._file(name))  # streamed: any size
         return name
 
     def _drop_segment(self, seg: Segment) -> None:
@@ -254,6 +253,5 @@ class SegmentOpener:
 
 
 def _holds_records(seg: Segment) -> bool:
-    """Whether any intact record lies past the segment header."""
-    size = seg.fs.size(seg.fd)
-    return size > SEGMENT_HEADER_SIZE and count_intact(seg.fs.pread(seg.fd, size, 0)) > 0
+    """Whether any intact record lies past the segment header (within its opened size)."""
+    return seg.size > SEGMENT_HEADER_SIZE and next(intact_in(seg.fs, seg.fd, 1, seg.size), None) is not None

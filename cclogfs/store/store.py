@@ -256,7 +256,8 @@ class Store:
         have left it only in the page cache, and after a failed fsync the kernel may have
         marked pages clean that never reached the disk (FORMAT.md, "Durability contract")."""
         if seg.size > seg.synced and "seal-no-fsync" not in planted.BUGS:
-            self.fs.pwrite(seg.fd, self.fs.pread(seg.fd, seg.size - seg.synced, seg.synced), seg.synced)
+            for pos in range(seg.synced, seg.size, WRITE_BUFFER):  # in chunks: memory stays bounded
+                self.fs.pwrite(seg.fd, self.fs.pread(seg.fd, min(WRITE_BUFFER, seg.size - pos), pos), pos)
             self.fs.fsync(seg.fd)
             seg.synced = seg.size
             # An older store's records carry no synced length: it stays as it is until written.
