@@ -172,7 +172,8 @@ class FileSystem:
                 chunk = self.pread(src_fd, min(COPY_CHUNK, end - pos), pos)
                 if not chunk:
                     break
-                self.pwrite(fd, chunk, pos - start)
+                if chunk.strip(b"\0"):  # zeros stay a hole: they read back the same
+                    self.pwrite(fd, chunk, pos - start)
                 pos = self.next_data(src_fd, pos + len(chunk))
             self.truncate(fd, end - start)  # a hole at the end is part of the copy too
             self.fsync(fd)

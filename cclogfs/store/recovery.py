@@ -224,6 +224,9 @@ class SegmentOpener:
         if cut is None:
             seg.size = end
             return False
+        # A cut is a torn tail, not declared damage: what a salvaging scan found past it is
+        # counted below, and the bytes to the end of the snapshot are what is dropped.
+        cut.seqs, cut.dropped_bytes = None, seg.size - cut.offset
         cut.intact_after = intact_after(seg, cut.offset)
         self.recovery.problems.append(cut)
         if not self.readonly:
