@@ -104,3 +104,29 @@ def test_a_segment_is_never_read_past_the_size_its_store_saw(tmp_path):
     finally:
         seg.fs.close(seg.fd)
         writer.close()
+
+
+def test_fsck_while_the_writer_drops_and_rewrites_the_segments_it_checks(tmp_path, monkeypatch):
+    # Found by `bench load`: fsck reopened each sealed segment by name, after the writer had
+    # dropped or rewritten it (a raw FileNotFoundError). It checks the files it opened.
+    from cclogfs.store import fsck
+    from cclogfs.store.compaction import Replacement
+    from cclogfs.store.format import RecordFlag
+
+    writer = cclogfs.open_store(tmp_path / "s", create=True, sync_every_ms=None, segment_records=2)
+    for i in range(8):
+        writer.put_window("/a", [(i * 10 + k, json.dumps({"x": k})) for k in range(3)])
+    writer.sync()
+    checked = fsck._check_sealed
+
+    def compacting(store, fs, report):
+        writer.drop_oldest()
+        first = writer.sealed_segments()[0].first_seq
+        writer.rewrite(lambda w: Replacement(list(w.messages())[:1], {"aged": {"abs": 1}}, flags=RecordFlag.AGED),
+                       segments=[first])  # fmt: skip
+        checked(store, fs, report)
+
+    monkeypatch.setattr(fsck, "_check_sealed", compacting)
+    report = check_store(str(tmp_path / "s"), deep=True)
+    writer.close()
+    assert report.errors == [] and report.records == 8
