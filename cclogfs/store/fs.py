@@ -156,6 +156,19 @@ class FileSystem:
         except FileNotFoundError:
             return None
 
+    def next_data(self, fd: int, offset: int) -> int:
+        """The first offset at or after `offset` that may hold data: a hole of a sparse file
+        reads as zeros, so searches for records skip it (the file's size when only a hole
+        is left). `offset` itself where the file system cannot tell."""
+        try:
+            return os.lseek(fd, offset, os.SEEK_DATA)
+        except OSError as err:
+            if err.errno == errno.ENXIO:  # nothing but a hole from here to the end
+                return max(offset, self.size(fd))
+            return offset
+        except AttributeError:  # pragma: no cover - no SEEK_DATA on this platform
+            return offset
+
     @io_op("renaming")
     def rename(self, src: str, dst: str) -> None:
         os.rename(src, dst)
@@ -259,6 +272,34 @@ class FileSystem:
         except OSError as err:
             err.renamed = True  # the new file is in place, but whether the disk has it is unknown
             raise
+
+    def copy_range_atomic(self, src_fd: int, start: int, end: int, path: str) -> None:
+        """Make `path` a copy of bytes [start, end) of the open file `src_fd`, as
+        `write_file_atomic` does, in chunks (memory stays at one chunk however large the
+        range) and keeping the source's holes as holes."""
+        tmp = path + ".tmp"
+        if self.exists(tmp):
+            self.unlink(tmp)
+        fd = self.open(tmp, write=True, create=True)
+        try:
+            pos = self.next_data(src_fd, start)
+            while pos < end:
+                chunk = self.pread(src_fd, min(COPY_CHUNK, end - pos), pos)
+                if not chunk:
+                    break
+                if chunk.strip(b"\0"):  # zeros stay a hole: they read back the same
+                    self.pwrite(fd, chunk, pos - start)
+                pos = self.next_data(src_fd, pos + len(chunk))
+            self.truncate(fd, end - start)  # a hole at the end is part of the copy too
+            self.fsync(fd)
+        finally:
+            self.close(fd)
+        self.rename(tmp, path)
+        self.fsync_dir(os.path.dirname(path) or ".")
+
+
+# What `copy_range_atomic` reads at a time.
+COPY_CHUNK = 4 << 20
 
 
 @dataclass

@@ -11,6 +11,7 @@ from .format import (
     MANIFEST,
     QUARANTINE,
     RESERVE,
+    SEGMENT_HEADER_SIZE,
     SIDE_FILE,
     TMP_SUFFIX,
     Reason,
@@ -18,12 +19,13 @@ from .format import (
     index_name,
     parse_seq_name,
     segment_name,
+    unpack_segment_header,
 )
-from .records import count_intact
+from .records import count_intact_in
 from .fs import FileSystem
 from .index import SegmentIndex
 from .manifest import SealedSegment
-from .segment import Problem, Segment, open_segment, scan
+from .segment import Problem, Segment, scan
 from .store import Store, describe_damage, open_store
 
 
@@ -109,8 +111,7 @@ def _check_names(path: str, fs: FileSystem, leftovers: set[str], report: FsckRep
                 and segment_name(parsed[0], parsed[2]) not in names):  # fmt: skip
             report.add("warning", name, "index of a segment that does not exist")
         elif SIDE_FILE.match(name):
-            data = fs.read_file(os.path.join(path, name))
-            intact = count_intact(b"\0" + data)  # count_intact looks past the first byte
+            intact = _count_side_file(fs, os.path.join(path, name))
             if intact:
                 report.add("error", name, f"bytes recovery cut from the log hold {intact} intact records "
                                           "(perhaps acknowledged): they are not in the store")  # fmt: skip
@@ -119,6 +120,15 @@ def _check_names(path: str, fs: FileSystem, leftovers: set[str], report: FsckRep
         elif not parsed and name not in (MANIFEST, LOCK, RESERVE, QUARANTINE) and not name.endswith(TMP_SUFFIX):
             report.add("warning", name, "not a file a cclogfs store holds")
 
+
+
+def _count_side_file(fs: FileSystem, path: str) -> int:
+    """Intact records in a side file, streamed: it may be as large as the tail it was cut from."""
+    fd = fs.open(path)
+    try:
+        return count_intact_in(fs, fd, 0, fs.size(fd))
+    finally:
+        fs.close(fd)
 
 
 def _decode_all(store: Store, report: FsckReport) -> None:
@@ -155,24 +165,30 @@ def _loc(p: Problem) -> str:
 def _check_sealed(store: Store, fs: FileSystem, report: FsckReport) -> None:
     expect_seq = store.first_seq
     sealed = store.sealed_segments()
-    for info in sealed:
-        path = store.file_path(segment_name(info.first_seq, info.gen))
-        checked, header_ok = open_segment(fs, path, write=False)
-        try:
-            if not header_ok or checked.first_seq != info.first_seq:
+    for info, opened in zip(sealed, store.sealed):
+        path = opened.path
+        checked, header_ok = _as_found(fs, opened)
+        if not header_ok or checked.first_seq != info.first_seq:
+            report.add("error", os.path.basename(path),
+                       "segment header is damaged or names another first sequence number")  # fmt: skip
+        else:
+            if info.first_seq != expect_seq:
                 report.add("error", os.path.basename(path),
-                           "segment header is damaged or names another first sequence number")  # fmt: skip
-            else:
-                if info.first_seq != expect_seq:
-                    report.add("error", os.path.basename(path),
-                               f"starts at seq {info.first_seq}, expected {expect_seq}: a gap")  # fmt: skip
-                _check_segment(store, fs, info, checked, report)
-            expect_seq = info.end_seq
-        finally:
-            fs.close(checked.fd)
+                           f"starts at seq {info.first_seq}, expected {expect_seq}: a gap")  # fmt: skip
+            _check_segment(store, fs, info, checked, report)
+        expect_seq = info.end_seq
     tail = store.segment_first_seqs()[len(sealed):]
     if tail and tail[0] != expect_seq:
         report.add("error", segment_name(tail[0]), f"starts at seq {tail[0]}, expected {expect_seq}: a gap")
+
+
+def _as_found(fs: FileSystem, opened: Segment) -> tuple[Segment, bool]:
+    """The sealed segment as the store opened it, with its header as the file states it.
+    Its open file, not its name: a writer may drop or rewrite it while fsck runs (the open
+    file still reads), and reopening by name then failed with a raw FileNotFoundError."""
+    parsed = unpack_segment_header(fs.pread(opened.fd, SEGMENT_HEADER_SIZE, 0)[: opened.size])
+    first_seq, created_ns = parsed if parsed else (-1, 0)
+    return Segment(fs, opened.path, first_seq, created_ns, opened.fd, opened.size), parsed is not None
 
 
 def _check_segment(store: Store, fs: FileSystem, info: SealedSegment, checked: Segment, report: FsckReport) -> None:

@@ -110,22 +110,40 @@ def records(source: Source, start: int, size: int, first_seq: int) -> Iterator[R
         seq += 1
 
 
-def intact_records(data: bytes, base: int = 0) -> Iterator[tuple[int, RecordHeader, bytes]]:
-    """(offset, header, payload) of every intact record (framing and checksums hold) in
-    `data` past its first byte, found by their magic; `base` is the file offset of `data`."""
-    source = BytesAt(data, base)
-    pos = data.find(RECORD_MAGIC, 1)
-    while pos >= 0:
-        try:
-            header, payload = read_record(source, base + pos, len(data) - pos)
-        except RecordError:
-            pos = data.find(RECORD_MAGIC, pos + 1)
+# The magic search reads this much at a time: with one record (at most the limits of
+# FORMAT.md) and ChunkReader's buffer, it is all a search holds, whatever the file's size.
+SEARCH_CHUNK = 1 << 20
+
+
+def intact_in(fs: FileSystem, fd: int, start: int, end: int) -> Iterator[tuple[int, RecordHeader, bytes]]:
+    """(offset, header, payload) of every intact record (framing and checksums hold) of the
+    file between `start` and `end`, found by their magic. Streamed: memory stays within
+    SEARCH_CHUNK + ChunkReader.CHUNK + one record, and holes (a sparse tail) are skipped,
+    since zero bytes hold no record (FORMAT.md, "Bounded reads")."""
+    source = ChunkReader(fs, fd)
+    magic = len(RECORD_MAGIC)
+    pos, buf, base = start, b"", start
+    while pos < end:
+        i = buf.find(RECORD_MAGIC, pos - base) if pos >= base else -1
+        if i < 0:
+            # A magic may straddle two chunks: go on from the last bytes of this one.
+            pos = fs.next_data(fd, max(pos, base + len(buf) - magic + 1))
+            if pos >= end:
+                return
+            buf, base = fs.pread(fd, min(SEARCH_CHUNK, end - pos), pos), pos
+            if len(buf) < magic:
+                return
             continue
-        yield base + pos, header, payload
-        pos = data.find(RECORD_MAGIC, pos + header.record_len)
+        at = base + i
+        try:
+            header, payload = read_record(source, at, end - at)
+        except RecordError:
+            pos = at + 1
+            continue
+        yield at, header, payload
+        pos = at + header.record_len
 
 
-def count_intact(data: bytes) -> int:
-    """How many intact records lie in `data` past its first byte: `data` starts at the
-    record a scan stopped at."""
-    return sum(1 for _ in intact_records(data))
+def count_intact_in(fs: FileSystem, fd: int, start: int, end: int) -> int:
+    """How many intact records lie in the file between `start` and `end` (streamed)."""
+    return sum(1 for _ in intact_in(fs, fd, start, end))

@@ -28,7 +28,7 @@ from .fs import FileSystem
 from . import planted
 from .index import SegmentIndex
 from .manifest import Manifest
-from .records import count_intact
+from .records import intact_in
 from .segment import Problem, Segment, intact_after, open_segment, scan
 
 
@@ -277,7 +277,7 @@ class SegmentOpener:
             if problem.seqs is None:  # damage up to the end: only the checkpoint knows the seqs lost
                 problem.seqs = (result.next_seq, max(ours.get("next_seq", 0), result.next_seq + 1))
         self.recovery.damage.extend(seg.damage)
-        end = cut.offset if cut is not None else seg.fs.size(seg.fd)
+        end = cut.offset if cut is not None else seg.size  # the size scanned, never a later one
         seg.rows = [r for r in result.rows if r[5] < end]
         if prefix is not None and len(seg.rows) == len(prefix[1]):
             seg.set_index(prefix[0])  # nothing was added after the checkpoint: no rebuild
@@ -285,6 +285,9 @@ class SegmentOpener:
         if cut is None:
             seg.size = end
             return False
+        # A cut is a torn tail, not declared damage: what a salvaging scan found past it is
+        # counted below, and the bytes to the end of the snapshot are what is dropped.
+        cut.seqs, cut.dropped_bytes = None, seg.size - cut.offset
         cut.intact_after = intact_after(seg, cut.offset)
         self.recovery.problems.append(cut)
         if not self.readonly:
@@ -325,8 +328,7 @@ class SegmentOpener:
         synced record was damaged (bit rot). The log keeps its prefix guarantee either
         way, and no byte is destroyed."""
         name = f"{os.path.basename(seg.path)}.tail-{offset}"
-        data = self.fs.pread(seg.fd, self.fs.size(seg.fd) - offset, offset)
-        self.fs.write_file_atomic(self._file(name), data)
+        self.fs.copy_range_atomic(seg.fd, offset, seg.size, self._file(name))  # streamed: any size
         return name
 
     def _drop_segment(self, seg: Segment) -> None:
@@ -339,6 +341,5 @@ class SegmentOpener:
 
 
 def _holds_records(seg: Segment) -> bool:
-    """Whether any intact record lies past the segment header."""
-    size = seg.fs.size(seg.fd)
-    return size > SEGMENT_HEADER_SIZE and count_intact(seg.fs.pread(seg.fd, size, 0)) > 0
+    """Whether any intact record lies past the segment header (within its opened size)."""
+    return seg.size > SEGMENT_HEADER_SIZE and next(intact_in(seg.fs, seg.fd, 1, seg.size), None) is not None

@@ -18,7 +18,7 @@ from ..codecs import codec_from_config
 from ..errors import CclogError, CorruptionError
 from .format import AGED_META_KEY, MANIFEST, QUARANTINE, SIDE_FILE, check_fields, index_size_limit
 from .fs import FileSystem, FileTooLargeError
-from .records import intact_records
+from .records import intact_in
 from .index import SegmentIndex
 from .manifest import Manifest
 from .rebuild import rebuild_manifest
@@ -117,24 +117,27 @@ def _declare_sealed_damage(store: Store, report: RepairReport) -> None:
 
 def _salvage(store: Store, name: str, report: RepairReport) -> None:
     """Put the intact records of side file `name` back (each once), then quarantine it."""
-    data = store.fs.read_file(store.file_path(name))
     done = _salvaged_already(store, name)
     put = 0
-    for offset, header, payload in intact_records(b"\0" + data, -1):
-        try:
-            if check_fields(header) is not None or (header.seq, offset) in done:
+    fd = store.fs.open(store.file_path(name))  # streamed: a side file may be as large as its tail
+    try:
+        for offset, header, payload in intact_in(store.fs, fd, 0, store.fs.size(fd)):
+            try:
+                if check_fields(header) is not None or (header.seq, offset) in done:
+                    continue
+            except CclogError:
                 continue
-        except CclogError:
-            continue
-        window = Window(header.name, header.seq, header.start_ns, header.end_ns, header.count,
-                        types.SimpleNamespace(path=store.file_path(name)), offset, header.record_len,
-                        (header, payload))  # fmt: skip
-        meta = json.loads(header.meta)
-        aged = meta.pop(AGED_META_KEY, None)
-        mark = {"from": name, "offset": offset, "seq": header.seq}
-        meta[SALVAGED_META_KEY] = mark if aged is None else dict(mark, aged=aged)
-        store.put_window(header.name, list(window.messages()), meta, codec=json.loads(header.config))
-        put += 1
+            window = Window(header.name, header.seq, header.start_ns, header.end_ns, header.count,
+                            types.SimpleNamespace(path=store.file_path(name)), offset, header.record_len,
+                            (header, payload))  # fmt: skip
+            meta = json.loads(header.meta)
+            aged = meta.pop(AGED_META_KEY, None)
+            mark = {"from": name, "offset": offset, "seq": header.seq}
+            meta[SALVAGED_META_KEY] = mark if aged is None else dict(mark, aged=aged)
+            store.put_window(header.name, list(window.messages()), meta, codec=json.loads(header.config))
+            put += 1
+    finally:
+        store.fs.close(fd)
     store.sync()
     _quarantine(store, name)
     report.actions.append(f"salvaged {put} intact records of {name} into the store; {name} moved to {QUARANTINE}/")

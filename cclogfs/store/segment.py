@@ -7,7 +7,6 @@ from dataclasses import dataclass, field
 
 from ..errors import CorruptionError
 from .format import (
-    RECORD_MAGIC,
     SEGMENT_HEADER_SIZE,
     Reason,
     RecordError,
@@ -18,7 +17,7 @@ from .format import (
 )
 from .fs import FileSystem
 from .index import SegmentIndex
-from .records import BytesAt, ChunkReader, count_intact, read_record, records
+from .records import BytesAt, ChunkReader, count_intact_in, intact_in, read_record, records
 
 # Hand buffered records to the OS past this size even when no fsync is due, so the
 # writer's memory stays bounded whatever the sync policy.
@@ -113,6 +112,14 @@ class Segment:
             self.pending.clear()
 
     def read(self, offset: int, length: int) -> bytes:
+        """Bytes of this segment as this store sees it: `size` bytes in the file, then (the
+        writer's active segment only) its buffer. Nothing past that is read: a reader's view
+        is the snapshot it scanned, never a buffer it does not have (FORMAT.md, "One writer")."""
+        if offset + length > self.end:
+            raise CorruptionError(
+                f"{self.path}: record at offset {offset} ({length} bytes) lies past the {self.end} bytes "
+                "this store has seen of the segment", path=self.path, offset=offset, reason=Reason.TORN,
+            )  # fmt: skip
         if offset >= self.size:
             start = offset - self.size
             return bytes(self.pending[start : start + length])
@@ -184,10 +191,14 @@ class Segment:
 
 def open_segment(fs: FileSystem, path: str, *, write: bool,
                  lock: threading.RLock | None = None) -> tuple[Segment, bool]:  # fmt: skip
-    """Open a segment file; the flag says whether its segment header was intact."""
+    """Open a segment file; the flag says whether its segment header was intact.
+
+    Its size is taken once, here, and everything that opening does with the file (the scan,
+    the count of records past a bad one, the side file) stays within it: a writer may be
+    appending, and a second look at the size would see records the scan did not."""
     fd = fs.open(path, write=write)
     size = fs.size(fd)
-    parsed = unpack_segment_header(fs.pread(fd, SEGMENT_HEADER_SIZE, 0))
+    parsed = unpack_segment_header(fs.pread(fd, SEGMENT_HEADER_SIZE, 0)[:size])
     first_seq, created_ns = parsed if parsed else (-1, 0)
     return Segment(fs, path, first_seq, created_ns, fd, size, lock=lock), parsed is not None
 
@@ -202,7 +213,7 @@ def scan(segment: Segment, *, salvage: bool = False, start: tuple[int, int] | No
     `damage` and the scan goes on from the first of them: only the end stops it.
     """
     fs, fd = segment.fs, segment.fd
-    size = fs.size(fd)
+    size = segment.size  # the size taken when it was opened: one snapshot (see open_segment)
     pos, seq = start or (SEGMENT_HEADER_SIZE, segment.first_seq)
     result = ScanResult(end=pos, next_seq=seq)
     while True:
@@ -239,25 +250,20 @@ def _add(result: ScanResult, path: str, rec) -> None:
 
 
 def next_intact(fs: FileSystem, fd: int, offset: int, size: int, seq: int) -> tuple[int, int] | None:
-    """(offset, seq) of the first intact record past `offset` whose seq is `seq` or later:
-    where a salvaging scan resumes after damage. None when there is none."""
-    data = fs.pread(fd, size - offset, offset)
-    source = BytesAt(data, offset)
-    pos = data.find(RECORD_MAGIC, 1)
-    while pos >= 0:
+    """(offset, seq) of the first intact record past `offset` (and before `size`) whose seq
+    is `seq` or later: where a salvaging scan resumes after damage. None when there is none.
+    Streamed (`intact_in`): a huge or sparse tail costs no more memory than a small one."""
+    for at, header, _payload in intact_in(fs, fd, offset + 1, size):
         try:
-            header, _payload = read_record(source, offset + pos, len(data) - pos)
             if header.seq >= seq and check_fields(header) is None:
-                return offset + pos, header.seq
+                return at, header.seq
         except RecordError:
             pass
-        pos = data.find(RECORD_MAGIC, pos + 1)
     return None
 
 
 def intact_after(segment: Segment, offset: int) -> int:
-    """How many intact records (every check passed) lie after `offset`: records past the
-    point where a scan stopped. Zero for a torn tail; more means damage in the middle, or
-    a later write that landed while an earlier one did not."""
-    size = segment.fs.size(segment.fd)
-    return count_intact(segment.fs.pread(segment.fd, size - offset, offset))
+    """How many intact records (every check passed) lie after `offset` and within the
+    segment's size: records past the point where a scan stopped. Zero for a torn tail; more
+    means damage in the middle, or a later write that landed while an earlier one did not."""
+    return count_intact_in(segment.fs, segment.fd, offset + 1, segment.size)

@@ -55,6 +55,10 @@ from .recovery import Recovery, SegmentOpener
 from .segment import WRITE_BUFFER, Segment
 from .window import Receipt, Window
 
+# A reader retries opening this often when a writer's commit lands while it opens (bench
+# load: five was too few for a writer sealing every few hundred milliseconds).
+OPEN_ATTEMPTS = 20
+
 __all__ = ["Dropped", "Receipt", "Recovery", "Replacement", "RewriteReport", "SealedSegment", "Store", "Window",
            "open_store"]
 
@@ -215,7 +219,7 @@ class Store:
     def _open_segments_retrying(self) -> None:
         """Load the manifest and open its segments. A reader retries when a listed segment
         is missing: a writer compacted between its reading the manifest and the files."""
-        for attempt in range(5):
+        for attempt in range(OPEN_ATTEMPTS):
             self.manifest, raw = Manifest.load(self.fs, self.file_path(MANIFEST))
             try:
                 self._open_segments(self.recovery.removed_files)
@@ -228,11 +232,12 @@ class Store:
                 # missing ones, or ones made under a later generation. It reads again.
                 retry = isinstance(err, FileNotFoundError) or err.reason in (Reason.MISSING_SEGMENT,
                                                                              Reason.ROLLED_BACK)
-                if not (self.readonly and retry and attempt < 4):
+                if not (self.readonly and retry and attempt < OPEN_ATTEMPTS - 1):
                     raise
-            if attempt == 4:
-                raise StoreError(f"{self.path}: the store changed under this reader five times "
+            if attempt == OPEN_ATTEMPTS - 1:
+                raise StoreError(f"{self.path}: the store changed under this reader {OPEN_ATTEMPTS} times "
                                  "while it was opening (a writer compacting); try again")  # fmt: skip
+            time.sleep(0.002 * attempt)  # a busy writer: give it a moment to finish its step
             self._close_segments()
             self.sealed, self.unsealed, self.recovery = [], [], Recovery()
 
@@ -269,7 +274,8 @@ class Store:
         have left it only in the page cache, and after a failed fsync the kernel may have
         marked pages clean that never reached the disk (FORMAT.md, "Durability contract")."""
         if seg.size > seg.synced and "seal-no-fsync" not in planted.BUGS:
-            self.fs.pwrite(seg.fd, self.fs.pread(seg.fd, seg.size - seg.synced, seg.synced), seg.synced)
+            for pos in range(seg.synced, seg.size, WRITE_BUFFER):  # in chunks: memory stays bounded
+                self.fs.pwrite(seg.fd, self.fs.pread(seg.fd, min(WRITE_BUFFER, seg.size - pos), pos), pos)
             self.fs.fsync(seg.fd)
             seg.synced = seg.size
             # An older store's records carry no synced length: it stays as it is until written.

@@ -8,7 +8,8 @@ from cclogfs.store.format import (
     RecordError,
     pack_record,
 )
-from cclogfs.store.records import BytesAt, ChunkReader, count_intact, read_record, records
+from cclogfs.store.records import BytesAt, ChunkReader, count_intact_in, read_record, records
+from cclogfs.store import records as records_module
 from cclogfs.store.fs import FileSystem
 
 
@@ -88,12 +89,32 @@ def test_records_refuses_impossible_fields():
     assert err.value.reason == Reason.BAD_FIELD
 
 
-def test_count_intact_finds_records_past_damage():
+def _count(tmp_path, data: bytes, start: int = 0) -> int:
+    path = tmp_path / "f"
+    path.write_bytes(data)
+    fs = FileSystem()
+    fd = fs.open(str(path))
+    try:
+        return count_intact_in(fs, fd, start, len(data))
+    finally:
+        fs.close(fd)
+
+
+def test_count_intact_finds_records_past_damage(tmp_path):
     data = bytearray(log(6))
     first = len(rec(0, payload=bytes([0]) * 10))
     data[first + 5] ^= 0xFF  # record 1's header
-    assert count_intact(bytes(data[first:])) == 4
-    assert count_intact(b"garbage" * 10) == 0
+    assert _count(tmp_path, bytes(data[first:]), 1) == 4
+    assert _count(tmp_path, bytes(data), first + 1) == 4
+    assert _count(tmp_path, b"garbage" * 10) == 0
+
+
+def test_count_intact_finds_a_magic_across_search_chunks(tmp_path, monkeypatch):
+    # A record whose magic straddles two search chunks is found all the same.
+    monkeypatch.setattr(records_module, "SEARCH_CHUNK", 7)
+    data = log(6)
+    for pad in range(8):
+        assert _count(tmp_path, b"x" * pad + data) == 6
 
 
 def test_chunk_reader_reads_like_pread_across_chunks(tmp_path, monkeypatch):
