@@ -60,14 +60,16 @@ def record_header(data: bytes) -> None:
 def segment_scan(data: bytes) -> None:
     """Records walked in log order, then the salvaging scan recovery runs, on a file."""
     from cclogfs.store.fs import FileSystem
-    from cclogfs.store.records import BytesAt, intact_records, records
+    from cclogfs.store.records import BytesAt, intact_in, records
+
+    from bench._util import BytesFile
     from cclogfs.store.segment import open_segment, scan
 
     with contextlib.suppress(*ALLOWED):
         for _rec in records(BytesAt(data), 0, len(data), _u(data, 8, 8)):
             pass
     with contextlib.suppress(*ALLOWED):
-        for _found in intact_records(data):
+        for _found in intact_in(BytesFile(data), 0, 1, len(data)):
             pass
     fs = FileSystem()
     with tempfile.NamedTemporaryFile(dir=SCRATCH, suffix=".seg") as f:

@@ -82,3 +82,21 @@ def peak_rss_mib() -> float:
             if line.startswith("VmHWM:"):
                 return int(line.split()[1]) / 1024
     raise RuntimeError("no VmHWM in /proc/self/status")
+
+
+class BytesFile:
+    """Bytes in memory read as one open file (the descriptor is ignored): what the store's
+    streamed searches (`records.intact_in`) need of a FileSystem, for damage loops that
+    would otherwise write a file per case."""
+
+    def __init__(self, data: bytes):
+        self.data = data
+
+    def pread(self, _fd: int, n: int, offset: int) -> bytes:
+        return self.data[offset : offset + n]
+
+    def next_data(self, _fd: int, offset: int) -> int:
+        return offset  # no holes in memory
+
+    def size(self, _fd: int) -> int:
+        return len(self.data)

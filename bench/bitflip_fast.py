@@ -37,7 +37,9 @@ from cclogfs.store.format import (
 )
 from cclogfs.store.index import SegmentIndex
 from cclogfs.store.manifest_check import body_version, check_body
-from cclogfs.store.records import BytesAt, intact_records, records
+from cclogfs.store.records import BytesAt, intact_in, records
+
+from bench._util import BytesFile
 
 SIDE = "00000000000000000000.seg.tail-32"
 MODES = ("bit", "burst", "sector")
@@ -107,7 +109,7 @@ def changed_by(oracle: Oracle, name: str, data: bytes, lo: int = 0) -> int:
             data.decode(errors="replace").strip()
             return 0
         if name == SIDE:
-            return sum(_record_changed(oracle, h, p) for _o, h, p in intact_records(b"\0" + data, -1))
+            return sum(_record_changed(oracle, h, p) for _o, h, p in intact_in(BytesFile(data), 0, 0, len(data)))
         return _segment_changed(oracle, name, data, lo)
     except (CclogError, RecordError):
         return 0
