@@ -3,7 +3,6 @@ message (p50/p99), batch replay throughput. Run: python bench/classifier_speed.p
 
 from __future__ import annotations
 
-import resource
 import subprocess
 import sys
 import time

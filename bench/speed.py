@@ -28,7 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from ._util import OUT, SHARED, machine, peak_rss_mib, save_json, topic_messages
+from ._util import OUT, SHARED, machine, save_json, topic_messages
 
 ROOT = Path(__file__).resolve().parent.parent
 CCLOG = Path(sys.executable).parent / "cclog"

@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 import pytest
+
+# tests import their shared helpers (tests/helpers.py) by plain name.
+sys.path.insert(0, os.path.dirname(__file__))
 
 SHARED_DATA = Path(__file__).resolve().parent.parent.parent / "shared" / "data"
 
@@ -23,4 +27,3 @@ def shared_data_file(name: str) -> Path:
 @pytest.fixture
 def shared_data():
     return shared_data_file
-import sys, os; sys.path.insert(0, os.path.dirname(__file__))

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .features import NS, OdomArrays, parse_odometry
+from .features import NS, OdomArrays
 
 __all__ = ["KINDS", "inject", "odom_texts", "read_odometry", "resample"]
 

@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import argparse
 import json
+from typing import TYPE_CHECKING
 
 from ..errors import InvalidInputError, StoreLockedError
 from ..times import parse_duration, parse_time
 from .common import human_bytes, iso_ns, parse_size, table
+
+if TYPE_CHECKING:  # the policy module loads only when aging is asked for
+    from ..upkeep.policy import Policy
 
 EXAMPLES = """examples:
   cclog compact robot.store --older-than 30d --error 1e-3

@@ -7,14 +7,12 @@ Every kind is chosen only when re-rendering its values gives each token back exa
 from __future__ import annotations
 
 import base64
-import binascii
 import math
 import re
 import threading
 from typing import Any
 
 import numpy as np
-import orjson
 
 try:
     import simdjson
@@ -22,7 +20,7 @@ except ImportError:  # the fast float parser is optional: float() gives the same
     simdjson = None
 
 from ..errors import CodecError
-from .columns_read import Reader, b64_token as _b64_token, read_blob as _read_blob, read_column, read_decimal, read_packed
+from .columns_read import Reader, b64_token as _b64_token, read_blob as _read_blob, read_column, read_decimal, read_packed  # noqa: F401 (tests reach _read_blob here)
 from .columns_read import render_decimals as _render_decimals, render_floats
 from .columnar_format import (
     DECIMAL_DIGITS,

@@ -14,7 +14,6 @@ from pathlib import Path
 from typing import BinaryIO, Literal
 
 from ..errors import InvalidInputError, SourceError
-from ..store.format import MAX_NS, MIN_NS
 from ..jsontext.check import json_error
 from ..jsontext.lines import JsonlLineError, parse_general, split_canonical
 from .base import SourceMessage, topic_filter

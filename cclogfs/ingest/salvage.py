@@ -14,7 +14,6 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
-from ..errors import SourceError
 from ..jsontext.ros import MessageConverter, message_stamp_ns
 from .base import SourceMessage, check_clock, topic_filter
 

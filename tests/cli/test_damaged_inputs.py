@@ -1,7 +1,6 @@
 """Issue 12 item 7: a ROS 1 bag or MCAP file cut short is recorded and converted as far as
 it can be read, what was lost is said, the exit code is 4; a failed run leaves no empty store."""
 
-import json
 
 import pytest
 from mcap.reader import make_reader

@@ -1,8 +1,6 @@
 """Issue 12 item 9: --version, errors in the CLI's words, the summary stream not counted as
 messages kept, stream types in `info`."""
 
-import subprocess
-import sys
 
 import pytest
 

@@ -15,7 +15,7 @@ from cclogfs.ingest import (
     detect_format,
     open_source,
 )
-from cclogfs.jsontext.ros import message_stamp_ns, message_to_json
+from cclogfs.jsontext.ros import message_to_json
 
 BAGS = {
     "nav2_turtlebot.mcap": ("rosbag2", {"/odom": 2639, "/tf": 5422, "/tf_static": 1, "/amcl_pose": 135}),

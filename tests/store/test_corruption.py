@@ -9,7 +9,7 @@ import pytest
 import cclogfs
 from cclogfs.errors import CorruptionError, UnknownCodecError
 from cclogfs.store.format import RECORD_FIXED, RECORD_FIXED_SIZE, crc32c
-from helpers import SEG, append, cut, drop_checkpoint, flip, forge_index_offsets, make_store, patch_header, segment_files, seqs, unseal, zero
+from helpers import SEG, append, cut, drop_checkpoint, flip, forge_index_offsets, make_store, patch_header, segment_files, seqs, unseal
 
 def test_torn_tail_is_truncated_and_reported(tmp_path):
     recs = make_store(tmp_path / "s")
@@ -173,7 +173,7 @@ def test_sealed_segment_cut_at_a_record_boundary_is_not_a_silent_hole(tmp_path):
 def test_record_of_a_newer_version_with_a_longer_header_is_skipped(tmp_path):
     # A version 9 that appends 8 bytes to the header (allowed by the extension rules): this
     # reader frames it by header_len, skips it, and keeps every later record.
-    from cclogfs.store.format import RECORD_FIXED, crc32c, pack_record, xxh3
+    from cclogfs.store.format import RECORD_FIXED
 
     recs = make_store(tmp_path / "s", n=3)
     drop_checkpoint(tmp_path / "s")  # a crash after the last put: its tail is unsynced
@@ -393,7 +393,6 @@ def test_sealed_segment_of_another_size_reason(tmp_path):
 
 def test_record_of_another_length_than_its_index_entry(tmp_path):
     # A sealed segment whose index points at a record with another length than it has.
-    import numpy as np
 
     from cclogfs.store.index import SegmentIndex
 

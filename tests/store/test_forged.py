@@ -4,7 +4,6 @@ entries that are not files. Each must give a one-line project error naming the f
 field, a non-zero exit, no traceback, bounded memory, and change nothing stored."""
 
 import json
-import os
 import struct
 import subprocess
 import sys

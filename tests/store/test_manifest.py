@@ -3,7 +3,7 @@
 import pytest
 
 from cclogfs.errors import CorruptionError, StoreError
-from cclogfs.store.format import COMPACTED_FORMAT_VERSION, FORMAT_VERSION, MANIFEST, Reason, pack_manifest
+from cclogfs.store.format import FORMAT_VERSION, MANIFEST, Reason, pack_manifest
 from cclogfs.store.fs import FileSystem
 from cclogfs.store.manifest import Manifest, SealedSegment
 from helpers import flip
