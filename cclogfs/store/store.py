@@ -271,7 +271,8 @@ class Store:
         fd = self.fs.open(path, write=True, create=True)
         self.fs.pwrite(fd, pack_segment_header(first_seq, created, self.manifest.generation), 0)
         self.fs.fsync(fd)
-        self.fs.fsync_dir(self.path)
+        if "no-dir-fsync" not in planted.BUGS:
+            self.fs.fsync_dir(self.path)
         return Segment(self.fs, path, first_seq, created, fd, SEGMENT_HEADER_SIZE, lock=self.lock)
 
     # -- writing ---------------------------------------------------------------------------
@@ -384,7 +385,10 @@ class Store:
         with self.lock:
             self.check_writable()
             sealed = len(self.sealed)
-            self._commit()  # which seals by itself when a limit is reached
+            if "seal-no-fsync" in planted.BUGS:
+                self.active.flush()
+            else:
+                self._commit()  # which seals by itself when a limit is reached
             seg = self.active
             if seg.next_seq == seg.first_seq:
                 return len(self.sealed) > sealed
