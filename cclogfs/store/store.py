@@ -441,7 +441,12 @@ class Store:
         seg = self.active
         mark = {"first_seq": seg.first_seq, "synced": seg.synced, "next_seq": seg.next_seq}
         if self._dirty and self.manifest.checkpoint != mark:
-            self.commit_manifest(self.manifest.with_checkpoint(**mark))
+            try:
+                self.commit_manifest(self.manifest.with_checkpoint(**mark))
+            except OSError as err:  # a project error, not a raw OSError from close()
+                self._failed = err
+                raise StoreFailedError(f"{self.file_path(MANIFEST)}: writing the checkpoint failed: {err}; "
+                                       "everything put is synced, reopen the store to recover") from err  # fmt: skip
 
     def _start_flusher(self) -> None:
         if self.sync_every_ms:
