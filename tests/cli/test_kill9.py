@@ -39,8 +39,8 @@ from cclogfs.errors import CclogError
 from cclogfs.store import check_store, repair_store
 from test_hard_kill import odom_line
 
-RECORD_KILLS = 15
-COMPACT_KILLS = 5
+RECORD_KILLS = 150
+COMPACT_KILLS = 50
 SPAWNED_KILLS = 3  # whole `python -m cclogfs record` processes
 LINES = 800
 UPKEEP = ["--budget", "200KiB", "--age-older-than", "2s", "--age-error", "1e-3"]

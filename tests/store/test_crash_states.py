@@ -13,10 +13,11 @@ import pytest
 
 from bench.crash import STEPS, Tally, ace_workloads, check_workloads, explore, run_background, run_steps
 
-# Distinct states each test must check (measured: about 10% more each).
-ACE_MIN = {"start+put": 9500, "big": 8500, "sync": 6000, "reopen": 6000, "kill": 6000, "seal": 6500,
-           "age": 5500, "drop": 5500, "failsync": 8000}  # fmt: skip
-LONG_MIN = 16000  # per test of random longer workloads
+# Distinct states each test must check: 90% of what the last run checked (bench/crash.py
+# is seeded; only the background threads' timing varies).
+ACE_MIN = {"start+put": 13800, "big": 19000, "sync": 10300, "reopen": 10200, "kill": 10700, "seal": 27000,
+           "age": 10500, "drop": 10000, "failsync": 16500}  # fmt: skip
+LONG_MIN = 8000  # per test of random longer workloads
 LONG_TESTS = 2
 BACKGROUND_MIN = 3000
 
