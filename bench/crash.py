@@ -327,6 +327,9 @@ class Tally:
 
 def explore(trace: Trace, tally: Tally, rng: random.Random, label: str, nested_every: int = 0) -> None:
     """Every mode at every boundary from `trace.begin` on, plus MIXED mixed images each."""
+    # Images of two runs never coincide (each store has its own id and segment creation
+    # times), so identical images are looked for within one run: memory stays bounded.
+    tally.seen.clear()
     acked = acked_per_op(trace.ops)
     model = DiskModel()
     for k, op in enumerate(trace.ops):
@@ -393,7 +396,7 @@ def run(states: int, seed: int, long_len: int = 20, nested_every: int = 8, out=s
     tally, rng, t0 = Tally(), random.Random(seed), time.monotonic()
     for i, steps in enumerate(ace_workloads()):
         explore(run_steps(steps, (None, 700)[i % 2]), tally, rng, "ace " + ",".join(steps) or "start", nested_every)
-    print(f"ace: {tally.states} states after every workload of up to 3 steps", file=out)
+    print(f"ace: {tally.states} states after every workload of up to 3 steps", file=out, flush=True)
     i = 0
     while tally.states < states and (time_limit is None or time.monotonic() - t0 < time_limit):
         if i % 4 == 3:
@@ -402,6 +405,9 @@ def run(states: int, seed: int, long_len: int = 20, nested_every: int = 8, out=s
             steps = [rng.choice(STEPS) for _ in range(rng.randint(4, long_len))]
             explore(run_steps(steps, rng.choice((None, 700, 2500))), tally, rng, "long " + ",".join(steps), nested_every)
         i += 1
+        if i % 100 == 0:
+            print(f"{tally.states} states, {len(tally.violations)} violations, {time.monotonic() - t0:.0f} s",
+                  file=out, flush=True)  # fmt: skip
     return tally
 
 
@@ -439,9 +445,10 @@ def main() -> int:
     ap.add_argument("--states", type=int, default=1_000_000)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--long", type=int, default=20, help="longest random workload (steps)")
+    ap.add_argument("--max-s", type=float, default=None, help="stop the random workloads after this long")
     args = ap.parse_args()
     t0 = time.monotonic()
-    tally = run(args.states, args.seed, args.long)
+    tally = run(args.states, args.seed, args.long, time_limit=args.max_s)
     print(f"{tally.states} distinct crash states checked ({tally.images} images, {tally.nested} of the "
           f"states crashed a recovery or repair), {len(tally.violations)} violations, "
           f"{time.monotonic() - t0:.0f} s")  # fmt: skip
