@@ -49,7 +49,10 @@ def kill_at(pid: int, delay: float) -> bool:
         return False
     os.kill(pid, signal.SIGKILL)
     _pid, status = os.waitpid(pid, 0)
-    assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL
+    if os.WIFEXITED(status):  # it finished between the look and the kill
+        assert os.WEXITSTATUS(status) == 0, status
+        return False
+    assert os.WTERMSIG(status) == signal.SIGKILL, status
     return True
 
 
