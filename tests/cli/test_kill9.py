@@ -20,6 +20,7 @@ Kills that land after the run finished are not counted.
 from __future__ import annotations
 
 import shutil
+from collections import Counter
 import subprocess
 import sys
 from pathlib import Path
@@ -69,6 +70,8 @@ def test_kill_9_of_compact(source, tmp_path):
 
     landed, reads, errors = kills(tmp_path, COMPACT_KILLS, start, 2)
     print(f"compact: {landed} kills landed, {reads} windows read meanwhile, {len(errors)} reader errors")
+    for what, n in Counter(e.split(":")[0] + ": ..." + e[-90:] for e in errors).most_common(4):
+        print(f"  {n} x {what}")
     assert landed == COMPACT_KILLS, landed
 
 
