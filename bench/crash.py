@@ -1,16 +1,17 @@
 """Crash states (issue 16, "The evidence"): run workloads on a recording in-memory file
 system, and at every operation boundary open every disk image a crash could leave.
 
-    python3 dev.py bench crash [--states 1000000] [--seed 1] [--long 2000]
+    python3 dev.py bench crash [--states 1000000] [--seed 1] [--long 20] [--max-s S]
 
-Workloads: every sequence of up to 3 operations (as CrashMonkey's ACE) of put, big put,
-sync, close and reopen, kill -9 and reopen on the same page cache, seal, age (rewrite),
-drop the oldest segment, and a failed fsync (then reopen), after a synced start; then
-random longer ones; then the group-commit thread and the upkeep (aging) thread running
-on their own. At each boundary: one image per failure mode for every file (lost, all,
-prefix, torn, zero, garbage, reorder), plus images where each file fails in its own mode
-and directory operations land reordered. For a sample of images, the recovery that opens
-it and `fsck --repair` are crashed again at each of their own boundaries.
+Workloads: every sequence of up to 3 operations (as CrashMonkey's ACE) of put, big put
+(handed to the OS unsynced), sync, close and reopen, kill -9 and reopen on the same page
+cache, seal, age (rewrite), drop the oldest segment, and a failed fsync (then reopen),
+after a synced start; then random longer ones, and every fourth run the group-commit
+thread and the upkeep (aging) thread working on their own. At each boundary: one image per
+failure mode for every file (lost, all, prefix, torn, zero, garbage, reorder, hole), plus
+MIXED images where each file fails in its own mode and directory operations land
+reordered. For an eighth of the new images, the recovery that opens it and `fsck --repair`
+are crashed again at each of their own boundaries.
 
 The check of each image: the store opens; it holds a gapless run of seqs that starts where
 retention left the log, each window the one put with that seq (messages exact, or aged
