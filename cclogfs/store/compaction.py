@@ -18,6 +18,7 @@ from typing import Any, Protocol
 
 from .._signals import signals_deferred
 from ..errors import CorruptionError, InvalidInputError, StoreError, StoreFailedError
+from . import planted
 from .encode import Codecs, encode_window
 from .format import (
     AGED_META_KEY,
@@ -339,6 +340,8 @@ def _commit_rewrite(store: Host, plans: list[_Plan], report: RewriteReport) -> N
     the old generations."""
     try:  # the lock is held from the check in _plan_all to the end of the commit
         manifest = store.manifest.with_replaced({plan.old.first_seq: plan.info for plan in plans})
+        if "early-delete" in planted.BUGS:
+            _remove(store, _generation_files(plans, old=True))
         # From the commit on nothing may be undone: once the rename happened, the manifest on
         # disk names the new files, so an interrupt must not reach the cleanup above.
         with signals_deferred():
@@ -424,6 +427,8 @@ def drop_oldest(store: Host) -> Dropped | None:
             return None
         seg, info = store.sealed[0], store.manifest.segments[0]
         freed = file_bytes(store, seg, seg.gen)
+        if "early-delete" in planted.BUGS:
+            _remove(store, [segment_name(seg.first_seq, seg.gen), index_name(seg.first_seq, seg.gen)])
         with signals_deferred():  # the commit and its aftermath run to the end
             # On a full disk the new manifest fits only in the reserve's space (FORMAT.md, "Reserve").
             store.release_reserve()

@@ -16,6 +16,8 @@ from enum import IntEnum, IntFlag
 import crcmod.predefined
 import xxhash
 
+from . import planted
+
 # The manifest's `format_version`: 1 for a store never compacted (byte for byte what version 1
 # wrote), 2 once records were rewritten or segments dropped, 3 once a writer of this version
 # wrote to it (records carry their synced length; the manifest a checkpoint and the damage
@@ -286,6 +288,8 @@ def check_fixed(fixed: bytes, available: int) -> int:
         raise RecordError(Reason.BAD_MAGIC, repr(fixed[:4]))
     (_m, _k, version, _f, header_len, _s, _a, _b, count, _c, name_len, config_len, meta_len,
      raw_len, enc_len, _h) = RECORD_FIXED.unpack_from(fixed)  # fmt: skip
+    if "trust-length" in planted.BUGS:
+        return header_len
     least = RECORD_FIXED_SIZE + name_len + config_len + meta_len + 4
     # A newer version may append header fields (FORMAT.md, extension rules): frame it by
     # header_len so that it can be skipped, not mistaken for the end of the log.

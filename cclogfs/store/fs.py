@@ -18,6 +18,8 @@ from typing import Any, TypeVar
 
 from ..errors import StoreIOError
 
+from . import planted
+
 # Permissions of what the store creates (FORMAT.md, "Permissions"): a robot's logs hold
 # where people live and work, so they are the owner's alone unless a deployment changes these.
 FILE_MODE = 0o600
@@ -30,7 +32,7 @@ _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
 
 def _open_nofollow(path: str, flags: int) -> int:
     try:
-        fd = os.open(path, flags | _NOFOLLOW, FILE_MODE)
+        fd = os.open(path, flags | (0 if "follow-symlink" in planted.BUGS else _NOFOLLOW), FILE_MODE)
     except OSError as err:
         if err.errno == errno.ELOOP:  # what O_NOFOLLOW gives for a symlink: say it plainly
             raise OSError(errno.ELOOP, "is a symbolic link, which the store never follows", path) from None
@@ -257,7 +259,8 @@ class FileSystem:
         try:
             try:
                 self.pwrite(fd, data, 0)
-                self.fsync(fd)
+                if "rename-before-sync" not in planted.BUGS:
+                    self.fsync(fd)
             finally:
                 self.close(fd)
         except OSError:

@@ -6,6 +6,7 @@ import threading
 from dataclasses import dataclass, field
 
 from ..errors import CorruptionError
+from . import planted
 from .format import (
     SEGMENT_HEADER_SIZE,
     Reason,
@@ -222,6 +223,11 @@ def scan(segment: Segment, *, salvage: bool = False, start: tuple[int, int] | No
                 _add(result, segment.path, rec)
             return result
         except RecordError as err:
+            if "skip-bad-record" in planted.BUGS:
+                found = next_intact(fs, fd, err.offset, size, result.next_seq)
+                if found is not None:
+                    pos, seq = found
+                    continue
             problem = Problem(segment.path, err.offset, err.reason, str(err), size - err.offset)
             result.end = err.offset
             found = next_intact(fs, fd, err.offset, size, result.next_seq) if salvage else None

@@ -290,7 +290,8 @@ class Store:
         fd = self.fs.open(path, write=True, create=True)
         self.fs.pwrite(fd, pack_segment_header(first_seq, created, self.manifest.generation), 0)
         self.fs.fsync(fd)
-        self.fs.fsync_dir(self.path)
+        if "no-dir-fsync" not in planted.BUGS:
+            self.fs.fsync_dir(self.path)
         return Segment(self.fs, path, first_seq, created, fd, SEGMENT_HEADER_SIZE, lock=self.lock)
 
     # -- writing ---------------------------------------------------------------------------
@@ -403,7 +404,10 @@ class Store:
         with self.lock:
             self.check_writable()
             sealed = len(self.sealed)
-            self._commit()  # which seals by itself when a limit is reached
+            if "seal-no-fsync" in planted.BUGS:
+                self.active.flush()
+            else:
+                self._commit()  # which seals by itself when a limit is reached
             seg = self.active
             if seg.next_seq == seg.first_seq:
                 return len(self.sealed) > sealed
@@ -489,10 +493,15 @@ class Store:
         seg = self.active
         mark = {"first_seq": seg.first_seq, "synced": seg.synced, "next_seq": seg.next_seq}
         if self._dirty and self.manifest.checkpoint != mark:
-            # Its index first, so that a reader need not scan it: a crash before the manifest
-            # leaves an index no checkpoint matches, which readers ignore.
-            self.fs.write_file_atomic(self._index_path(seg), seg.index().encode(seg.first_seq, seg.size))
-            self.commit_manifest(self.manifest.with_checkpoint(**mark))
+            try:
+                # Its index first, so that a reader need not scan it: a crash before the manifest
+                # leaves an index no checkpoint matches, which readers ignore.
+                self.fs.write_file_atomic(self._index_path(seg), seg.index().encode(seg.first_seq, seg.size))
+                self.commit_manifest(self.manifest.with_checkpoint(**mark))
+            except OSError as err:  # a project error, not a raw OSError from close()
+                self._failed = err
+                raise StoreFailedError(f"{self.file_path(MANIFEST)}: writing the checkpoint failed: {err}; "
+                                       "everything put is synced, reopen the store to recover") from err  # fmt: skip
 
     def _start_flusher(self) -> None:
         if self.sync_every_ms:

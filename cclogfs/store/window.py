@@ -140,6 +140,10 @@ class Window:
                 f"{header.codec} in its header but {codec.codec_id!r} in its config",
                 path=self._segment.path, offset=self._offset, reason=Reason.CODEC_MISMATCH,
             )  # fmt: skip
+        if "trust-zstd-size" in planted.BUGS and codec.codec_id == "zstd":
+            import zstandard  # the planted bug: a buffer of the size the frame declares
+
+            zstandard.ZstdDecompressor().decompress(payload)
         stamps, texts = codec.decode(payload, count=header.count, raw_len=header.raw_len)
         self._check_utf8(texts)
         return zip(stamps, texts)
