@@ -87,8 +87,8 @@ class MemFileSystem(FileSystem):
     # must never reach the os module (a fake descriptor may be some real file's number).
 
     def allocate(self, fd: int, size: int) -> None:
-        if size > len(self.fds[fd][1].data):
-            self.truncate(fd, size)
+        """Nothing: memory never runs short, and a RESERVE of a MiB of zeros copied into every
+        crash image made the crash states 15 times slower for bytes nobody reads."""
 
     def free_bytes(self, path: str) -> int:
         return 1 << 40  # no full disk in this model (tests/cli/test_full_disk.py has a real one)
