@@ -363,9 +363,9 @@ def _record_run(args: argparse.Namespace, store, source, policy, upkeep: Upkeep 
             upkeep.close(finish=ended)
     if upkeep is None:
         return rows, None
-    if upkeep.budget is not None:
-        compact(store, budget=upkeep.budget)  # the final flush may have sealed one
-    store.sync()  # the active segment's buffered records count too
+    store.sync()  # first: the active segment's buffered records count toward the budget too
+    if upkeep.budget is not None:  # the last records and the final flush come after the last pass
+        upkeep.dropped_segments += compact(store, budget=upkeep.budget).segments_dropped
     return rows, store.data_bytes()
 
 

@@ -98,6 +98,10 @@ class SegmentIndex:
                 for stream, count, seq, start, end, offset, length, raw_len
                 in sorted(self.entries, key=itemgetter(OFFSET))]  # fmt: skip
 
+    def encoded_size(self) -> int:
+        """Bytes `encode` gives, without encoding it."""
+        return INDEX_HEADER.size + len(json.dumps(self.names).encode()) + INDEX_ENTRY.size * len(self.entries) + 8
+
     def encode(self, first_seq: int, segment_size: int) -> bytes:
         names = json.dumps(self.names).encode()
         head = INDEX_HEADER.pack(

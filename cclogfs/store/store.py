@@ -671,7 +671,17 @@ class Store:
         so evidence kept for a repair never makes retention drop data."""
         names = [n for n in self.fs.listdir(self.path) if n == MANIFEST or parse_seq_name(n) is not None]
         # A file removed meanwhile (a writer compacting while we read) counts 0.
-        return sum(self.fs.file_size(self.file_path(name)) or 0 for name in names)
+        return sum(self.fs.file_size(self.file_path(name)) or 0 for name in names) + self._index_to_come()
+
+    def _index_to_come(self) -> int:
+        """Bytes the active segment's index will add when close() writes it (FORMAT.md,
+        "Checkpoint index"): counted now, so a budget met while recording is met after the
+        close too (it was overshot by the size of that index)."""
+        seg = self.active
+        if self.readonly or seg is None or not seg.rows:
+            return 0
+        on_disk = self.fs.file_size(self._index_path(seg)) or 0
+        return max(0, seg.index().encoded_size() - on_disk)
 
     def free_bytes(self) -> int:
         """Bytes still free on the store's file system (for this user)."""
