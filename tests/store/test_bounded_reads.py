@@ -2,7 +2,7 @@
 
 A small sparse file can claim gigabytes: recovery, readers, fsck and repair once read a
 whole tail (or side file) into memory to look for records in it, so a 4 GiB zero tail cost
-8 GiB. Each case runs in a fresh process and measures its peak RSS (ru_maxrss) around
+8 GiB. Each case runs in a fresh process and measures its peak RSS (VmHWM) around
 the one operation.
 """
 
@@ -23,13 +23,16 @@ from cclogfs.store.format import SEGMENT_HEADER_SIZE
 PEAK_LIMIT_MIB = 64
 
 RUN = textwrap.dedent("""
-    import json, resource, sys
+    import json, sys
     from cclogfs.store import open_store
     from cclogfs.store.fsck import check_store
     from cclogfs.store.repair import repair_store
 
     def rss():
-        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024
+        # VmHWM, not ru_maxrss: a child's ru_maxrss starts at its parent's peak (the test
+        # worker's), which would hide any growth here; VmHWM is this address space's own.
+        with open("/proc/self/status") as f:
+            return next(int(line.split()[1]) for line in f if line.startswith("VmHWM:")) // 1024
 
     path, what = sys.argv[1], sys.argv[2]
     before = rss()

@@ -161,8 +161,10 @@ def test_a_rebuilt_manifest_repairs_a_forged_one(tmp_path):
 
 def _peak_rss_mib(code: str) -> tuple[int, str]:
     """Run `code` in a fresh interpreter; its peak RSS in MiB and its last output line."""
-    wrapper = (f"import resource, sys\n{code}\n"
-               "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024)")  # fmt: skip
+    # VmHWM, not ru_maxrss: a child's ru_maxrss starts at its parent's (the test worker's,
+    # hundreds of MiB after the crash states), VmHWM at its own new address space.
+    wrapper = (f"import sys\n{code}\n"
+               "print(next(int(l.split()[1]) for l in open('/proc/self/status') if l.startswith('VmHWM:')) // 1024)")  # fmt: skip
     out = subprocess.run([sys.executable, "-c", wrapper], capture_output=True, text=True, timeout=300)
     assert "Traceback" not in out.stderr, out.stderr
     lines = out.stdout.strip().splitlines()
