@@ -50,26 +50,24 @@ class Ros2DbSalvage(_Salvage):
         self.files = db3_files(p)
         if not self.files:
             raise SourceError(f"{p} is a directory without metadata.yaml or .db3 files, so not a ROS 2 bag.")
-        self.name = str(p)
-        self.size = sum(f.stat().st_size for f in self.files)
         super().__init__(self.files[0], topics=topics, clock=clock, why=why)
-        self.name, self.size = str(p), sum(f.stat().st_size for f in self.files)
+        self.name, self.size = str(p), sum(f.stat().st_size for f in self.files)  # the bag, not its first file
         self.note = (f"{p} has no metadata.yaml (the recorder stopped before writing it): read from its "
                      f"database{'s' if len(self.files) > 1 else ''} {', '.join(f.name for f in self.files)}"
                      if p.is_dir() and not (p / "metadata.yaml").is_file() else None)  # fmt: skip
-        self._typestore = _typestore(self.files)
 
     def __iter__(self) -> Iterator[SourceMessage]:
         with tempfile.TemporaryDirectory(prefix="cclog-db3-") as tmp:
             yield from self._read([_openable(f, Path(tmp)) for f in self.files])
 
     def _read(self, files: list[Path]) -> Iterator[SourceMessage]:
+        store = _typestore(files)  # from the readable copies: a cut file's definitions are still there
         losses: list[str] = []
         rows: list[tuple[int, int, int, int]] = []  # (timestamp, file index, id, topic id)
         topics: list[dict[int, tuple[str, str]]] = []
         for n, f in enumerate(files):
             db = _connect(f)
-            topics.append(_topics(db, f))
+            topics.append(_topics(db, self.files[n]))
             ids, lost = _readable_rows(db)
             rows += [(t, n, i, tid) for i, tid, t in ids]
             losses += [f"{self.files[n].name}: {what}" for what in lost]
@@ -89,7 +87,11 @@ class Ros2DbSalvage(_Salvage):
                 except (sqlite3.DatabaseError, TypeError) as err:
                     losses.append(f"{self.files[n].name}: row {i}: {err}")
                     continue
-                msg = self._typestore.deserialize_cdr(data, msgtype)
+                try:
+                    msg = store.deserialize_cdr(data, msgtype)
+                except Exception as err:  # rosbags raises several unrelated types for bad CDR
+                    raise SourceError(f"{self.files[n]}: cannot decode the {msgtype or 'unknown'} message row {i} "
+                                      f"on {topic or f'topic id {tid}'}: {err}") from err  # fmt: skip
                 count, last = count + 1, t
                 yield self._message(topic, msgtype, t, msg)
         finally:
