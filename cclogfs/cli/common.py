@@ -243,6 +243,9 @@ DAMAGED_EXIT = 4  # the input was damaged: what could be read was kept
 
 def damaged_exit(source) -> int:
     """0, or DAMAGED_EXIT after saying what a damaged input lost (`ingest.salvage`)."""
+    note = getattr(source, "note", None)
+    if note:
+        print(f"cclog: note: {note}", file=sys.stderr)
     lost = getattr(source, "lost", None)
     if lost is None:
         return 0

@@ -15,8 +15,9 @@ examples:
   cclog convert rosbag2_dir/ -o - | head              # a ROS 2 bag directory, to stdout
   cat raw.jsonl | cclog convert - -o clean.jsonl --on-error skip
 
-A damaged ROS 1 bag or MCAP file (cut short, index lost) is read as far as it can be: every
-readable message is written, stderr says what was lost, and the exit code is 4.
+A damaged ROS 1 bag, MCAP file or ROS 2 .db3 (cut short, index lost) is read as far as it can
+be: every readable message is written, stderr says what was lost, and the exit code is 4. A
+ROS 2 bag directory without metadata.yaml is read from its .db3 files (a note on stderr).
 
 Each line is {"topic": ..., "stamp_ns": ..., "msg": {...}}: msg is the message as
 rosbridge JSON (docs/JSON.md), stamp_ns its log time (--clock header: its header.stamp,

@@ -37,8 +37,9 @@ lists them). A file the store holds a run of already (same content, any name) is
 since its messages would be stored twice; --append records it again as a new run.
 
 JSON Lines: one message per line, {"topic": "/odom", "stamp_ns": 1432235695834049087, "msg": {...}}.
-A damaged ROS 1 bag or MCAP file (cut short, index lost) is recorded as far as it can be
-read; stderr says what was lost and the exit code is 4.
+A damaged ROS 1 bag, MCAP file or ROS 2 .db3 (cut short, index lost) is recorded as far as it
+can be read; stderr says what was lost and the exit code is 4. A ROS 2 bag directory without
+metadata.yaml is read from its .db3 files (a note on stderr).
 With --model, odometry on the model's topic is scored; each anomaly opens a window of
 --before messages (or seconds, "4s") before it and --after after the last anomaly, over
 the odometry and the --topic topics (all topics when none is given). Ctrl-C or SIGTERM

@@ -66,6 +66,8 @@ def detect_format(path: str | Path) -> str:
     if p.is_dir():
         if (p / "metadata.yaml").is_file():
             return "rosbag2"
+        if any(p.glob("*.db3")):
+            return "rosbag2"  # never indexed: the bag reader refuses it, then ingest.ros2salvage reads it
         raise SourceError(f"{p} is a directory without metadata.yaml, so not a ROS 2 bag.")
     try:
         with open(p, "rb") as f:
@@ -141,6 +143,8 @@ def open_source(
     cls = _reader(fmt)  # imported only now: rosbags and mcap are slow to import
     if fmt in ("rosbag1", "rosbag2"):
         try:
+            if fmt == "rosbag2" and _db3_cut_short(Path(path)):
+                raise SourceError("its database is cut short")  # the bag reader would fail midway
             return cls(path, topics=topics, clock=clock)
         except SourceError as err:
             salvage = _salvage_class(fmt, Path(path))
@@ -153,13 +157,22 @@ def open_source(
 
 def _salvage_class(fmt: str, p: Path):
     """The reader of what can be read of a damaged file of this kind (None: none)."""
+    from .ros2salvage import Ros2DbSalvage
     from .salvage import McapSalvage, Ros1Salvage
 
     if fmt == "rosbag1":
         return Ros1Salvage
+    if p.suffix == _SUFFIX["sqlite3"] or (p.is_dir() and any(p.glob("*.db3"))):
+        return Ros2DbSalvage
     if p.is_file() and p.suffix == _SUFFIX["mcap"]:
         return McapSalvage
     return None
+
+
+def _db3_cut_short(p: Path) -> bool:
+    from .ros2salvage import db3_cut_short, db3_files
+
+    return any(f.suffix == _SUFFIX["sqlite3"] and db3_cut_short(f) for f in db3_files(p))
 
 
 def _log_clock_only(path: str | Path, clock: str) -> None:

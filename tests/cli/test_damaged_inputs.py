@@ -88,3 +88,64 @@ def test_a_failed_run_leaves_no_empty_store(tmp_path, capsys):
         pass
     assert main(["record", str(bad), "--store", str(pre)]) == 1
     assert pre.exists()  # not ours to remove
+
+
+def ros2_bag_copy(shared_data, tmp_path, name):
+    """A copy of the real ROS 2 bag tf_example/ (shared data is read-only)."""
+    src = shared_data("tf_example")
+    dst = tmp_path / name
+    dst.mkdir()
+    for f in src.iterdir():
+        (dst / f.name).write_bytes(f.read_bytes())
+    return dst
+
+
+def test_ros2_bag_without_metadata_is_read_whole(shared_data, tmp_path, capsys):
+    bag = ros2_bag_copy(shared_data, tmp_path, "bag")
+    assert main(["convert", str(bag), "-o", str(tmp_path / "whole.jsonl")]) == 0
+    whole = (tmp_path / "whole.jsonl").read_text()
+    (bag / "metadata.yaml").unlink()  # the recorder died before writing it
+    capsys.readouterr()
+    assert main(["convert", str(bag), "-o", str(tmp_path / "unindexed.jsonl")]) == 0
+    assert "no metadata.yaml" in capsys.readouterr().err
+    assert (tmp_path / "unindexed.jsonl").read_text() == whole  # every message, byte for byte
+    assert main(["record", str(bag), "--store", str(tmp_path / "s")]) == 0
+    assert "no metadata.yaml" in capsys.readouterr().err
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        kept = [t["messages"] for n, t in store.streams().items() if not hidden_by_default(n)]
+    assert sum(kept) == len(whole.splitlines()) == 518
+
+
+@pytest.mark.parametrize("fraction", [0.5, 0.7, 0.9])
+@pytest.mark.parametrize("metadata", [True, False])
+def test_truncated_ros2_db3_keeps_what_can_be_read(shared_data, tmp_path, capsys, fraction, metadata):
+    bag = ros2_bag_copy(shared_data, tmp_path, "bag")
+    assert main(["convert", str(bag), "-o", str(tmp_path / "whole.jsonl")]) == 0
+    full = (tmp_path / "whole.jsonl").read_text().splitlines(True)
+    cut(bag / "tf_example.db3", fraction)
+    if not metadata:
+        (bag / "metadata.yaml").unlink()
+    capsys.readouterr()
+    assert main(["convert", str(bag), "-o", str(tmp_path / "cut.jsonl")]) == 4
+    err = capsys.readouterr().err
+    assert "damaged" in err and "could not be read" in err and "message rows" in err
+    got = (tmp_path / "cut.jsonl").read_text().splitlines(True)
+    assert 0 < len(got) < len(full)
+    assert set(got) <= set(full)  # none changed
+    assert got == sorted(got, key=full.index)  # in the intact read's order
+    assert main(["record", str(bag), "--store", str(tmp_path / "s")]) == 4
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        (run,) = list_runs(store)
+    assert "damaged" in run.end["input_lost"] and run.kept == len(got)
+
+
+def test_unreadable_ros2_db3_fails_and_leaves_no_store(shared_data, tmp_path, capsys):
+    bag = ros2_bag_copy(shared_data, tmp_path, "bag")
+    (bag / "metadata.yaml").unlink()
+    db = bag / "tf_example.db3"
+    db.write_bytes(db.read_bytes()[: 7 * 4096])  # the schema pages only: no message page left
+    capsys.readouterr()
+    assert main(["record", str(bag), "--store", str(tmp_path / "s")]) != 0
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err and "tf_example.db3" in err
+    assert not (tmp_path / "s").exists()
