@@ -316,31 +316,15 @@ class RecordingFileSystem(FileSystem):
 
     ops: list[tuple[Any, ...]] = field(default_factory=list)
     fail_fsync: bool = False
-    _paths: dict[int, str] = field(default_factory=dict)
 
     def open(self, path: str, *, write: bool = False, create: bool = False) -> int:
         fd = super().open(path, write=write, create=create)
-        self._paths[fd] = path
         if create:
             self.ops.append(("create", path))
         return fd
 
-    def close(self, fd: int) -> None:
-        self._paths.pop(fd, None)
-        super().close(fd)
-
-    def lock(self, path: str) -> int | None:
-        fd = super().lock(path)
-        if fd is not None:
-            self._paths[fd] = path
-        return fd
-
-    def unlock(self, fd: int) -> None:
-        self._paths.pop(fd, None)
-        super().unlock(fd)
-
     def pwrite(self, fd: int, data: bytes, offset: int) -> None:
-        self.ops.append(("write", self._paths[fd], offset, bytes(data)))
+        self.ops.append(("write", self.name_of(fd), offset, bytes(data)))
         super().pwrite(fd, data, offset)
 
     @io_op("fsync")
@@ -348,14 +332,14 @@ class RecordingFileSystem(FileSystem):
         if self.fail_fsync:
             raise OSError(5, "Input/output error (injected)")
         super().fsync(fd)
-        self.ops.append(("fsync", self._paths[fd]))
+        self.ops.append(("fsync", self.name_of(fd)))
 
     def truncate(self, fd: int, size: int) -> None:
-        self.ops.append(("truncate", self._paths[fd], size))
+        self.ops.append(("truncate", self.name_of(fd), size))
         super().truncate(fd, size)
 
     def allocate(self, fd: int, size: int) -> None:
-        self.ops.append(("truncate", self._paths[fd], size))  # the file grows by zeros
+        self.ops.append(("truncate", self.name_of(fd), size))  # the file grows by zeros
         super().allocate(fd, size)
 
     def rename(self, src: str, dst: str) -> None:

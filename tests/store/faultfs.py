@@ -49,7 +49,6 @@ class FaultyFileSystem(FileSystem):
     ops: list[tuple[str, str]] = field(default_factory=list)
     fired: tuple[str, str, str] | None = None  # (operation, path, mode) of the injected fault
     armed: bool = False  # operations count (and fail) only once armed
-    _paths: dict[int, str] = field(default_factory=dict)
 
     def arm(self) -> None:
         """Count from here: the operation under test starts."""
@@ -80,24 +79,18 @@ class FaultyFileSystem(FileSystem):
     def open(self, path: str, *, write: bool = False, create: bool = False) -> int:
         if self._step("create" if create else "open", path):
             self._fail(path)
-        fd = super().open(path, write=write, create=create)
-        self._paths[fd] = path
-        return fd
-
-    def close(self, fd: int) -> None:
-        self._paths.pop(fd, None)
-        super().close(fd)
+        return super().open(path, write=write, create=create)
 
     @io_op("reading")
     def pread(self, fd: int, size: int, offset: int) -> bytes:
-        path = self._paths.get(fd, "?")
+        path = self.name_of(fd)
         if self._step("pread", path):
             self._fail(path)
         return super().pread(fd, size, offset)
 
     @io_op("writing")
     def pwrite(self, fd: int, data: bytes, offset: int) -> None:
-        path = self._paths.get(fd, "?")
+        path = self.name_of(fd)
         if self._step("pwrite", path):
             if self.fired[2] == "short" and len(data) > 1:
                 super().pwrite(fd, bytes(data[: len(data) // 2]), offset)
@@ -106,21 +99,21 @@ class FaultyFileSystem(FileSystem):
 
     @io_op("fsync")
     def fsync(self, fd: int) -> None:
-        path = self._paths.get(fd, "?")
+        path = self.name_of(fd)
         if self._step("fsync", path):
             self._fail(path)
         super().fsync(fd)
 
     @io_op("truncating")
     def truncate(self, fd: int, size: int) -> None:
-        path = self._paths.get(fd, "?")
+        path = self.name_of(fd)
         if self._step("truncate", path):
             self._fail(path)
         super().truncate(fd, size)
 
     @io_op("allocating")
     def allocate(self, fd: int, size: int) -> None:
-        path = self._paths.get(fd, "?")
+        path = self.name_of(fd)
         if self._step("allocate", path):
             self._fail(path)
         super().allocate(fd, size)
@@ -159,11 +152,4 @@ class FaultyFileSystem(FileSystem):
     def lock(self, path: str) -> int | None:
         if self._step("lock", path):
             self._fail(path)
-        fd = super().lock(path)
-        if fd is not None:
-            self._paths[fd] = path
-        return fd
-
-    def unlock(self, fd: int) -> None:
-        self._paths.pop(fd, None)
-        super().unlock(fd)
+        return super().lock(path)

@@ -113,7 +113,7 @@ class ManifestBeforeDataFileSystem(RecordingFileSystem):
     """A broken writer: the new generation's data is not fsynced before the manifest names it."""
 
     def fsync(self, fd):
-        if "-" in self._paths[fd].rsplit("/", 1)[-1] and self._paths[fd].endswith(".seg"):
+        if "-" in self.name_of(fd).rsplit("/", 1)[-1] and self.name_of(fd).endswith(".seg"):
             return
         super().fsync(fd)
 
