@@ -289,6 +289,15 @@ DEFAULT_NAMES = (
 )
 # Columns of the short-window maxima (instantaneous values of each message).
 _SHORT = slice(1, 8)
+# How a pose may have been integrated from the twist (version 6 takes the pose/twist
+# mismatch under the scheme that fits best over the window): the mean of the two messages'
+# twists (wheel odometry sampled at each stamp), the previous message's (the TUC robot's
+# pose; twist differenced forward from the next pose, the slamfail robots) or the current
+# one's (TwistFromPoses), each at the step's mid heading. Under the trapezoid alone the
+# slamfail robots' own odometry "mismatched" by up to 0.5 m/s (bench/classifier_long.py);
+# under the best scheme by at most 0.06 m/s per message. A slip or a pose jump disagrees
+# under every scheme.
+_SCHEMES = ("trapezoid", "previous", "current")
 
 
 def _wrap(a: np.ndarray) -> np.ndarray:
@@ -328,7 +337,7 @@ class DefaultFeatures:
     """
 
     id = "default"
-    version = 5
+    version = 6
     names = DEFAULT_NAMES
 
     def __init__(
@@ -347,6 +356,7 @@ class DefaultFeatures:
         gate_s: float | None = 1.0,
         despike_s: float | None = 0.1,
         speedup: bool = True,
+        any_scheme: bool = True,
     ):
         values = dict(deriv_s=deriv_s, match_s=match_s, short_s=short_s, long_s=long_s,
                       flip_s=flip_s, gap_s=gap_s, warmup_s=warmup_s, creep_mps=creep_mps,
@@ -356,14 +366,18 @@ class DefaultFeatures:
         # Version 5 splits acceleration by sign: `accel_max` is speeding up only, braking
         # stays in `brake_max`, so that the second stage (api.robot_limits) can allow a
         # robot's hard stops at goals without allowing a lurch forward.
-        if gate_s is not None and despike_s is not None:
+        # Version 6 takes the pose/twist mismatch under whichever integration scheme fits
+        # best (see `_SCHEMES`).
+        if gate_s is not None and despike_s is not None and (speedup or not any_scheme):
             values["gate_s"], values["despike_s"] = gate_s, despike_s
-            self.version = 5 if speedup else 4
-        elif gate_s is None and despike_s is None and not speedup:
+            self.version = 6 if any_scheme else 5 if speedup else 4
+        elif gate_s is None and despike_s is None and not speedup and not any_scheme:
             self.version = 3
         else:
-            raise InvalidInputError("Feature parameters gate_s and despike_s go together (version 4 on).")
-        self.speedup = speedup
+            raise InvalidInputError("Feature parameters gate_s and despike_s go together (version 4 on), "
+                                    "speedup from version 5, any_scheme from version 6.")  # fmt: skip
+        self.speedup, self.any_scheme = speedup, any_scheme
+        self.schemes = len(_SCHEMES) if any_scheme else 1
         for name, value in values.items():
             if not value > 0:
                 raise InvalidInputError(f"Feature parameter {name} must be > 0, got {value!r}.")
@@ -448,13 +462,13 @@ class DefaultFeatures:
         mvx, mvy = 0.5 * (vx[1:] + vx[:-1]), 0.5 * (vy[1:] + vy[:-1])
         mw = 0.5 * (wz[1:] + wz[:-1])
         c, s = np.cos(mid), np.sin(mid)
-        steps = np.column_stack([
-            (c * mvx - s * mvy) * dt,  # twist-integrated world x
-            (s * mvx + c * mvy) * dt,  # twist-integrated world y
-            mw * dt,  # twist-integrated yaw
-            dyaw,  # pose yaw change, unwrapped by summing wrapped steps
-            np.where(np.hypot(mvx, mvy) < self.creep, mw * dt, 0.0),  # turning in place
-        ])  # fmt: skip
+        # Columns 0, 1: pose yaw change (unwrapped by summing wrapped steps), turning in
+        # place; then per integration scheme (`_SCHEMES`) the twist-integrated world x, y, yaw.
+        twists = ((mvx, mvy, mw), (vx[:-1], vy[:-1], wz[:-1]), (vx[1:], vy[1:], wz[1:]))
+        cols = [dyaw, np.where(np.hypot(mvx, mvy) < self.creep, mw * dt, 0.0)]
+        for ux, uy, uw in twists[: self.schemes]:
+            cols += [(c * ux - s * uy) * dt, (s * ux + c * uy) * dt, uw * dt]
+        steps = np.column_stack(cols)
         cum = np.zeros((n, steps.shape[1]))
         np.cumsum(steps, axis=0, out=cum[1:])
 
@@ -469,10 +483,10 @@ class DefaultFeatures:
         accel = (speed - speed[k]) / span if self.speedup else np.hypot(ax, (fvy - fvy[k]) / span)
         alpha = np.abs((fwz - fwz[k]) / span)
         m, mspan = back(self._match)
-        dpose = pos - pos[m]
-        dtw = cum[:, 0:2] - cum[m, 0:2]
-        mis_lin = np.hypot(dpose[:, 0] - dtw[:, 0], dpose[:, 1] - dtw[:, 1]) / mspan
-        mis_yaw = np.abs((cum[:, 3] - cum[m, 3]) - (cum[:, 2] - cum[m, 2])) / mspan
+        dpose, dcum = pos - pos[m], cum - cum[m]
+        mis_lin = np.min([np.hypot(dpose[:, 0] - dcum[:, k], dpose[:, 1] - dcum[:, k + 1])
+                          for k in range(2, dcum.shape[1], 3)], axis=0) / mspan  # fmt: skip
+        mis_yaw = np.min([np.abs(dcum[:, 0] - dcum[:, k]) for k in range(4, dcum.shape[1], 3)], axis=0) / mspan
         inst = np.column_stack([accel, -ax, alpha, speed * np.abs(fwz), -fvx, mis_lin, mis_yaw])
         short = _window_max(inst, np.searchsorted(t, t - self._short, side="left"))
         short[:, 4] = np.maximum(short[:, 4], 0.0)  # reverse speed: none is 0, not -speed
@@ -486,7 +500,7 @@ class DefaultFeatures:
         dir_flips = np.concatenate(([0], np.cumsum(dflip)))
         idx = np.arange(n) + 1
         X = np.column_stack([
-            np.abs(fwz), short, np.abs(cum[:, 4] - cum[j, 4]),
+            np.abs(fwz), short, np.abs(cum[:, 1] - cum[j, 1]),
             yaw_flips[idx] - yaw_flips[f], dir_flips[idx] - dir_flips[j],
         ])  # fmt: skip
         if self._gate is not None:
@@ -558,6 +572,8 @@ class _DefaultStream:
         self.held2: deque = deque()
         self.seg_start = 0
         self.cum = (0.0,) * 5
+        # Cumulative world x, y, yaw under the "previous" and "current" schemes (version 6).
+        self.ext = (0.0,) * 6 if self.feature_set.any_scheme else None
         self.deriv: deque = deque()  # (t, vx, vy, wz): the baseline is the first entry
         self.match: deque = deque()  # (t, x, y, cum0, cum1, cum2, cum3)
         self.long: deque = deque()  # (t, cum4)
@@ -607,6 +623,10 @@ class _DefaultStream:
             if hypot(mvx, mvy) < self.feature_set.creep:
                 c4 += mw * dt
             self.cum = (c0, c1, c2, c3, c4)
+            if self.ext is not None:  # the other integration schemes (`_SCHEMES`)
+                e0, e1, e2, e3, e4, e5 = self.ext
+                self.ext = (e0 + (c * pvx - s * pvy) * dt, e1 + (s * pvx + c * pvy) * dt, e2 + pwz * dt,
+                            e3 + (c * vx - s * vy) * dt, e4 + (s * vx + c * vy) * dt, e5 + wz * dt)  # fmt: skip
         self.prev = (t, yaw, vx, vy, wz)
         if self.despike_ns is not None:  # as in `_segment`: from here on, the despiked twist
             now = (t, vx, vy, wz)
@@ -627,20 +647,28 @@ class _DefaultStream:
         span = (t - kt) * 1e-9 if t > kt else inf
         ax = (vx - kvx) / span
         m = self.match
-        m.append((t, x, y, c0, c1, c2, c3))
+        ext = self.ext
+        m.append((t, x, y, c0, c1, c2, c3, ext))
         bound = t - self.match_ns
         while len(m) > 1 and m[1][0] <= bound:
             m.popleft()
-        mt, mx, my, m0, m1, m2, m3 = m[0]
+        mt, mx, my, m0, m1, m2, m3, mext = m[0]
         mspan = (t - mt) * 1e-9 if t > mt else inf
+        px, py, pose_turn = x - mx, y - my, c3 - m3  # pose change over the match window
+        mis = hypot(px - (c0 - m0), py - (c1 - m1))
+        ymis = abs(pose_turn - (c2 - m2))
+        if ext is not None:
+            for k in (0, 3):
+                mis = min(mis, hypot(px - (ext[k] - mext[k]), py - (ext[k + 1] - mext[k + 1])))
+                ymis = min(ymis, abs(pose_turn - (ext[k + 2] - mext[k + 2])))
         inst = (
             (hypot(vx, vy) - hypot(kvx, kvy)) / span if self.speedup else hypot(ax, (vy - kvy) / span),  # accel
             -ax,  # brake
             abs((wz - kwz) / span),  # angular acceleration
             hypot(vx, vy) * abs(wz),  # lateral
             -vx,  # reverse
-            hypot((x - mx) - (c0 - m0), (y - my) - (c1 - m1)) / mspan,  # pose/twist mismatch
-            abs((c3 - m3) - (c2 - m2)) / mspan,  # yaw mismatch
+            mis / mspan,  # pose/twist mismatch
+            ymis / mspan,  # yaw mismatch
         )
         vec = [abs(wz)]
         bound = t - self.short_ns
@@ -713,9 +741,12 @@ def make_features(config: dict | str | None = None) -> DefaultFeatures | PaperFe
     version = config.get("version", cls.version)
     params = dict(config.get("params", {}))
     if fid == "default" and version == 3 and not {"gate_s", "despike_s"} & set(params):
-        return _make(cls, fid, params | {"gate_s": None, "despike_s": None, "speedup": False})  # older models
+        old = {"gate_s": None, "despike_s": None, "speedup": False, "any_scheme": False}
+        return _make(cls, fid, params | old)  # older models
     if fid == "default" and version == 4 and {"gate_s", "despike_s"} <= set(params):
-        return _make(cls, fid, params | {"speedup": False})  # models of issue 15's first pass
+        return _make(cls, fid, params | {"speedup": False, "any_scheme": False})  # issue 15's first pass
+    if fid == "default" and version == 5 and {"gate_s", "despike_s"} <= set(params):
+        return _make(cls, fid, params | {"any_scheme": False})  # issue 15's second pass
     if version != cls.version:
         raise InvalidInputError(
             f"Feature set {fid!r} version {version} is not supported (this is version {cls.version})."
