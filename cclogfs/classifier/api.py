@@ -90,28 +90,35 @@ LIMIT_FACTOR = 1.5
 LIMIT_MIN = np.array([0.0, 0.0, 3.0, 3.0, 0.0, 0.0, 0.08, 0.1, np.pi, 0.0, 0.0])
 
 
-def robot_limits(X: np.ndarray, factor: float) -> np.ndarray:
+def robot_limits(X: np.ndarray, factor: float, tail_factor: float = 0.0) -> np.ndarray:
     """Per default feature, `factor` x the largest value in the nominal vectors X (at least
     the noise floor): a flag that no feature confirms beyond its limit is the robot doing
     what it did in training, only a little more. Braking is limited by the larger of the
     speed-up and braking limits: a base that can speed up at 1 m/s^2 can stop as hard,
-    whether or not the training minutes showed a stop. None is below LIMIT_MIN."""
+    whether or not the training minutes showed a stop. None is below LIMIT_MIN.
+
+    `tail_factor` > 0 (off by default): also at least that many times the 99th percentile,
+    the tail of the robot's own noise extrapolated to runs longer than training (for
+    exponential tails the maximum over 25,000 messages is ~2.2x the 99th percentile).
+    It buys precision with recall, as a larger `factor` does (docs/CLASSIFIER.md)."""
     top = np.maximum(np.nanmax(X, axis=0) if len(X) else 0.0, DEFAULT_FLOORS)
     out = factor * top
+    if tail_factor and len(X):
+        out = np.maximum(out, tail_factor * np.nanquantile(X, 0.99, axis=0))
     out[2] = max(out[1], out[2])
     return np.maximum(out, LIMIT_MIN)
 
 
 def train(
     sources: Iterable, *, labels=None, features: dict | str | None = "default",
-    limit_factor: float | None = LIMIT_FACTOR, **params,
+    limit_factor: float | None = LIMIT_FACTOR, tail_factor: float = 0.0, **params,
 ) -> OneClassModel:  # fmt: skip
     """A model trained on odometry runs (OdomArrays, or lists of JSON texts/dicts).
 
     `labels`: None, one {"events": [...]} for all runs (stamps are absolute), or a list
     with one per run. Vectors that depend on an event are left out of the nominal set; the
     ones inside events select nu/gamma. `params` go to OneClassModel. Default features get
-    a second stage (`robot_limits` with `limit_factor`; None or 0: none).
+    a second stage (`robot_limits` with `limit_factor` and `tail_factor`; None or 0: none).
     """
     sources = [_as_odom(s) for s in sources]
     feature_set = make_features(features)
@@ -135,7 +142,7 @@ def train(
     Xn = np.concatenate(nominal)
     model.fit(Xn, Xa if len(Xa) else None)
     if feature_set.id == "default" and limit_factor:
-        model.set_limits(robot_limits(Xn[np.isfinite(Xn).all(axis=1)], limit_factor))
+        model.set_limits(robot_limits(Xn[np.isfinite(Xn).all(axis=1)], limit_factor, tail_factor))
     return model
 
 

@@ -231,3 +231,17 @@ def test_version_6_mismatch_under_the_best_integration_scheme(scheme):
         X, ok = v6.batch(bad)
         near = ok & (bad.stamp_ns >= ev["start_ns"]) & (bad.stamp_ns <= ev["end_ns"] + NS // 2)
         assert X[near, COL["pose_twist_mismatch"]].max() > least, kind
+
+
+def test_tail_factor_raises_limits_to_the_noise_tail_only_when_asked():
+    from cclogfs.classifier.api import LIMIT_FACTOR, robot_limits
+
+    rng = np.random.default_rng(3)
+    X = np.abs(rng.standard_exponential((5000, len(DEFAULT_NAMES))))
+    X[:100] = 0.0  # a smooth stretch
+    plain = robot_limits(X[:200], LIMIT_FACTOR)
+    assert (plain == robot_limits(X[:200], LIMIT_FACTOR, 0.0)).all()
+    tail = robot_limits(X[:200], LIMIT_FACTOR, 4.0)
+    assert (tail >= plain).all() and (tail >= 4.0 * np.quantile(X[:200], 0.99, axis=0) - 1e-12).all()
+    # The extrapolated tail covers what a 25x longer run of the same noise reaches.
+    assert (X.max(axis=0) <= robot_limits(X[:200], 1.0, 4.0)).mean() > (X.max(axis=0) <= robot_limits(X[:200], 1.0)).mean()
