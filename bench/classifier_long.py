@@ -118,6 +118,8 @@ def smart_run(model, odom: OdomArrays, labels: dict, args) -> dict:
         single = event_table(odom.stamp_ns, spans, {"events": [ev]})
         if not single["recalled"]:
             missed.append(f"{ev['kind']}@{ev['severity']}")
+    if args.explain:
+        explain(model, odom, spans, labels, policy.detector)
     return e | {
         "kept_bytes_fraction": kept_bytes / sum(len(x) for x in texts),
         "replay_msg_per_s": len(texts) / replay_s, "missed": missed,
@@ -127,9 +129,35 @@ def smart_run(model, odom: OdomArrays, labels: dict, args) -> dict:
     }  # fmt: skip
 
 
+def explain(model, odom: OdomArrays, spans: list, labels: dict, detector) -> None:
+    """Per false window and per missed event: the two features furthest beyond the
+    model's limits (x / limit) over it, and the peak score."""
+    if model.limits_ is None:
+        return
+    from cclogfs.classifier.features import DEFAULT_NAMES
+
+    X, _ = detector.features.batch(odom)
+    scores, _ = detector.score_batch(odom)
+    t0 = int(odom.stamp_ns[0])
+    events = labels["events"]
+    rows = [("false window", a, b) for a, b in spans
+            if not any(a <= e["end_ns"] and e["start_ns"] <= b for e in events)]  # fmt: skip
+    rows += [(f"missed {e['kind']}@{e['severity']}", e["start_ns"], e["end_ns"] + NS // 2) for e in events
+             if not event_table(odom.stamp_ns, spans, {"events": [e]})["recalled"]]  # fmt: skip
+    for what, a, b in rows:
+        sel = (odom.stamp_ns >= a) & (odom.stamp_ns <= b)
+        if not sel.any():
+            continue
+        ratio = np.nan_to_num(np.nanmax(X[sel] / model.limits_, axis=0))
+        top = ", ".join(f"{DEFAULT_NAMES[k]} {ratio[k]:.2f}x" for k in np.argsort(-ratio)[:2])
+        print(f"    {what} {(a - t0) / NS:.1f}-{(b - t0) / NS:.1f} s: peak score "
+              f"{np.nanmax(scores[sel]):.2f}; {top} of its limit")  # fmt: skip
+
+
 def evaluate_run(name: str, odom: OdomArrays, features: str, rate: str, args) -> dict:
     if rate != "native":
-        odom = resample(odom, float(rate), jitter_s=0.2 / float(rate), seed=int(rate))
+        odom = resample(odom, float(rate), jitter_s=0.2 / float(rate), seed=int(rate),
+                        integrate=args.resample == "integrate")  # fmt: skip
     t = odom.stamp_ns
     split = t[0] + int(args.train_min * 60 * NS)
     t0 = time.perf_counter()
@@ -299,6 +327,11 @@ def main() -> None:
     p.add_argument("--out", type=Path, default=OUT)
     p.add_argument("--before", default=WINDOW_BEFORE, help="window context (default %(default)s)")
     p.add_argument("--after", default=WINDOW_AFTER, help="window context (default %(default)s)")
+    p.add_argument("--resample", choices=("integrate", "interpolate"), default="integrate",
+                   help="other rates: the pose integrated from the resampled twist (default), "
+                        "or interpolated on its own as before the third pass")  # fmt: skip
+    p.add_argument("--explain", action="store_true",
+                   help="per false window and missed event, the features furthest beyond their limits")
     p.add_argument("--plot", type=Path, default=None, help="plot the real episodes here and stop")
     p.add_argument("--param", action="append", default=[], metavar="K=V",
                    help="a training parameter (OneClassModel), e.g. false_alarm_rate=0.0005")
