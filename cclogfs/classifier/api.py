@@ -85,7 +85,7 @@ LIMIT_FACTOR = 1.5
 # at 28 Hz 3.5 m/s^2 after the despike), a U-turn in place (pi rad; a spin is more), the
 # angular acceleration of starting one (up to 2.5 rad/s^2), and the few cm/s (rad/s) by
 # which pose and twist disagree under the best integration scheme (features version 6;
-# the slamfail robots' poses: up to 0.06 m/s in one message; version 5, the trapezoid
+# the slamfail robots' poses: up to 0.03 m/s in one message; version 5, the trapezoid
 # alone, saw the TUC robot's scheme disagree by up to 0.07 m/s). Injected slips and pose
 # jumps start at 0.16 and 0.4 m/s of mismatch.
 LIMIT_MIN = np.array([0.0, 0.0, 3.0, 3.0, 0.0, 0.0, 0.08, 0.1, np.pi, 0.0, 0.0])

@@ -295,7 +295,7 @@ _SHORT = slice(1, 8)
 # pose; twist differenced forward from the next pose, the slamfail robots) or the current
 # one's (TwistFromPoses), each at the step's mid heading. Under the trapezoid alone the
 # slamfail robots' own odometry "mismatched" by up to 0.5 m/s (bench/classifier_long.py);
-# under the best scheme by at most 0.06 m/s per message. A slip or a pose jump disagrees
+# under the previous twist by at most 0.03 m/s per message. A slip or a pose jump disagrees
 # under every scheme.
 _SCHEMES = ("trapezoid", "previous", "current")
 
