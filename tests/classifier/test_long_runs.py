@@ -245,3 +245,31 @@ def test_tail_factor_raises_limits_to_the_noise_tail_only_when_asked():
     assert (tail >= plain).all() and (tail >= 4.0 * np.quantile(X[:200], 0.99, axis=0) - 1e-12).all()
     # The extrapolated tail covers what a 25x longer run of the same noise reaches.
     assert (X.max(axis=0) <= robot_limits(X[:200], 1.0, 4.0)).mean() > (X.max(axis=0) <= robot_limits(X[:200], 1.0)).mean()
+
+
+def test_real_pose_differenced_run_live_equals_replay_and_mismatch_is_gone():
+    """slamfail_cps_lab (../shared/data/long): twist differenced forward from the poses.
+    Version 6 sees its pose and twist agree (version 5 read 0.24 m/s of mismatch over 0.5 s
+    from the scheme alone, 3x the limit floor); live smart logging gives the same windows as the batch replay."""
+    from conftest import shared_data_file
+
+    from cclogfs.classifier import SmartLogger, parse_odometry
+    from cclogfs.classifier.testing import odom_texts, read_odometry
+
+    odom = parse_odometry(read_odometry(shared_data_file("long/slamfail_cps_lab.mcap")))
+    cols = [COL["pose_twist_mismatch"], COL["yaw_twist_mismatch"]]
+    X5, ok5 = make_features(V5).batch(odom)
+    X6, ok6 = make_features("default").batch(odom)
+    assert X5[ok5][:, cols[0]].max() > 0.2 and X6[ok6][:, cols[0]].max() < 0.05
+    assert X6[ok6][:, cols[1]].max() < 0.1
+    t = odom.stamp_ns
+    model = train([odom.take(t < t[0] + 120 * NS)])
+    test = odom.take((t >= t[0] + 120 * NS) & (t < t[0] + 240 * NS))
+    moving = int(np.argmax(np.abs(test.raw[:, 7]) > 0.2))
+    run, event = inject(test, "slip", int(test.stamp_ns[moving]), 1.5)
+    stream = [("/odom", int(s), x) for s, x in zip(run.stamp_ns, odom_texts(run))]
+    live = list(SmartLogger(Detector(model), before_s=2, after_s=1).run(stream))
+    batch = SmartLogger(Detector(model), before_s=2, after_s=1).replay(stream)
+    assert [(w.topic, w.messages, w.meta) for w in live] == [(w.topic, w.messages, w.meta) for w in batch]
+    spans = [(w.meta["start_ns"], w.meta["end_ns"]) for w in live if w.topic == "/odom" and w.meta.get("final")]
+    assert any(a <= event["start_ns"] and event["end_ns"] <= b for a, b in spans)
