@@ -12,7 +12,12 @@ detection delay (event start to the first anomalous message). The `paper` featur
 beside `default` at native rate, and `--sim` adds the simulator's held-out seeds
 (bench/classifier_sim.py, report split). JSON goes to out/classifier_long.json.
 
-Run: python3 dev.py bench classifier_long [--rates native,30,100] [--sim] [--quick]
+Other rates are the run resampled, the pose integrated from the resampled twist
+(`--resample interpolate`: interpolated on its own, as before the third pass).
+`--explain` prints, per false window and missed event, the features furthest beyond
+their limits.
+
+Run: python3 dev.py bench classifier_long [--rates native,30,100] [--sim] [--quick] [--explain]
 """
 
 from __future__ import annotations
