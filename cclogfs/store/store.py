@@ -82,6 +82,7 @@ class Store:
         self.segment_records = segment_records
         self.recovery = Recovery()
         self.manifest = Manifest({"segments": []})
+        self.open_attempts = 0  # manifest reads the last open or refresh took (1 without a retry)
         self.sealed: list[Segment] = []  # in seq order
         self.active: Segment | None = None  # writer: the segment appended to
         self.unsealed: list[Segment] = []  # reader: what it saw past the manifest
@@ -220,6 +221,7 @@ class Store:
         """Load the manifest and open its segments. A reader retries when a listed segment
         is missing: a writer compacted between its reading the manifest and the files."""
         for attempt in range(OPEN_ATTEMPTS):
+            self.open_attempts = attempt + 1  # how often this open read the manifest (bench/load.py)
             self.manifest, raw = Manifest.load(self.fs, self.file_path(MANIFEST))
             try:
                 self._open_segments(self.recovery.removed_files)
