@@ -227,7 +227,7 @@ class Store:
                 self._open_segments(self.recovery.removed_files)
                 # A reader must see files and manifest of one moment: if the manifest
                 # changed meanwhile, a segment may have been sealed and rewritten under it.
-                if not self.readonly or Manifest.read_bytes(self.fs, self.file_path(MANIFEST)) == raw:
+                if not self.readonly or self._still_describes(raw):
                     return
             except (CorruptionError, FileNotFoundError) as err:
                 # A reader that read the manifest before a writer's commit sees later files:
@@ -242,6 +242,20 @@ class Store:
             time.sleep(0.002 * attempt)  # a busy writer: give it a moment to finish its step
             self._close_segments()
             self.sealed, self.unsealed, self.recovery = [], [], Recovery()
+
+    def _still_describes(self, raw: bytes) -> bool:
+        """Whether the files this reader opened under the manifest `raw` are still one
+        moment of the store. A writer that only sealed segments since leaves them so (a
+        sealed segment is the same file, whole); one that rewrote or dropped a segment the
+        reader took as tail may have deleted its file before the reader listed the directory,
+        so that the reader saw the log end early. (A sealed segment of `raw` rewritten or
+        dropped is no matter: the reader found it, or it would have failed, and holds it open.)"""
+        now, raw_now = Manifest.load(self.fs, self.file_path(MANIFEST))
+        if raw_now == raw:
+            return True
+        end = self.manifest.end_seq
+        return (now.store_id == self.manifest.store_id and now.first_seq <= end
+                and all(info.get("gen", 0) == 0 for info in now.segments if info["first_seq"] >= end))  # fmt: skip
 
     def _close_segments(self) -> None:
         for seg in self._segments():
