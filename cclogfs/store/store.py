@@ -31,7 +31,7 @@ from ..errors import (
 from . import compaction, planted
 from .check import check_stream_name
 from .compaction import Dropped, Replacement, RewriteReport
-from .encode import Codecs, encode_window
+from .encode import Codecs, Encoded, encode_parts
 from .format import (
     AGED_META_KEY,
     LOCK,
@@ -337,30 +337,37 @@ class Store:
         if meta is not None and AGED_META_KEY in meta:
             raise InvalidInputError(f"{self.path}: window meta key {AGED_META_KEY!r} is reserved: compaction "
                                     "writes it, with the AGED flag, to say how a window was aged")  # fmt: skip
-        enc = encode_window(self.codecs, name, messages, meta, codec, check_json)
-        stamps, raw_len = enc.stamps, enc.raw_len
+        parts = encode_parts(self.codecs, name, messages, meta, codec, check_json)
         with self.lock:
             self.check_writable()
-            seg = self.active
-            seq = seg.next_seq
-            record = enc.pack(seq, synced=seg.synced)
-            row = (name, len(stamps), seq, stamps[0], stamps[-1], seg.end, len(record), raw_len)
-            if self._unsynced_since is None:  # before the append: a commit must never skip its fsync
-                self._unsynced_since = time.monotonic()
-            if len(seg.pending) + len(record) >= WRITE_BUFFER:  # this append writes the file
-                self._check_lock()
-            try:
-                seg.append(record, row)
-            except OSError as err:
-                self._failed = err
-                raise StoreFailedError(f"{seg.path}: write failed: {err}") from err
-            self._unsynced_bytes += len(record)
-            self._dirty = True
-            # A full segment is committed (and so sealed) at once, not at the next group
-            # commit: the limits bound what recovery must scan.
-            if self._commit_due() or seg.end >= self.segment_bytes or len(seg.rows) >= self.segment_records:
-                self._commit()
-            return Receipt(seq, name, stamps[0], stamps[-1], len(stamps), raw_len, len(record))
+            first = self.active.next_seq
+            stored = sum(self._append(name, enc) for enc in parts)
+            return Receipt(first, name, parts[0].stamps[0], parts[-1].stamps[-1], sum(len(e.stamps) for e in parts),
+                           sum(e.raw_len for e in parts), stored, records=len(parts))  # fmt: skip
+
+    def _append(self, name: str, enc: Encoded) -> int:
+        """Append one record with the next seq (the lock held); its length."""
+        seg = self.active
+        seq = seg.next_seq
+        stamps = enc.stamps
+        record = enc.pack(seq, synced=seg.synced)
+        row = (name, len(stamps), seq, stamps[0], stamps[-1], seg.end, len(record), enc.raw_len)
+        if self._unsynced_since is None:  # before the append: a commit must never skip its fsync
+            self._unsynced_since = time.monotonic()
+        if len(seg.pending) + len(record) >= WRITE_BUFFER:  # this append writes the file
+            self._check_lock()
+        try:
+            seg.append(record, row)
+        except OSError as err:
+            self._failed = err
+            raise StoreFailedError(f"{seg.path}: write failed: {err}") from err
+        self._unsynced_bytes += len(record)
+        self._dirty = True
+        # A full segment is committed (and so sealed) at once, not at the next group
+        # commit: the limits bound what recovery must scan.
+        if self._commit_due() or seg.end >= self.segment_bytes or len(seg.rows) >= self.segment_records:
+            self._commit()
+        return len(record)
 
     def _commit_due(self) -> bool:
         if self.sync_every_ms is not None and (
