@@ -177,23 +177,26 @@ class SegmentOpener:
         seg = self.sealed[-1]
         if seg.known_damage:
             return  # its index skips the damaged records; the manifest's stretches say their seqs
-        start = self._last_indexed(seg)
+        index, start = self._last_indexed(seg)
         result = scan(seg, start=start)
         if result.problem is not None and start is not None:  # a stale or forged index
-            result = scan(seg)
+            index, result = None, scan(seg)
+        if index is not None and result.problem is None and result.next_seq == seg.next_seq:
+            seg.set_index(index)  # read and confirmed: queries need not read it again
         if result.problem is None and result.next_seq != seg.next_seq:
             i = len(manifest.segments) - 1
             raise self._disagrees(f"segments[{i}].end_seq", seg.next_seq, f"{os.path.basename(seg.path)} "
                                   f"ends at seq {result.next_seq}")  # fmt: skip
 
-    def _last_indexed(self, seg: Segment) -> tuple[int, int] | None:
-        """(offset, seq) of the last record the segment's index lists, None without one."""
+    def _last_indexed(self, seg: Segment) -> tuple[SegmentIndex | None, tuple[int, int] | None]:
+        """The segment's index and the (offset, seq) of the last record it lists; None, None
+        without a usable one."""
         try:
             index = SegmentIndex.read(self.fs, self._file(index_name(seg.first_seq, seg.gen)), seg.first_seq, seg.size)
         except (OSError, RecordError, ValueError, TypeError):
-            return None
+            return None, None
         last = max(index.entries, key=itemgetter(OFFSET), default=None)
-        return None if last is None else (last[OFFSET], last[SEQ])
+        return (None, None) if last is None else (index, (last[OFFSET], last[SEQ]))
 
     def _names_itself(self, name: str, seq: int) -> bool:
         """Whether the file's segment header is intact and states the seq its name does."""
