@@ -332,7 +332,9 @@ class Store:
         Everything is checked before anything is written: bad input raises
         InvalidInputError and stores nothing. `check_json=False` skips only the JSON parse,
         for texts a parser has just checked (a JSONL or bag source); the text is still
-        stored and returned byte for byte.
+        stored and returned byte for byte. A window over 16 MiB is stored as consecutive
+        records of at most 16 MiB each, so that reading one stays cheap (FORMAT.md,
+        "Record size and what a read costs"); the receipt says how many.
         """
         if meta is not None and AGED_META_KEY in meta:
             raise InvalidInputError(f"{self.path}: window meta key {AGED_META_KEY!r} is reserved: compaction "
