@@ -70,6 +70,8 @@ class Tally:
     opens: int = 0  # stores opened or refreshed
     fscks: int = 0  # fsck runs (every --fsck-every th one --deep)
     cats: int = 0
+    attempts: int = 0  # manifest reads of the library opens and refreshes (1 each without a retry)
+    most_attempts: int = 0  # of one open
     errors: list[str] = field(default_factory=list)
 
 
@@ -80,16 +82,22 @@ def _read_all(store, tally: Tally, since: int | None = None) -> None:
         tally.reads += 1
 
 
+def _count_open(store, tally: Tally) -> None:
+    tally.opens += 1
+    tally.attempts += store.open_attempts
+    tally.most_attempts = max(tally.most_attempts, store.open_attempts)
+
+
 def _one_round(path: str, reader, tally: Tally, n: int, puts, cat_every: int, fsck_every: int) -> None:
     """One round of every kind of reader. Fresh opens read only the last windows (those of
     the active segment, where the writer appends): many opens land during an append."""
     try:
         for _ in range(5):
             with cclogfs.open_store(path, readonly=True) as store:
-                tally.opens += 1
+                _count_open(store, tally)
                 _read_all(store, tally, since=(puts.value - 100) * 1000)
         reader.refresh()
-        tally.opens += 1
+        _count_open(reader, tally)
         _read_all(reader, tally)
     except CclogError as err:
         tally.errors.append(f"library: {err}")
@@ -145,7 +153,8 @@ def main() -> int:
     start = time.monotonic()
     tally = run(args.seconds, cat_every=args.cat_every, fsck_every=args.fsck_every)
     print(f"load: {time.monotonic() - start:.0f} s, writer puts {tally.puts}, windows read {tally.reads}, "
-          f"opens/refreshes {tally.opens}, fsck {tally.fscks}, cclog cat {tally.cats}, "
+          f"opens/refreshes {tally.opens} ({tally.attempts / max(1, tally.opens):.3f} manifest reads each, "
+          f"at most {tally.most_attempts}), fsck {tally.fscks}, cclog cat {tally.cats}, "
           f"false errors {len(tally.errors)}")  # fmt: skip
     for err in tally.errors[:20]:
         print(f"  {err}")

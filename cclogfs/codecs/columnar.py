@@ -148,7 +148,10 @@ class ColumnarCodec(Codec):
             stamps = undo_zigzag_delta(reader.words(count, 8, "stamps"), 1)
         else:
             stamps = read_packed(reader, count, "stamps", offset=version >= 3)
-        order = sorted(range(count), key=ids.__getitem__)  # stable: by group, then position
+        # Stable: by group, then position. Not needed (nor its count ints held) when one
+        # group holds the whole window, as in most windows of one stream.
+        whole = n_groups == 1 and sizes[0] == count
+        order = [] if whole else sorted(range(count), key=ids.__getitem__)
         out: list[str] = [""] * count
         pos, total = 0, 0
         for g in range(n_groups):

@@ -11,10 +11,10 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from ..codecs import Codec, codec_from_config, codec_numeric_id, raw_size
+from ..codecs import Codec, codec_from_config, codec_numeric_id, raw_size, utf8_size
 from ..errors import InvalidInputError
 from .check import check_stream_name, encode_messages
-from .format import MAX_CONFIG, MAX_META, MAX_RAW, pack_record
+from .format import MAX_CONFIG, MAX_META, MAX_RECORD_RAW, pack_record
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,14 +77,47 @@ class Codecs:
 
 def encode_window(codecs: Codecs, name: str, messages: Sequence[tuple[int, str]],
                   meta: Mapping[str, Any] | None, codec: Any, check_json: bool) -> Encoded:  # fmt: skip
-    """Check and encode a window (everything but its seq and flags); raises InvalidInputError."""
+    """Check and encode a window as one record (everything but its seq and flags), as a
+    compaction's replacement must be; raises InvalidInputError."""
+    parts = encode_parts(codecs, name, messages, meta, codec, check_json, split=False)
+    return parts[0]
+
+
+def encode_parts(codecs: Codecs, name: str, messages: Sequence[tuple[int, str]],
+                 meta: Mapping[str, Any] | None, codec: Any, check_json: bool, *,
+                 split: bool = True) -> list[Encoded]:  # fmt: skip
+    """Check and encode a window: one record, or, when its raw size is over MAX_RECORD_RAW
+    and `split`, consecutive records of consecutive messages, each with the window's meta
+    (FORMAT.md, "Limits"). Raises InvalidInputError."""
     name_bytes = check_stream_name(name)
     stamps, texts = encode_messages(messages, check_json=check_json)
     meta_bytes = b"{}" if meta is None else encode_meta(meta)
     chosen = codecs.for_stream(name, codec)
     config, codec_number = codecs.header(chosen)
     raw_len = raw_size(stamps, texts)
-    if raw_len > MAX_RAW:
-        raise InvalidInputError(f"window for {name!r} is {raw_len} bytes, over the {MAX_RAW}-byte "
+    bounds = [(0, len(stamps))] if raw_len <= MAX_RECORD_RAW else _split(name, texts) if split else None
+    if bounds is None:
+        raise InvalidInputError(f"window for {name!r} is {raw_len} bytes, over the {MAX_RECORD_RAW}-byte "
                                 "record limit; split it into several windows")  # fmt: skip
-    return Encoded(name_bytes, stamps, meta_bytes, config, codec_number, raw_len, chosen.encode(stamps, texts))
+    parts = []
+    for lo, hi in bounds:
+        s, t = stamps[lo:hi], texts[lo:hi]
+        size = raw_len if len(bounds) == 1 else raw_size(s, t)
+        parts.append(Encoded(name_bytes, s, meta_bytes, config, codec_number, size, chosen.encode(s, t)))
+    return parts
+
+
+def _split(name: str, texts: Sequence[str]) -> list[tuple[int, int]]:
+    """[lo, hi) message ranges whose canonical framing is each at most MAX_RECORD_RAW."""
+    bounds, lo, size = [], 0, 4
+    for i, text in enumerate(texts):
+        cost = 12 + utf8_size([text])
+        if 4 + cost > MAX_RECORD_RAW:
+            raise InvalidInputError(f"message {i} for {name!r} is {cost - 12} bytes, over what one record "
+                                    f"holds ({MAX_RECORD_RAW - 16} bytes of text)")  # fmt: skip
+        if size + cost > MAX_RECORD_RAW:
+            bounds.append((lo, i))
+            lo, size = i, 4
+        size += cost
+    bounds.append((lo, len(texts)))
+    return bounds

@@ -102,8 +102,16 @@ MAX_NAME = 1024
 MAX_CONFIG = 4096
 MAX_META = 65536
 MAX_COUNT = 1 << 24
-MAX_RAW = 256 << 20
-MAX_ENC = MAX_RAW + (64 << 10)
+MAX_RAW = 256 << 20  # the framing limit: records older versions wrote up to it are still framed
+ENC_SLACK = 64 << 10  # what a codec may add to an incompressible window
+MAX_ENC = MAX_RAW + ENC_SLACK
+# What one record this version writes holds at most (put_window splits a larger window into
+# consecutive records), and what a read decodes at most: the memory decoding one record costs
+# is a multiple of it (FORMAT.md, "Limits"), 16 MiB being 90 times the largest window `cclog
+# record` cuts from the real runs of ../shared/data. A deployment that must read records an
+# older version wrote above it raises DECODE_RAW_LIMIT (at most MAX_RAW), and its bound with it.
+MAX_RECORD_RAW = 16 << 20
+DECODE_RAW_LIMIT = MAX_RECORD_RAW
 MAX_MANIFEST = 64 << 20
 # The smallest record: the fixed header, an empty name (a skipped record of another kind may
 # have one) and the header CRC. Bounds how many records a segment of a given size can hold.

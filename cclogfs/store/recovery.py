@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import threading
+from operator import itemgetter
 from dataclasses import dataclass, field
 
 from ..errors import CorruptionError
@@ -26,7 +27,7 @@ from .format import (
 )
 from .fs import FileSystem
 from . import planted
-from .index import SegmentIndex
+from .index import OFFSET, SEQ, SegmentIndex
 from .manifest import Manifest
 from .records import intact_in
 from .segment import Problem, Segment, intact_after, open_segment, scan
@@ -116,6 +117,7 @@ class SegmentOpener:
             self._refuse_rolled_back(manifest, files)
             self._refuse_disagreeing(manifest, files)
             self._open_sealed(manifest, files)
+            self._refuse_wrong_end(manifest)
             self._remove_leftovers(files)
             self._refuse_missing_active(manifest, files)
             self._recover_tail(manifest.end_seq, [files.tail[s] for s in sorted(files.tail)], manifest.checkpoint)
@@ -162,6 +164,39 @@ class SegmentOpener:
                 i = manifest.segments.index(inside)
                 raise self._disagrees(f"segments[{i}].end_seq", inside["end_seq"], f"{name}, a segment whose "
                                       f"header says it starts at seq {seq}, lies inside it")  # fmt: skip
+
+    def _refuse_wrong_end(self, manifest: Manifest) -> None:
+        """The last sealed segment must end where the manifest says: a lower `end_seq` would
+        make the active segment (starting at the real end) a sequence gap, which the writer
+        deletes; a higher one, with no tail yet, would make it reuse seqs. Only the last can
+        be wrong unnoticed (each other's end is the next one's first_seq, which its file
+        name and header state). Cost: its index (56 bytes a record) and its last record
+        read, or, without a usable index, one scan of that segment."""
+        if not self.sealed or self.sealed[-1].size != self.sealed[-1].sealed_size:
+            return  # a segment of the wrong size is refused by every read already
+        seg = self.sealed[-1]
+        if seg.known_damage:
+            return  # its index skips the damaged records; the manifest's stretches say their seqs
+        index, start = self._last_indexed(seg)
+        result = scan(seg, start=start)
+        if result.problem is not None and start is not None:  # a stale or forged index
+            index, result = None, scan(seg)
+        if index is not None and result.problem is None and result.next_seq == seg.next_seq:
+            seg.set_index(index)  # read and confirmed: queries need not read it again
+        if result.problem is None and result.next_seq != seg.next_seq:
+            i = len(manifest.segments) - 1
+            raise self._disagrees(f"segments[{i}].end_seq", seg.next_seq, f"{os.path.basename(seg.path)} "
+                                  f"ends at seq {result.next_seq}")  # fmt: skip
+
+    def _last_indexed(self, seg: Segment) -> tuple[SegmentIndex | None, tuple[int, int] | None]:
+        """The segment's index and the (offset, seq) of the last record it lists; None, None
+        without a usable one."""
+        try:
+            index = SegmentIndex.read(self.fs, self._file(index_name(seg.first_seq, seg.gen)), seg.first_seq, seg.size)
+        except (OSError, RecordError, ValueError, TypeError):
+            return None, None
+        last = max(index.entries, key=itemgetter(OFFSET), default=None)
+        return (None, None) if last is None else (index, (last[OFFSET], last[SEQ]))
 
     def _names_itself(self, name: str, seq: int) -> bool:
         """Whether the file's segment header is intact and states the seq its name does."""

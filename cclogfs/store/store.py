@@ -31,7 +31,7 @@ from ..errors import (
 from . import compaction, planted
 from .check import check_stream_name
 from .compaction import Dropped, Replacement, RewriteReport
-from .encode import Codecs, encode_window
+from .encode import Codecs, Encoded, encode_parts
 from .format import (
     AGED_META_KEY,
     LOCK,
@@ -82,6 +82,7 @@ class Store:
         self.segment_records = segment_records
         self.recovery = Recovery()
         self.manifest = Manifest({"segments": []})
+        self.open_attempts = 0  # manifest reads the last open or refresh took (1 without a retry)
         self.sealed: list[Segment] = []  # in seq order
         self.active: Segment | None = None  # writer: the segment appended to
         self.unsealed: list[Segment] = []  # reader: what it saw past the manifest
@@ -220,12 +221,13 @@ class Store:
         """Load the manifest and open its segments. A reader retries when a listed segment
         is missing: a writer compacted between its reading the manifest and the files."""
         for attempt in range(OPEN_ATTEMPTS):
+            self.open_attempts = attempt + 1  # how often this open read the manifest (bench/load.py)
             self.manifest, raw = Manifest.load(self.fs, self.file_path(MANIFEST))
             try:
                 self._open_segments(self.recovery.removed_files)
                 # A reader must see files and manifest of one moment: if the manifest
                 # changed meanwhile, a segment may have been sealed and rewritten under it.
-                if not self.readonly or Manifest.read_bytes(self.fs, self.file_path(MANIFEST)) == raw:
+                if not self.readonly or self._still_describes(raw):
                     return
             except (CorruptionError, FileNotFoundError) as err:
                 # A reader that read the manifest before a writer's commit sees later files:
@@ -240,6 +242,20 @@ class Store:
             time.sleep(0.002 * attempt)  # a busy writer: give it a moment to finish its step
             self._close_segments()
             self.sealed, self.unsealed, self.recovery = [], [], Recovery()
+
+    def _still_describes(self, raw: bytes) -> bool:
+        """Whether the files this reader opened under the manifest `raw` are still one
+        moment of the store. A writer that only sealed segments since leaves them so (a
+        sealed segment is the same file, whole); one that rewrote or dropped a segment the
+        reader took as tail may have deleted its file before the reader listed the directory,
+        so that the reader saw the log end early. (A sealed segment of `raw` rewritten or
+        dropped is no matter: the reader found it, or it would have failed, and holds it open.)"""
+        now, raw_now = Manifest.load(self.fs, self.file_path(MANIFEST))
+        if raw_now == raw:
+            return True
+        end = self.manifest.end_seq
+        return (now.store_id == self.manifest.store_id and now.first_seq <= end
+                and all(info.get("gen", 0) == 0 for info in now.segments if info["first_seq"] >= end))  # fmt: skip
 
     def _close_segments(self) -> None:
         for seg in self._segments():
@@ -316,35 +332,44 @@ class Store:
         Everything is checked before anything is written: bad input raises
         InvalidInputError and stores nothing. `check_json=False` skips only the JSON parse,
         for texts a parser has just checked (a JSONL or bag source); the text is still
-        stored and returned byte for byte.
+        stored and returned byte for byte. A window over 16 MiB is stored as consecutive
+        records of at most 16 MiB each, so that reading one stays cheap (FORMAT.md,
+        "Record size and what a read costs"); the receipt says how many.
         """
         if meta is not None and AGED_META_KEY in meta:
             raise InvalidInputError(f"{self.path}: window meta key {AGED_META_KEY!r} is reserved: compaction "
                                     "writes it, with the AGED flag, to say how a window was aged")  # fmt: skip
-        enc = encode_window(self.codecs, name, messages, meta, codec, check_json)
-        stamps, raw_len = enc.stamps, enc.raw_len
+        parts = encode_parts(self.codecs, name, messages, meta, codec, check_json)
         with self.lock:
             self.check_writable()
-            seg = self.active
-            seq = seg.next_seq
-            record = enc.pack(seq, synced=seg.synced)
-            row = (name, len(stamps), seq, stamps[0], stamps[-1], seg.end, len(record), raw_len)
-            if self._unsynced_since is None:  # before the append: a commit must never skip its fsync
-                self._unsynced_since = time.monotonic()
-            if len(seg.pending) + len(record) >= WRITE_BUFFER:  # this append writes the file
-                self._check_lock()
-            try:
-                seg.append(record, row)
-            except OSError as err:
-                self._failed = err
-                raise StoreFailedError(f"{seg.path}: write failed: {err}") from err
-            self._unsynced_bytes += len(record)
-            self._dirty = True
-            # A full segment is committed (and so sealed) at once, not at the next group
-            # commit: the limits bound what recovery must scan.
-            if self._commit_due() or seg.end >= self.segment_bytes or len(seg.rows) >= self.segment_records:
-                self._commit()
-            return Receipt(seq, name, stamps[0], stamps[-1], len(stamps), raw_len, len(record))
+            first = self.active.next_seq
+            stored = sum(self._append(name, enc) for enc in parts)
+            return Receipt(first, name, parts[0].stamps[0], parts[-1].stamps[-1], sum(len(e.stamps) for e in parts),
+                           sum(e.raw_len for e in parts), stored, records=len(parts))  # fmt: skip
+
+    def _append(self, name: str, enc: Encoded) -> int:
+        """Append one record with the next seq (the lock held); its length."""
+        seg = self.active
+        seq = seg.next_seq
+        stamps = enc.stamps
+        record = enc.pack(seq, synced=seg.synced)
+        row = (name, len(stamps), seq, stamps[0], stamps[-1], seg.end, len(record), enc.raw_len)
+        if self._unsynced_since is None:  # before the append: a commit must never skip its fsync
+            self._unsynced_since = time.monotonic()
+        if len(seg.pending) + len(record) >= WRITE_BUFFER:  # this append writes the file
+            self._check_lock()
+        try:
+            seg.append(record, row)
+        except OSError as err:
+            self._failed = err
+            raise StoreFailedError(f"{seg.path}: write failed: {err}") from err
+        self._unsynced_bytes += len(record)
+        self._dirty = True
+        # A full segment is committed (and so sealed) at once, not at the next group
+        # commit: the limits bound what recovery must scan.
+        if self._commit_due() or seg.end >= self.segment_bytes or len(seg.rows) >= self.segment_records:
+            self._commit()
+        return len(record)
 
     def _commit_due(self) -> bool:
         if self.sync_every_ms is not None and (

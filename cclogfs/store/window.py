@@ -9,7 +9,7 @@ from typing import Any
 
 from ..codecs import codec_for_record, codec_numeric_id
 from ..errors import CodecError, CorruptionError, StoreError, UnknownCodecError
-from . import planted
+from . import format, planted
 from .format import AGED_META_KEY, Reason, RecordFlag, RecordHeader
 from .segment import Segment
 
@@ -25,6 +25,7 @@ class Receipt:
     count: int
     raw_bytes: int
     stored_bytes: int
+    records: int = 1  # a window over MAX_RECORD_RAW is stored as this many records, seq on (FORMAT.md)
 
 
 class Window:
@@ -124,7 +125,14 @@ class Window:
 
     def messages(self) -> Iterator[tuple[int, str]]:
         """(stamp_ns, JSON text) of each message, exactly as put."""
+        # A read decodes at most DECODE_RAW_LIMIT of window (FORMAT.md, "Limits"): checked on
+        # the index entry's length before the record is read, then on the header's raw_len.
+        limit = format.DECODE_RAW_LIMIT
+        if self._record is None and self._length > format.MAX_HEADER + limit + format.ENC_SLACK:
+            raise self._too_large(f"is {self._length} bytes long")
         header, payload = self._read()
+        if header.raw_len > limit:
+            raise self._too_large(f"holds a {header.raw_len}-byte window")
         self._json_field("codec config", header.config)
         try:
             codec = codec_for_record(header.config)
@@ -147,6 +155,14 @@ class Window:
         stamps, texts = codec.decode(payload, count=header.count, raw_len=header.raw_len)
         self._check_utf8(texts)
         return zip(stamps, texts)
+
+    def _too_large(self, what: str) -> CorruptionError:
+        return CorruptionError(
+            f"{self._segment.path}: record at offset {self._offset} (seq {self.seq}) {what}, over the "
+            f"{format.DECODE_RAW_LIMIT}-byte limit of what a read decodes: forged, or written by an older "
+            "cclogfs (FORMAT.md, \"Limits\", says how to read it)",
+            path=self._segment.path, offset=self._offset, reason=Reason.BAD_LENGTH,
+        )  # fmt: skip
 
     def _check_utf8(self, texts: list[str]) -> None:
         """Codecs turn stray bytes into lone surrogates (they round-trip any bytes); the

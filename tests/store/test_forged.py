@@ -361,3 +361,24 @@ def test_aging_text_that_is_not_json_is_an_input_error(text):
         Policy(rules=[parse_rule("*=0.1")]).round_text(text)
     except InvalidInputError as err:
         assert "not JSON" in str(err)
+
+
+@pytest.mark.parametrize("lower", [1, 3])
+def test_an_end_seq_short_of_the_log_is_refused_not_dropped(tmp_path, capsys, lower):
+    # Issue 16: a lower end_seq made the active segment (starting at the real end) a
+    # sequence gap, which the writer deleted: silent loss of synced records.
+    path = _store(tmp_path / "s")
+    body = _body(path)
+    body["segments"][-1]["end_seq"] -= lower
+    _write_manifest(path, body)
+    _refused_everywhere(path, capsys, f"segments[1].end_seq is {8 - lower}", "00000000000000000004.seg")
+
+
+def test_an_end_seq_short_of_the_log_is_refused_with_its_index_gone(tmp_path, capsys):
+    # Without the sealed segment's index the check scans the segment instead.
+    path = _store(tmp_path / "s")
+    (path / "00000000000000000004.idx").unlink()
+    body = _body(path)
+    body["segments"][-1]["end_seq"] -= 1
+    _write_manifest(path, body)
+    _refused_everywhere(path, capsys, "segments[1].end_seq is 7", "00000000000000000004.seg")

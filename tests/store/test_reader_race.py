@@ -130,3 +130,60 @@ def test_fsck_while_the_writer_drops_and_rewrites_the_segments_it_checks(tmp_pat
     report = check_store(str(tmp_path / "s"), deep=True)
     writer.close()
     assert report.errors == [] and report.records == 8
+
+
+class WriterActsOnce(FileSystem):
+    """A reader's file system that lets the writer act (`action`) once, when the reader
+    first takes the size of a segment: after it read the manifest and listed the directory."""
+
+    def __init__(self, action):
+        self.action, self.segments = action, set()
+
+    def open(self, path, *, write=False, create=False):
+        fd = super().open(path, write=write, create=create)
+        if path.endswith(".seg"):
+            self.segments.add(fd)
+        return fd
+
+    def size(self, fd):
+        if fd in self.segments and self.action is not None:
+            action, self.action = self.action, None
+            action()
+        return super().size(fd)
+
+
+def _writer_with_windows(path, n=5):
+    writer = cclogfs.open_store(path, create=True, sync_every_ms=None)
+    for i in range(n):
+        writer.put_window("/a", [(i, json.dumps({"x": i}))])
+    writer.sync()
+    return writer
+
+
+def test_a_reader_keeps_its_open_when_the_writer_only_seals_meanwhile(tmp_path):
+    # A seal replaces the manifest but leaves every file the reader opened whole: the reader
+    # opened once, where it read the manifest and opened its segments twice before.
+    writer = _writer_with_windows(tmp_path / "s")
+    with cclogfs.open_store(tmp_path / "s", readonly=True, fs=WriterActsOnce(writer.seal)) as reader:
+        assert reader.open_attempts == 1
+        assert [w.seq for w in reader.query()] == list(range(5))
+    writer.put_window("/a", [(9, "{}")])
+    writer.close()
+
+
+def test_a_reader_opens_again_when_the_writer_rewrites_its_tail_meanwhile(tmp_path):
+    # Aging the segment the reader took as its tail deletes that file: had the reader listed
+    # the directory a moment later, its log would have ended early. It reads the manifest again.
+    from cclogfs.store.compaction import Replacement
+    from cclogfs.store.format import RecordFlag
+
+    writer = _writer_with_windows(tmp_path / "s")
+
+    def seal_and_age():
+        writer.seal()
+        writer.rewrite(lambda w: Replacement(list(w.messages()), {"aged": {"abs": 1}}, flags=RecordFlag.AGED))
+
+    with cclogfs.open_store(tmp_path / "s", readonly=True, fs=WriterActsOnce(seal_and_age)) as reader:
+        assert reader.open_attempts == 2
+        assert [(w.seq, bool(w.aged)) for w in reader.query()] == [(i, True) for i in range(5)]
+    writer.close()

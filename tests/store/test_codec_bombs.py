@@ -1,0 +1,213 @@
+"""What reading one record costs, whatever its bytes (issue 16 item 3, FORMAT.md "Limits").
+
+A record's checksummed header states its window's raw size (`raw_len`), and every decoder
+holds its work to a multiple of it; a record this version writes holds at most
+MAX_RECORD_RAW, a larger window is split into several records, and a read decodes no record
+above DECODE_RAW_LIMIT. Here the worst record we could forge for each codec (a tiny payload
+that decodes to the most Python objects, or to the largest columnar body) is read in a fresh
+process whose peak RSS (VmHWM) is measured: it must stay within the bound FORMAT.md states.
+
+    python tests/store/test_codec_bombs.py [RAW_MIB]   # the peak of each forged record
+"""
+
+import json
+import lzma
+import os
+import struct
+import subprocess
+import sys
+import textwrap
+
+import pytest
+import xxhash
+import zstandard
+
+import cclogfs
+from cclogfs.codecs import codec_from_config, frame
+from cclogfs.store.format import SEGMENT_HEADER_SIZE, pack_record
+
+MiB = 1 << 20
+# FORMAT.md, "Limits": reading one record costs at most 16 x its raw_len beyond the interpreter.
+PEAK_FACTOR = 16
+
+READ = textwrap.dedent("""
+    import json, sys
+    from cclogfs.errors import CclogError
+    from cclogfs.store import open_store
+
+    def rss():
+        with open("/proc/self/status") as f:
+            return next(int(line.split()[1]) for line in f if line.startswith("VmHWM:")) // 1024
+
+    with open_store(sys.argv[1], readonly=True) as store:
+        (window,) = store.query()
+        before = rss()
+        try:
+            n, error = sum(1 for _ in window.messages()), None
+        except CclogError as err:
+            n, error = 0, str(err)[:200]
+    print(json.dumps({"peak_mib": rss() - before, "messages": n, "error": error}))
+""")
+
+
+def _empty(raw_len: int) -> tuple[int, bytes]:
+    """Empty texts: the most messages raw_len allows, each a distinct stamp."""
+    n = min((raw_len - 4) // 12, 1 << 24)
+    data = frame(list(range(n)), [""] * n)
+    return n, data + b"\0" * (raw_len - len(data))  # (padding only when MAX_COUNT caps n: then not valid)
+
+
+def _columnar(texts: list[str], raw_len: int) -> tuple[int, int, bytes, dict]:
+    """A valid columnar record of these texts, the first padded with spaces to raw_len."""
+    texts[0] += " " * (raw_len - 4 - 12 * len(texts) - sum(map(len, texts)))
+    codec = codec_from_config({"id": "columnar"})
+    return len(texts), 4, codec.encode(list(range(len(texts))), texts), codec.get_config()
+
+
+def _zero_body(raw_len: int) -> tuple[int, int, bytes, dict]:
+    """The largest body the columnar codec allows for raw_len (9 x + 1 KiB), all zeros."""
+    body_len = 9 * raw_len + 1024
+    data = zstandard.ZstdCompressor(level=1).compress(b"\0" * body_len)
+    payload = struct.pack("<BII", 4, body_len, xxhash.xxh32_intdigest(data)) + data
+    return _empty(raw_len)[0], 4, payload, {"id": "columnar", "version": 4, "level": 3}
+
+
+def _payload(case: str, raw_len: int) -> tuple[int, int, bytes, dict]:
+    """(count, codec number, payload, config) of a forged record of `raw_len`: each decodes to
+    a window of that size (or claims to), with the most Python objects we could make."""
+    if case in ("none", "zstd", "lzma"):
+        n, data = _empty(raw_len)
+    if case == "none":
+        return n, 1, data, {"id": "none"}
+    if case == "zstd":
+        return n, 2, zstandard.ZstdCompressor(level=1).compress(data), {"id": "zstd", "level": 1}
+    if case == "lzma":
+        return n, 3, lzma.compress(data, preset=0), {"id": "lzma", "preset": 0}
+    if case == "columnar-digits":  # 19-digit integers counting up: a few bytes of payload
+        return _columnar([str(10**18 + i) for i in range((raw_len - 4) // 31)], raw_len)
+    if case == "columnar-short":  # two-digit integers: the most distinct texts a template renders
+        return _columnar([str(10 + i % 90) for i in range((raw_len - 4) // 14)], raw_len)
+    return _zero_body(raw_len)
+
+
+def forge(path, case: str, raw_len: int) -> None:
+    """A store whose one record is the forged `case`, appended after a clean close."""
+    with cclogfs.open_store(path, create=True):
+        pass
+    count, codec, payload, config = _payload(case, raw_len)
+    record = pack_record(seq=0, start_ns=0, end_ns=count - 1, count=count, codec=codec, name=b"/a",
+                         config=json.dumps(config, separators=(",", ":")).encode(), meta=b"{}",
+                         raw_len=raw_len, payload=payload, synced=SEGMENT_HEADER_SIZE)  # fmt: skip
+    with open(os.path.join(path, "00000000000000000000.seg"), "ab") as f:
+        f.write(record)
+
+
+def peak(path) -> dict:
+    done = subprocess.run([sys.executable, "-c", READ, str(path)], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout)
+
+
+CASES = ["none", "zstd", "lzma", "columnar-digits", "columnar-short", "columnar-zero-body"]
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_the_worst_record_of_each_codec_reads_within_the_stated_bound(tmp_path, case):
+    from cclogfs.store.format import DECODE_RAW_LIMIT
+
+    forge(tmp_path / "s", case, DECODE_RAW_LIMIT)
+    got = peak(tmp_path / "s")
+    assert got["peak_mib"] < PEAK_FACTOR * DECODE_RAW_LIMIT // MiB, got
+
+
+@pytest.mark.parametrize("case", ["zstd", "columnar-zero-body"])
+def test_a_record_over_the_decode_limit_is_refused_before_it_is_decoded(tmp_path, case):
+    # Under the old rule (raw_len up to 256 MiB) a 74 KB columnar record peaked at 2.4 GiB.
+    from cclogfs.store.format import DECODE_RAW_LIMIT
+
+    forge(tmp_path / "s", case, 2 * DECODE_RAW_LIMIT)
+    got = peak(tmp_path / "s")
+    assert got["error"] and "record at offset 32 (seq 0)" in got["error"] and "limit" in got["error"], got
+    assert got["peak_mib"] < 64, got
+
+
+if __name__ == "__main__":
+    import tempfile
+
+    raw = int(float(sys.argv[1]) * MiB) if len(sys.argv) > 1 else None
+    if raw is None:
+        from cclogfs.store.format import DECODE_RAW_LIMIT as raw
+    for case in sys.argv[2:] or CASES:
+        with tempfile.TemporaryDirectory() as tmp:
+            forge(os.path.join(tmp, "s"), case, raw)
+            size = os.path.getsize(os.path.join(tmp, "s", "00000000000000000000.seg"))
+            print(f"{case}: raw_len {raw / MiB:.0f} MiB, segment {size:,} bytes: {peak(os.path.join(tmp, 's'))}", flush=True)
+
+
+# -- windows over the record limit are split ---------------------------------------------
+
+
+def _window(n=300):
+    # Stamps repeat (three messages a stamp), so some splits fall between equal stamps.
+    return [(i // 3, json.dumps({"i": i, "pad": "x" * (i % 50)})) for i in range(n)]
+
+
+def _cat(path, capsys, *args):
+    from cclogfs.cli import main
+
+    assert main(["cat", str(path), *args]) == 0
+    return capsys.readouterr().out
+
+
+def _record(path, split_at=None, monkeypatch=None):
+    from cclogfs.store import encode
+
+    if split_at is not None:
+        monkeypatch.setattr(encode, "MAX_RECORD_RAW", split_at)
+    with cclogfs.open_store(path, create=True, codec="zstd", segment_records=4) as store:
+        store.put_window("/b", [(0, "1"), (150, "2")])
+        receipt = store.put_window("/a", _window(), meta={"k": 1})
+        store.put_window("/b", [(100, "3")])
+    monkeypatch.undo() if monkeypatch is not None else None
+    return receipt
+
+
+def test_a_window_over_the_record_limit_is_stored_as_consecutive_records(tmp_path, monkeypatch, capsys):
+    whole = _record(tmp_path / "whole")
+    split = _record(tmp_path / "split", 4096, monkeypatch)
+    assert whole.records == 1 and split.records > 3
+    assert (split.seq, split.count) == (whole.seq, whole.count)
+    assert split.raw_bytes == whole.raw_bytes + 4 * (split.records - 1)  # each record's framing has its count
+    with cclogfs.open_store(tmp_path / "split", readonly=True) as store:
+        parts = list(store.query("/a"))
+        assert [w.seq for w in parts] == list(range(split.seq, split.seq + split.records))
+        assert all(w.meta == {"k": 1} for w in parts)
+        got = [m for w in parts for m in w.messages()]
+        assert got == _window()
+        assert all(4 + sum(12 + len(t) for _, t in w.messages()) <= 4096 for w in parts)
+        assert [w.seq for w in store.query("/b")] == [0, split.seq + split.records]
+    # `cat` prints the same bytes from both stores: every stream, and one time range.
+    for args in ([], ["--topic", "/a"], ["--start", "40ns", "--end", "60ns"]):
+        assert _cat(tmp_path / "split", capsys, *args) == _cat(tmp_path / "whole", capsys, *args)
+
+
+def test_a_window_of_a_whole_run_is_split_at_the_real_limit(tmp_path):
+    # tuc_corridor.mcap's 38 minutes of /odom as one window is 20 MB of canonical framing.
+    text = json.dumps({"pose": [0.123456789] * 80})
+    messages = [(i * 100_000_000, text) for i in range((20 << 20) // (12 + len(text)))]
+    with cclogfs.open_store(tmp_path / "s", create=True, codec="zstd") as store:
+        receipt = store.put_window("/odom", messages)
+    assert receipt.records == 2
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        assert [m for w in store.query() for m in w.messages()] == messages
+
+
+def test_a_message_larger_than_a_record_holds_is_refused(tmp_path, monkeypatch):
+    from cclogfs.errors import InvalidInputError
+    from cclogfs.store import encode
+
+    monkeypatch.setattr(encode, "MAX_RECORD_RAW", 4096)
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        with pytest.raises(InvalidInputError, match="message 1 for '/a' is 5002 bytes, over what one record holds"):
+            store.put_window("/a", [(0, "1"), (1, json.dumps("x" * 5000))])
+        assert list(store.query()) == []
