@@ -608,6 +608,8 @@ class Store:
             found = [dict(d, segment=segment_name(info["first_seq"], info.get("gen", 0)))
                      for info, d in self.manifest.damage()]  # fmt: skip
             if self.readonly:  # a writer has named the tail's damage in the manifest already
+                for seg in self.unsealed:  # what a checkpoint left to first use, loaded now
+                    seg.load_prefix()
                 found += [dict(p.damage_info(), segment=os.path.basename(p.path)) for p in self.recovery.damage]
         return found
 
