@@ -204,6 +204,21 @@ def open_time(store: Path) -> float:
     return elapsed
 
 
+def append_open_time(store: Path, work: Path) -> float:
+    """Opening a copy of `store` for append: the writer scans its active segment whole, so
+    that damage below the synced point is named before it appends (FORMAT.md)."""
+    from cclogfs.store import open_store
+
+    copy = work / "append.store"
+    shutil.copytree(store, copy)
+    t = time.perf_counter()
+    s = open_store(copy)
+    elapsed = time.perf_counter() - t
+    s.close()
+    shutil.rmtree(copy)
+    return elapsed
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--messages", type=int, default=300_000, help="odometry messages to record")
@@ -301,6 +316,9 @@ def measure(args, data: Path, work: Path) -> int:
         **{f"open after clean close, {k:,} msgs": (1, lambda k=k: open_time(data / f"open-{k}.store"))
            for k in OPEN_SIZES},
         f"open after clean close, {args.big:,} msgs": (1, lambda: open_time(big_store)),
+        **{f"open for append, {k:,} msgs": (1, lambda k=k: append_open_time(data / f"open-{k}.store", work))
+           for k in OPEN_SIZES},
+        f"open for append, {args.big:,} msgs": (1, lambda: append_open_time(big_store, work)),
     }  # fmt: skip
     if args.only:
         cases = {k: v for k, v in cases.items() if any(o in k for o in args.only)}

@@ -16,12 +16,9 @@ recorded a source already, so that the CLI can refuse to store it twice.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
-import socket
 import time
-import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -30,6 +27,9 @@ from . import __version__
 
 if TYPE_CHECKING:
     from .store import Store
+
+# hashlib, socket and uuid are imported by the functions of `record` that use them: every
+# reader imports this module for `hidden_by_default`, and they were a tenth of its start-up.
 
 RUNS_STREAM = "/cclog/runs"
 _EDGE = 1 << 20  # bytes hashed at each end of a file: cheap on a 10 GB bag, and a bag's
@@ -61,6 +61,8 @@ def source_fingerprint(path: str) -> dict[str, Any] | None:
     fixed content (stdin `-`, a live `ros1://` source)."""
     if path == "-" or "://" in path:
         return None
+    import hashlib
+
     h = hashlib.sha256()
     if os.path.isdir(path):  # a ROS 2 bag: metadata.yaml and its storage files
         names = sorted(os.path.join(d, f) for d, _, files in os.walk(path) for f in files)
@@ -155,6 +157,9 @@ def begin_run(store: Store, source: str, *, fingerprint: Mapping[str, Any] | Non
     """Write a run's start record (source, fingerprint, options, cclog version, host, pid,
     and `extra`, e.g. the master of a live source) and sync it, so that even a run killed
     at once is seen. Its number is one past the highest in the store."""
+    import socket
+    import uuid
+
     number = max((r.number for r in list_runs(store)), default=0) + 1
     run = Run(store, number, uuid.uuid4().hex)
     rec = {"event": "start", "run": number, "id": run.id, "source": source,

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import datetime as dt
 import re
-from decimal import Decimal, InvalidOperation
 
 from .errors import InvalidInputError
 
@@ -35,6 +34,8 @@ def parse_time(text: str) -> int:
         n = int(s)
         return n * 1_000_000_000 if n < BARE_SECONDS_BELOW else n
     if _SECONDS.fullmatch(s):
+        from decimal import Decimal, InvalidOperation  # here: most times are integers
+
         try:
             return int(Decimal(s.removesuffix("s")) * 1_000_000_000)
         except InvalidOperation:
@@ -71,4 +72,6 @@ def parse_duration(text: str) -> int:
             f"Duration {text!r} is not understood; give a number with a unit: ns, us, ms, s, "
             "min, h, d or w (e.g. 30d)."
         )
+    from decimal import Decimal
+
     return int(Decimal(m.group(1)) * _UNIT_NS[m.group(2)])

@@ -12,6 +12,7 @@ The layout is specified in docs/CODEC_COLUMNAR.md; `columns` writes it.
 from __future__ import annotations
 
 import binascii
+import functools
 import math
 import struct
 from itertools import accumulate
@@ -49,14 +50,42 @@ class Reader:
         fmt = struct.Struct(f"<{n}{code}")
         return fmt.unpack(self.take(fmt.size, what))
 
-    def words(self, n: int, width: int, what: str) -> list[int]:
-        """n u64 stored as `width` byte planes (byte 0 of every word, then byte 1, ...);
-        the planes not stored are zero."""
+    def planes(self, n: int, width: int, what: str) -> bytearray:
+        """n u64 stored as `width` byte planes (byte 0 of every word, then byte 1, ...),
+        as 8n little-endian bytes; the planes not stored are zero."""
         planes = self.take(width * n, what)
         buf = bytearray(8 * n)
         for j in range(width):
             buf[j::8] = planes[j * n : (j + 1) * n]
-        return list(struct.unpack(f"<{n}Q", buf))
+        return buf
+
+    def words(self, n: int, width: int, what: str) -> list[int]:
+        """The n u64 of `planes`."""
+        return list(struct.unpack(f"<{n}Q", self.planes(n, width, what)))
+
+    def zigzag(self, n: int, width: int, what: str) -> tuple[int, ...]:
+        """The n i64 whose zigzag codes are the u64 of `planes`."""
+        return unzigzag(self.planes(n, width, what), n)
+
+
+@functools.lru_cache(maxsize=64)
+def _lane_masks(n: int) -> tuple[int, int]:
+    """For n 64-bit words in one integer: the lowest bit of each, and all bits but the highest."""
+    every = int.from_bytes((b"\1" + bytes(7)) * n, "little")  # 1 in each word
+    return every, every * (_MASK >> 1)
+
+
+def unzigzag(buf: bytes | bytearray, n: int) -> tuple[int, ...]:
+    """The i64 values of the n zigzag codes v (little-endian u64) in `buf`: each is
+    (v >> 1) ^ -(v & 1), computed for every word at once on the one integer the bytes
+    make (a column is a few hundred words; a loop per word was the decoder's costliest
+    line): shifting it right moves each word's lowest bit into the word below, which
+    the mask clears; the words whose code was odd are then inverted (XOR with 2**64 - 1,
+    which the lowest bit times 2**64 - 1 is); the words read back as signed."""
+    low, keep = _lane_masks(n)
+    x = int.from_bytes(buf, "little")
+    y = ((x >> 1) & keep) ^ ((x & low) * _MASK)
+    return struct.unpack(f"<{n}q", y.to_bytes(8 * n, "little"))
 
 
 def _signed(values) -> list[int]:
@@ -70,15 +99,24 @@ def _signed(values) -> list[int]:
 
 def undo_zigzag_delta(z: list[int], order: int) -> list[int]:
     """The i64 values whose `order`-th differences were zigzag coded as `z`."""
-    d = [(v >> 1) ^ -(v & 1) for v in z]
+    return _signed(_sums(unzigzag(struct.pack(f"<{len(z)}Q", *z), len(z)), order))
+
+
+def _sums(d, order: int):
+    """The values whose `order`-th differences are `d` (not yet wrapped to 64 bits)."""
     for _ in range(order):
         d = accumulate(d)
-    return _signed(d)
+    return d
 
 
-def _doubles(words: list[int], code: str = "q") -> list[float]:
-    """The floats whose 64 bits the words are (signed i64, or with `code` "Q" unsigned)."""
+def _doubles(words) -> list[float]:
+    """The floats whose 64 bits the words are, modulo 2**64 (sums of differences taken in
+    wrapping i64 arithmetic may lie outside: masked then, a cheaper wrap than _signed's)."""
+    words = list(words)
     n = len(words)
+    code = "q"
+    if words and (min(words) < -_SIGN or max(words) >= _SIGN):
+        words, code = [v & _MASK for v in words], "Q"
     return list(struct.unpack(f"<{n}d", struct.pack(f"<{n}{code}", *words)))
 
 
@@ -132,11 +170,12 @@ def read_packed(reader: Reader, n: int, what: str, offset: bool = False) -> list
         base = 0
     if width > 8 or step > _I64_MAX:
         raise CodecError(f"columnar payload is corrupt: {what} claims step {step} and {width}-byte deltas")
-    z = reader.words(n - 1, width, what)
     if offset:
-        deltas = [(v + base) * step for v in z]
+        words = reader.words(n - 1, width, what)
+        deltas = list(map(base.__add__, words)) if step == 1 else [(v + base) * step for v in words]
     else:
-        deltas = [((v >> 1) ^ -(v & 1)) * step for v in z]
+        z = reader.zigzag(n - 1, width, what)
+        deltas = [v * step for v in z] if step != 1 else list(z)
     deltas.insert(0, first)
     return _signed(accumulate(deltas))
 
@@ -176,11 +215,9 @@ def quaternion_w(x: list[float], y: list[float], z: list[float]) -> list[float]:
     """sqrt(1 - x^2 - y^2 - z^2), with 0.0 wherever that is not a finite number: the bits
     `columns.quaternion_prediction` computes (each step a correctly rounded IEEE operation,
     in the same order)."""
-    out = []
-    for a, b, c in zip(x, y, z):
-        s = 1.0 - a * a - b * b - c * c
-        out.append(math.sqrt(s) if s >= 0.0 else 0.0)  # NaN and -inf fail the test
-    return out
+    sqrt = math.sqrt
+    squares = [1.0 - a * a - b * b - c * c for a, b, c in zip(x, y, z)]
+    return [sqrt(s) if s >= 0.0 else 0.0 for s in squares]  # NaN and -inf fail the test
 
 
 def read_blob(reader: Reader, n: int, what: str) -> tuple[tuple[int, ...], memoryview]:
@@ -209,7 +246,7 @@ def read_column(kind: int, reader: Reader, n: int, floats: list) -> tuple[list[s
         counts, blob = read_blob(reader, n, "text column")
         return split(utf8(blob, "text column"), counts, "text column"), None
     if kind == ColumnKind.INT:
-        return list(map(str, undo_zigzag_delta(reader.words(n, 8, "int column"), 1))), None
+        return list(map(str, _signed(_sums(reader.zigzag(n, 8, "int column"), 1)))), None
     if kind in (ColumnKind.INT_PACKED, ColumnKind.INT_OFFSET):
         return list(map(str, read_packed(reader, n, "int column", offset=kind == ColumnKind.INT_OFFSET))), None
     if kind in (ColumnKind.FLOAT, ColumnKind.FLOAT_DELTA):
@@ -218,7 +255,7 @@ def read_column(kind: int, reader: Reader, n: int, floats: list) -> tuple[list[s
             order = int(reader.take(1, "float delta order")[0])
             if order not in FLOAT_ORDERS:
                 raise CodecError(f"columnar payload is corrupt: a float column names delta order {order}")
-        values = _doubles(undo_zigzag_delta(reader.words(n, 8, "float column"), order))
+        values = _doubles(_sums(reader.zigzag(n, 8, "float column"), order))
         return render_floats(values), values
     if kind == ColumnKind.DECIMAL:
         return read_decimal(reader, n), None
@@ -226,9 +263,9 @@ def read_column(kind: int, reader: Reader, n: int, floats: list) -> tuple[list[s
         xyz = [slot_values(f, n) for f in floats[-3:]]
         if len(xyz) < 3 or any(f is None for f in xyz):
             raise CodecError("columnar payload is corrupt: a quaternion column lacks x, y, z")
-        residual = reader.words(n, 8, "quaternion column")
-        predicted = struct.unpack(f"<{n}Q", struct.pack(f"<{n}d", *quaternion_w(*xyz)))
-        values = _doubles([r ^ p for r, p in zip(residual, predicted)], "Q")
+        residual = int.from_bytes(reader.planes(n, 8, "quaternion column"), "little")
+        predicted = int.from_bytes(struct.pack(f"<{n}d", *quaternion_w(*xyz)), "little")
+        values = list(struct.unpack(f"<{n}d", (residual ^ predicted).to_bytes(8 * n, "little")))  # XOR of each word
         return render_floats(values), values
     if kind == ColumnKind.BOOL:
         flags = reader.take(n, "bool column").tolist()

@@ -17,6 +17,8 @@ def merged_messages(
 
     Equal stamps keep window order, then message order. A window is opened only once
     the merge reaches its start, so memory holds just the windows that overlap in time.
+    A window that overlaps none (most stores: one stream, windows one after another)
+    goes out as it is, without the heap: nothing can come between its messages.
     """
     lo = -(1 << 63) if start_ns is None else start_ns
     hi = (1 << 63) if end_ns is None else end_ns
@@ -26,12 +28,20 @@ def merged_messages(
     order = 0
     while heap or nxt is not None:
         while nxt is not None and (not heap or nxt.start_ns <= heap[0][0]):
-            it = iter(nxt.messages())
-            first = next(it, None)
-            if first is not None:
-                heapq.heappush(heap, (first[0], order, 0, nxt.name, first[1], it))
-            order += 1
-            nxt = next(pending, None)
+            after = next(pending, None)
+            if not heap and (after is None or after.start_ns > nxt.end_ns):  # alone in time
+                for stamp, text in nxt.messages():
+                    if stamp > hi:
+                        return
+                    if stamp >= lo:
+                        yield nxt.name, stamp, text
+            else:
+                it = iter(nxt.messages())
+                first = next(it, None)
+                if first is not None:
+                    heapq.heappush(heap, (first[0], order, 0, nxt.name, first[1], it))
+                order += 1
+            nxt = after
         if not heap:
             continue
         stamp, o, i, name, text, it = heap[0]

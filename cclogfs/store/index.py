@@ -98,6 +98,17 @@ class SegmentIndex:
                 for stream, count, seq, start, end, offset, length, raw_len
                 in sorted(self.entries, key=itemgetter(OFFSET))]  # fmt: skip
 
+    def tiles(self, first_seq: int, next_seq: int, start: int, end: int) -> bool:
+        """Whether the entries hold every seq from `first_seq` to `next_seq` (exclusive), once,
+        in records that follow one another from byte `start` to byte `end` without a gap or
+        an overlap."""
+        pos, seq = start, first_seq
+        for e in sorted(self.entries, key=itemgetter(OFFSET)):  # the entries themselves: no new tuples
+            if e[OFFSET] != pos or e[SEQ] != seq:
+                return False
+            pos, seq = pos + e[LENGTH], seq + 1
+        return (pos, seq) == (end, next_seq)
+
     def encoded_size(self) -> int:
         """Bytes `encode` gives, without encoding it."""
         return INDEX_HEADER.size + len(json.dumps(self.names).encode()) + INDEX_ENTRY.size * len(self.entries) + 8

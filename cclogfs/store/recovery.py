@@ -8,6 +8,7 @@ removed. What was found and done is reported in a `Recovery`.
 
 from __future__ import annotations
 
+import functools
 import os
 import threading
 from operator import itemgetter
@@ -291,13 +292,13 @@ class SegmentOpener:
     def _keep_prefix(self, seg: Segment, checkpoint: dict) -> bool:
         """Scan one tail segment; keep every intact record below the synced point (damage
         there is declared in `seg.damage`, never cut) and cut an unsynced torn tail. True
-        when it had to be cut."""
-        prefix = self._checkpointed_prefix(seg, checkpoint)
-        if prefix is None:
-            result = scan(seg, salvage=True)
-        else:  # only what was written after the last clean close is scanned
+        when it had to be cut. A reader of a checkpointed segment scans only what followed
+        the last clean close, and leaves the records before it to the segment's first use."""
+        deferred = self._defers_prefix(seg, checkpoint)
+        if deferred:
             result = scan(seg, salvage=True, start=(checkpoint["synced"], checkpoint["next_seq"]))
-            result.rows[:0] = prefix[1]
+        else:
+            result = scan(seg, salvage=True)
         self.recovery.skipped.extend(result.skipped)
         seg.synced = max(result.synced, SEGMENT_HEADER_SIZE)
         if checkpoint.get("first_seq") == seg.first_seq:
@@ -308,15 +309,15 @@ class SegmentOpener:
         cut = next((p for p in problems if p.offset >= seg.synced), None)
         seg.damage = [p for p in problems if p.offset < seg.synced]
         ours = checkpoint if checkpoint.get("first_seq") == seg.first_seq else {}
-        for problem in seg.damage:
-            if problem.seqs is None:  # damage up to the end: only the checkpoint knows the seqs lost
-                problem.seqs = (result.next_seq, max(ours.get("next_seq", 0), result.next_seq + 1))
+        _name_lost_seqs(seg.damage, result.next_seq, ours.get("next_seq", 0))
         self.recovery.damage.extend(seg.damage)
         end = cut.offset if cut is not None else seg.size  # the size scanned, never a later one
         seg.rows = [r for r in result.rows if r[5] < end]
-        if prefix is not None and len(seg.rows) == len(prefix[1]):
-            seg.set_index(prefix[0])  # nothing was added after the checkpoint: no rebuild
-        seg.next_seq = max([r[2] + 1 for r in seg.rows] + [p.seqs[1] for p in seg.damage] + [seg.first_seq])
+        lowest = seg.first_seq
+        if deferred:
+            seg.defer_prefix(functools.partial(self._load_prefix, checkpoint=checkpoint))
+            lowest = checkpoint["next_seq"]
+        seg.next_seq = max([r[2] + 1 for r in seg.rows] + [p.seqs[1] for p in seg.damage] + [lowest])
         if cut is None:
             seg.size = end
             return False
@@ -333,29 +334,54 @@ class SegmentOpener:
         seg.size = cut.offset
         return True
 
-    def _checkpointed_prefix(self, seg: Segment, checkpoint: dict) -> tuple[SegmentIndex, list[tuple]] | None:
-        """The index a clean close wrote of the segment's first `checkpoint["synced"]` bytes
-        and its rows, when it describes exactly those bytes: every seq from the segment's first to the
-        checkpoint's `next_seq`, in records that tile the bytes from the segment header to
-        the synced point. None otherwise (no checkpoint of this segment, no index, a damaged
-        or stale one, a file shorter than the checkpoint): the segment is scanned whole."""
-        if not self.trust_checkpoint or checkpoint.get("first_seq") != seg.first_seq:
-            return None
+    def _defers_prefix(self, seg: Segment, checkpoint: dict) -> bool:
+        """Whether a reader may leave the records a clean close proved durable to the
+        segment's first use: the checkpoint is this segment's, its synced point lies past the
+        segment header and within the file, and the close's index of those bytes is there
+        (else it scans now, as before)."""
+        return (self.trust_checkpoint and checkpoint.get("first_seq") == seg.first_seq
+                and SEGMENT_HEADER_SIZE <= checkpoint["synced"] <= seg.size
+                and self.fs.exists(self._file(index_name(seg.first_seq))))  # fmt: skip
+
+    def _load_prefix(self, seg: Segment, *, checkpoint: dict) -> None:
+        """The segment's records below the checkpoint, on its first use (FORMAT.md,
+        "Checkpoint index"): from the index the clean close wrote when it describes them
+        exactly; else from a scan of the segment, whose damage below the checkpoint is
+        declared as an open that scans declares it. Changes nothing until it succeeds."""
+        index = self._checkpointed_prefix(seg, checkpoint)
+        if index is not None:
+            if seg.rows:  # records followed the checkpoint: one index of all of them
+                seg.rows[:0] = index.rows()
+            else:  # the close's index as it is (a reader's rows are its index's: see Segment)
+                seg.set_index(index)
+            return
         synced, next_seq = checkpoint["synced"], checkpoint["next_seq"]
-        if seg.size < synced:
-            return None
+        result = scan(seg, salvage=True)  # whole, as an open without a checkpoint does
+        problems = [p for p in (*result.damage, *([result.problem] if result.problem else [])) if p.offset < synced]
+        rows = [r for r in result.rows if r[5] < synced]
+        below = rows[-1][2] + 1 if rows else seg.first_seq
+        if not problems and below != next_seq:
+            raise CorruptionError(f"{seg.path}: the records below the checkpoint end at seq {below}, but "
+                                  f"{MANIFEST}'s checkpoint says {next_seq}; run `cclog fsck`",
+                                  path=seg.path, offset=synced, reason=Reason.SEQ_GAP)  # fmt: skip
+        _name_lost_seqs(problems, below, next_seq)
+        self.recovery.skipped.extend(p for p in result.skipped if p.offset < synced)
+        self.recovery.damage.extend(problems)
+        seg.damage[:0] = problems
+        seg.rows[:0] = rows
+
+    def _checkpointed_prefix(self, seg: Segment, checkpoint: dict) -> SegmentIndex | None:
+        """The index a clean close wrote of the segment's first `checkpoint["synced"]` bytes,
+        when it describes exactly those bytes: every seq from the segment's first to the
+        checkpoint's `next_seq`, in records that tile the bytes from the segment header to
+        the synced point. None otherwise (no index, a damaged or stale one)."""
+        synced, next_seq = checkpoint["synced"], checkpoint["next_seq"]
         try:
             data = self.fs.read_file(self._file(index_name(seg.first_seq)))
             index = SegmentIndex.decode(data, seg.first_seq, synced)
         except (OSError, RecordError, ValueError, TypeError):
             return None
-        rows = index.rows()  # in offset order
-        pos, seq = SEGMENT_HEADER_SIZE, seg.first_seq
-        for _name, _count, row_seq, _start, _end, offset, length, _raw_len in rows:
-            if offset != pos or row_seq != seq:
-                return None
-            pos, seq = pos + length, seq + 1
-        return (index, rows) if (pos, seq) == (synced, next_seq) else None
+        return index if index.tiles(seg.first_seq, next_seq, SEGMENT_HEADER_SIZE, synced) else None
 
     def _keep_tail(self, seg: Segment, offset: int) -> str:
         """Copy the bytes recovery is about to cut to a side file, when intact records lie
@@ -373,6 +399,14 @@ class SegmentOpener:
             self.fs.unlink(seg.path)
             self.fs.fsync_dir(self.path)
             self.recovery.removed_files.append(os.path.basename(seg.path))
+
+
+def _name_lost_seqs(damage: list[Problem], next_seq: int, checkpoint_next: int) -> None:
+    """Damage that runs to the end of what was scanned: only the checkpoint knows the seqs
+    it lost, from `next_seq` (the scan's) on."""
+    for problem in damage:
+        if problem.seqs is None:
+            problem.seqs = (next_seq, max(checkpoint_next, next_seq + 1))
 
 
 def _holds_records(seg: Segment) -> bool:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from ..errors import CorruptionError
@@ -83,7 +84,9 @@ class Segment:
         self.fd = fd
         self.size = size  # bytes handed to the OS
         self.pending = bytearray()
-        self.rows: list[tuple] = []  # index rows of the records in this segment
+        # Index rows of the records in this segment; a reader's segment opened from a
+        # checkpoint holds those below it in its index only (they are never appended to).
+        self.rows: list[tuple] = []
         self.next_seq = first_seq
         self.sealed_size = -1  # for a sealed segment: its size in the manifest
         self.gen = 0  # for a sealed segment: how often compaction rewrote it (names its files)
@@ -92,6 +95,7 @@ class Segment:
         self.known_damage: set[int] = set()  # offsets of damage the manifest names or discarded
         self.index_untrusted = False  # set when a read found a record its index entry misdescribes
         self._index: SegmentIndex | None = None
+        self._prefix: Callable[[Segment], None] | None = None  # see defer_prefix
 
     @property
     def end(self) -> int:
@@ -126,7 +130,19 @@ class Segment:
             return bytes(self.pending[start : start + length])
         return self.fs.pread(self.fd, length, offset)
 
+    def defer_prefix(self, load: Callable[[Segment], None]) -> None:
+        """Leave a reader's records below a clean close's checkpoint to `load`, called on
+        first use: opening then reads none of them (FORMAT.md, "Checkpoint index")."""
+        self._index, self._prefix = None, load
+
+    def load_prefix(self) -> None:
+        """Load what `defer_prefix` left for first use; a failure leaves it to the next use."""
+        if self._prefix is not None:
+            self._prefix(self)
+            self._prefix = None
+
     def index(self) -> SegmentIndex:
+        self.load_prefix()
         if self._index is None:
             self._index = SegmentIndex.build(self.rows)
         return self._index

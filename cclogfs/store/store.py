@@ -9,13 +9,11 @@ import errno
 import heapq
 import json
 import os
-import shutil
 import signal
-import socket
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .._signals import signals_deferred as _signals_deferred
 from ..codecs import codec_from_config
@@ -28,9 +26,8 @@ from ..errors import (
     StoreIOError,
     StoreLockedError,
 )
-from . import compaction, planted
+from . import planted
 from .check import check_stream_name
-from .compaction import Dropped, Replacement, RewriteReport
 from .encode import Codecs, Encoded, encode_parts
 from .format import (
     AGED_META_KEY,
@@ -55,12 +52,17 @@ from .recovery import Recovery, SegmentOpener
 from .segment import WRITE_BUFFER, Segment
 from .window import Receipt, Window
 
+if TYPE_CHECKING:
+    from .compaction import Dropped, Replacement, RewriteReport
+
 # A reader retries opening this often when a writer's commit lands while it opens (bench
 # load: five was too few for a writer sealing every few hundred milliseconds).
 OPEN_ATTEMPTS = 20
 
-__all__ = ["Dropped", "Receipt", "Recovery", "Replacement", "RewriteReport", "SealedSegment", "Store", "Window",
-           "open_store"]
+# Compaction, and what only a writer uses (socket, shutil), are imported when used: a
+# reader's start-up is most of a one-second `cclog cat` (issue 14). Its types are exported
+# by the package (`cclogfs.store.Replacement`).
+__all__ = ["Receipt", "Recovery", "SealedSegment", "Store", "Window", "open_store"]
 
 
 class Store:
@@ -194,6 +196,8 @@ class Store:
             manifest.commit(self.fs, os.path.join(tmp, MANIFEST))
             self.fs.rename(tmp, self.path)  # the commit point; onto an empty directory too
         except BaseException:
+            import shutil
+
             shutil.rmtree(tmp, ignore_errors=True)
             raise
         self.fs.fsync_dir(parent)
@@ -213,6 +217,8 @@ class Store:
         # lock's pid, a new active segment, a seal) must work so that retention can run.
         if self._space_short():
             self.release_reserve()
+        import socket
+
         info = json.dumps({"pid": os.getpid(), "host": socket.gethostname()}).encode()
         self.fs.truncate(fd, 0)
         self.fs.pwrite(fd, info, 0)
@@ -448,11 +454,15 @@ class Store:
         rewritten segment becomes a new generation file, all committed by one manifest
         replace: after a crash the store holds either the old or the new records.
         """
+        from . import compaction
+
         return compaction.rewrite(self, fn, segments)
 
     def drop_oldest(self) -> Dropped | None:
         """Retention: remove the oldest sealed segment (never the active one); None when
         there is no sealed segment. The log then starts at the next segment's first seq."""
+        from . import compaction
+
         return compaction.drop_oldest(self)
 
     def _seal(self, seg: Segment) -> None:
@@ -633,6 +643,8 @@ class Store:
             found = [dict(d, segment=segment_name(info["first_seq"], info.get("gen", 0)))
                      for info, d in self.manifest.damage()]  # fmt: skip
             if self.readonly:  # a writer has named the tail's damage in the manifest already
+                for seg in self.unsealed:  # what a checkpoint left to first use, loaded now
+                    seg.load_prefix()
                 found += [dict(p.damage_info(), segment=os.path.basename(p.path)) for p in self.recovery.damage]
         return found
 
@@ -726,6 +738,8 @@ def _remove_stale_creations(parent: str, base: str) -> None:
                 os.kill(int(name[len(prefix):]), 0)
                 continue  # still running: another process creating the same store
             except ProcessLookupError:
+                import shutil
+
                 shutil.rmtree(os.path.join(parent, name), ignore_errors=True)
             except PermissionError:
                 continue

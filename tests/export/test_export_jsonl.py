@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import io
 
+from hypothesis import given
+from hypothesis import strategies as st
+
 from _windows import FakeWindow
 
 from cclogfs.export import merged_messages, write_jsonl
@@ -48,3 +51,16 @@ def test_write_jsonl_lines_parse_back():
     assert [parse_line(line) for line in out.getvalue().splitlines()] == [
         ("/x", 3, '{"v": 1}', ""), ("/x", 4, '{"v":2}', ""),
     ]  # fmt: skip
+
+
+@given(st.lists(st.lists(st.integers(0, 60), min_size=0, max_size=6), max_size=12),
+       st.integers(0, 60), st.integers(0, 60))  # fmt: skip
+def test_merge_equals_a_sort_of_every_message_whether_windows_overlap_or_not(stamps, lo, hi):
+    # Windows alone in time go out without the heap; the order must be the same as the
+    # heap's: by stamp, then window order, then message order.
+    windows = [FakeWindow(f"/{i % 3}", i, [(s, f"{i}.{k}") for k, s in enumerate(sorted(w))])
+               for i, w in enumerate(sorted(stamps, key=lambda w: min(w, default=0)))]  # fmt: skip
+    windows = [w for w in windows if w.msgs]
+    every = sorted((s, i, k, w.name, t) for i, w in enumerate(windows) for k, (s, t) in enumerate(w.msgs))
+    assert list(merged_messages(windows)) == [(n, s, t) for s, _i, _k, n, t in every]
+    assert list(merged_messages(windows, lo, hi)) == [(n, s, t) for s, _i, _k, n, t in every if lo <= s <= hi]

@@ -1,6 +1,8 @@
 """Issue 14: a reader of a cleanly closed store takes the active segment's records from the
-index that close wrote instead of scanning the segment; after a crash it scans only what
-was written after the last clean close; an index that disagrees makes it scan it all."""
+index that close wrote instead of scanning the segment, and only on the segment's first use
+(opening reads none of them); after a crash it scans only what was written after the last
+clean close; an index that disagrees makes it scan it all, and damage that scan finds below
+the checkpoint is declared as an open that scans declares it."""
 
 import json
 import shutil
@@ -86,12 +88,54 @@ def test_an_index_that_disagrees_makes_the_reader_scan(tmp_path, scans, spoil):
         old = SegmentIndex.decode(data, 0, (tmp_path / "s" / SEG).stat().st_size)
         rows = old.rows()[:3]
         idx.write_bytes(SegmentIndex.build(rows).encode(0, rows[-1][5] + rows[-1][6]))
+    mark = checkpoint(tmp_path / "s")
     scans.clear()
     assert windows(tmp_path / "s") == expected
-    assert scans == [(SEGMENT_HEADER_SIZE, 0)]
+    # Open scans what followed the checkpoint (nothing); the first query finds the index
+    # wrong and scans the segment whole. Without an index there is nothing to defer to.
+    assert scans == ([] if spoil == "missing" else [(mark["synced"], 5)]) + [(SEGMENT_HEADER_SIZE, 0)]
     findings = [f.where for f in check_store(str(tmp_path / "s")).findings]
     # Stale (another size than the checkpoint's) is what a close cut short leaves: no finding.
     assert findings == ([IDX] if spoil in ("flipped", "forged") else [])
+
+
+def test_opening_reads_no_record_below_the_checkpoint_and_the_first_use_loads_them(tmp_path, monkeypatch):
+    make_store(tmp_path / "s", n=5)
+    decoded = []
+    real = SegmentIndex.decode
+    monkeypatch.setattr(SegmentIndex, "decode", lambda *a: decoded.append(a[1]) or real(*a))
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        assert decoded == [] and store.segment_count() == 1
+        assert [w.seq for w in store.query("/a", 20, 30)] == [1, 2, 3]
+        assert decoded == [0]  # the index of segment 0, once
+        assert [w.seq for w in store.query()] == [0, 1, 2, 3, 4]
+        assert decoded == [0]
+
+
+@pytest.mark.parametrize("index", ["kept", "flipped"])
+def test_damage_below_the_checkpoint_found_on_first_use_is_declared(tmp_path, index):
+    # With the index spoilt, the first use scans the segment and finds the damaged record:
+    # a query refuses and damage() names it, as after an open that scans (verify=True).
+    from cclogfs.errors import CorruptionError, DamagedError
+
+    recs = make_store(tmp_path / "s", n=5)
+    _seq, off, length = recs[2]
+    flip(tmp_path / "s" / SEG, off + length - 5)
+    if index == "flipped":
+        flip(tmp_path / "s" / IDX, 40)
+    with cclogfs.open_store(tmp_path / "s", readonly=True, verify=True) as store:
+        scanned = store.damage()
+    assert [(d["first_seq"], d["end_seq"]) for d in scanned] == [(2, 3)]
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as store:
+        if index == "kept":  # the index holds: the record is checked when read, as a sealed one's
+            assert store.damage() == []
+            with pytest.raises(CorruptionError, match="payload checksum mismatch"):
+                [list(w.messages()) for w in store.query()]
+            return
+        with pytest.raises(DamagedError):
+            list(store.query())
+        assert store.damage() == scanned
+        assert [w.seq for w in store.query(skip_damaged=True)] == [0, 1, 3, 4]
 
 
 def test_a_store_closed_by_an_older_version_has_no_index_and_is_scanned(tmp_path, scans):
