@@ -31,7 +31,7 @@ from pathlib import Path
 from ._util import OUT
 
 
-def _stages(path: Path, n: int) -> dict:
+def _stages(path: Path, lines: list[bytes]) -> tuple[dict, Path]:
     import orjson
     import simdjson
     import zstandard
@@ -43,9 +43,7 @@ def _stages(path: Path, n: int) -> dict:
     from cclogfs.pipeline import KeepAll, RecordStats, check_message
     from cclogfs.store.check import encode_messages
 
-    with open(path, "rb") as f:
-        lines = list(itertools.islice(f, n))
-    part = path.parent / f"floor-{n}.jsonl"
+    part = path.parent / f"floor-{len(lines)}.jsonl"
     part.write_bytes(b"".join(lines))
     with JsonlSource(part) as source:
         msgs = list(source)
@@ -125,26 +123,39 @@ def _stages(path: Path, n: int) -> dict:
     return {k: v for k, v in stages.items() if v is not None}, part
 
 
+def speed_lines(n: int) -> tuple[Path, list[bytes]]:
+    """The first n lines of the odometry JSONL that `bench speed` makes in out/."""
+    found = sorted(OUT.glob("speed-data-*/odom.jsonl"))
+    if not found:
+        raise SystemExit("no odometry JSONL in out/: run `python3 dev.py bench speed` first")
+    with open(found[0], "rb") as f:
+        return found[0], list(itertools.islice(f, n))
+
+
+def smallest_cpu(stages: dict, rounds: int) -> dict[str, float]:
+    """Each stage's smallest CPU seconds over `rounds` rounds, every stage once a round."""
+    best = {k: float("inf") for k in stages}
+    for _ in range(rounds):
+        for name, fn in stages.items():
+            t = time.process_time()
+            fn()
+            best[name] = min(best[name], time.process_time() - t)
+    return best
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--lines", type=int, default=60_000)
     ap.add_argument("--rounds", type=int, default=5)
     args = ap.parse_args()
-    found = sorted(OUT.glob("speed-data-*/odom.jsonl"))
-    if not found:
-        raise SystemExit("no odometry JSONL in out/: run `python3 dev.py bench speed` first")
-    stages, part = _stages(found[0], args.lines)
+    path, lines = speed_lines(args.lines)
+    stages, part = _stages(path, lines)
     try:
-        best = {k: float("inf") for k in stages}
-        for _ in range(args.rounds):
-            for name, fn in stages.items():
-                t = time.process_time()
-                fn()
-                best[name] = min(best[name], time.process_time() - t)
+        best = smallest_cpu(stages, args.rounds)
     finally:
         part.unlink()
     floor = best["orjson.loads per line (the floor)"]
-    print(f"{args.lines:,} lines of {found[0]}, smallest CPU time of {args.rounds} interleaved rounds")
+    print(f"{args.lines:,} lines of {path}, smallest CPU time of {args.rounds} interleaved rounds")
     print(f"{'stage':<46} {'us/msg':>7} {'x floor':>8}")
     for name, secs in best.items():
         print(f"{name:<46} {1e6 * secs / args.lines:7.2f} {secs / floor:8.2f}")
