@@ -51,7 +51,7 @@ def _stages(path: Path, lines: list[bytes]) -> tuple[dict, Path]:
     for m in msgs:
         windows += policy.push(m.topic, m.stamp_ns, m.text)
     windows += policy.flush()
-    compiled = shapes._match_rows_c
+    compiled = getattr(shapes, "_match_rows_c", None)  # None before the helper existed
 
     def each_line(fn):
         def run():
