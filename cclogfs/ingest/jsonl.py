@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import BinaryIO, Literal
 
 from ..errors import InvalidInputError, SourceError
-from ..jsontext.lines import JsonlLineError, parse_line, split_canonical_bytes
+from ..jsontext.lines import JsonlLineError, parse_line, split_canonical, split_canonical_bytes
 from .base import SourceMessage, topic_filter
 
 OnError = Literal["stop", "skip"]
@@ -118,6 +118,9 @@ class JsonlSource:
             line = line[:-2] if line[-2:-1] == "\r" else line[:-1]
         if not line.strip():
             return None
+        parts = split_canonical(line)
+        if parts is not None and self._wanted is not None and parts[0] not in self._wanted:
+            return None  # in the canonical layout, a topic not wanted is skipped unchecked
         try:
             return SourceMessage(*parse_line(line))
         except JsonlLineError as err:
