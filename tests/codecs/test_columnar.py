@@ -24,7 +24,7 @@ from cclogfs.errors import CodecError
 GOLDEN = Path(__file__).parent.parent / "golden" / "columnar"
 CODEC = ColumnarCodec()
 
-# Every test here runs on both row paths (conftest.py).
+# Every test here runs on both row paths (tests/conftest.py: row_path).
 pytestmark = pytest.mark.usefixtures("row_path")
 
 

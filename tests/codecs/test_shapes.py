@@ -7,7 +7,7 @@ import pytest
 
 from cclogfs.codecs.shapes import ShapeMatcher, split_text
 
-# Every test here runs on both row paths (conftest.py).
+# Every test here runs on both row paths (tests/conftest.py: row_path).
 pytestmark = pytest.mark.usefixtures("row_path")
 
 
