@@ -28,7 +28,9 @@ def setup(extras: str = "test") -> None:
         print("dev.py: creating .venv", flush=True)
         venv.EnvBuilder(with_pip=True).create(VENV)
     stamp = VENV / f".cclogfs-installed-{extras}"
-    want = hashlib.sha256((ROOT / "pyproject.toml").read_bytes()).hexdigest()
+    # Also the compiled helper's source and build: an edit rebuilds it (setup.py).
+    built_from = ("pyproject.toml", "setup.py", "cclogfs/codecs/_rows.c")
+    want = hashlib.sha256(b"".join((ROOT / name).read_bytes() for name in built_from)).hexdigest()
     if stamp.exists() and stamp.read_text() == want:
         return
     print(f"dev.py: installing cclogfs[{extras}] and its dependencies into .venv", flush=True)

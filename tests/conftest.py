@@ -27,3 +27,21 @@ def shared_data_file(name: str) -> Path:
 @pytest.fixture
 def shared_data():
     return shared_data_file
+
+
+# The columnar encoder's two ways to find a shape's value rows: the compiled helper
+# (cclogfs/codecs/_rows.c, built by setup.py where a C compiler is) and the re module.
+# Modules that use this fixture (pytest.mark.usefixtures) run once per way.
+@pytest.fixture(scope="module", params=["compiled", "python"])
+def row_path(request):
+    from cclogfs.codecs import shapes
+
+    try:
+        from cclogfs.codecs._rows import match_rows as compiled
+    except ImportError:
+        compiled = None
+    if request.param == "compiled" and compiled is None:
+        pytest.skip("the compiled helper cclogfs.codecs._rows is not built (no C compiler at install)")
+    shapes._match_rows_c = compiled if request.param == "compiled" else None
+    yield request.param
+    shapes._match_rows_c = compiled

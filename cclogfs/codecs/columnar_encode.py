@@ -121,7 +121,7 @@ _SURROGATE = re.compile("[\ud800-\udfff]")
 
 def _shapeable(texts: Sequence[str]) -> list[str | None]:
     """The texts the shape matcher may see: those with a surrogate are stored verbatim."""
-    if "".join(texts).isascii():
+    if all(map(str.isascii, texts)):
         return list(texts)
     return [None if _SURROGATE.search(t) else t for t in texts]
 

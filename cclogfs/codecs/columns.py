@@ -21,7 +21,7 @@ except ImportError:  # the fast float parser is optional: float() gives the same
 
 from ..errors import CodecError
 from .columns_read import Reader, b64_token as _b64_token, read_blob as _read_blob, read_column, read_decimal, read_packed  # noqa: F401 (tests reach _read_blob here)
-from .columns_read import render_decimals as _render_decimals, render_floats
+from .columns_read import render_decimals as _render_decimals, render_floats, render_floats_joined
 from .columnar_format import (
     DECIMAL_DIGITS,
     DECIMAL_ORDERS,
@@ -78,26 +78,28 @@ def _simdjson_parser():
     return parser
 
 
-def _parse_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
-    """The tokens as float64 parsed by simdjson in one call, or None if it refuses them.
+def _parse_floats(joined: str, n: int) -> np.ndarray | None:
+    """n tokens joined by "," as float64 parsed by simdjson in one call, or None if it
+    refuses them or finds another count.
 
     Four times faster than float() per token, but a call costs a few microseconds:
     short columns (a constant's one token) go to float(). Nothing rests on simdjson
     parsing right: the caller keeps a value only if its repr is the token.
     """
-    if simdjson is None or len(tokens) < _SIMDJSON_MIN:
+    if simdjson is None or n < _SIMDJSON_MIN:
         return None
     try:
-        doc = _simdjson_parser().parse(("[" + ",".join(tokens) + "]").encode())
+        doc = _simdjson_parser().parse(("[" + joined + "]").encode())
         values = np.frombuffer(doc.as_buffer(of_type="d"), dtype=np.float64).copy()
     except Exception:  # noqa: BLE001 - NaN, huge exponents, non-numbers: float() decides
         return None
-    return values if len(values) == len(tokens) else None
+    return values if len(values) == n else None
 
 
 def _as_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
     """The tokens as float64, or None unless rendering them gives every token back."""
-    parsed = _parse_floats(tokens)
+    joined = ",".join(tokens)
+    parsed = _parse_floats(joined, len(tokens))
     if parsed is None:
         try:
             # float() also reads "NaN", "nan", "inf", "1_0", ...: the rendering check
@@ -106,8 +108,10 @@ def _as_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
         except ValueError:
             return None
     # Render exactly as the decoder will (json.dumps' text: so "nan" and "inf", which
-    # repr writes, are refused). Rendering is most of the cost of a float column.
-    return parsed if _render_floats(parsed) == list(tokens) else None
+    # repr writes, are refused), and compare all the tokens at once: parsed tokens hold
+    # no comma (float() and simdjson refuse one, or the count differs), so equal joined
+    # texts are equal tokens.
+    return parsed if render_floats_joined(parsed) == joined else None
 
 
 def classify(tokens: tuple[str, ...], decimal: bool = False) -> tuple[ColumnKind, Any]:

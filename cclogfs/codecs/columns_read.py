@@ -141,13 +141,30 @@ def render_floats(values) -> list[str]:
     """
     if len(values) == 0:
         return []
-    text = orjson.dumps(values, option=orjson.OPT_SERIALIZE_NUMPY).decode()
-    texts = text[1:-1].split(",")
-    if "e" in text or "n" in text or "0.0000" in text:  # one scan of the whole column first
+    text = _orjson_text(values)
+    texts = text.split(",")
+    if _orjson_differs(text):  # one scan of the whole column first
         for i, t in enumerate(texts):
-            if "e" in t or "n" in t or "0.0000" in t:  # a few more than needed: repr is right for all
+            if _orjson_differs(t):  # a few more than needed: repr is right for all
                 texts[i] = _float_text(float(values[i]))
     return texts
+
+
+def render_floats_joined(values) -> str:
+    """`render_floats` joined by ",", without a list of texts in the usual case: the
+    encoder compares it with its tokens joined, one string compare per column."""
+    text = _orjson_text(values)
+    return ",".join(render_floats(values)) if _orjson_differs(text) else text
+
+
+def _orjson_text(values) -> str:
+    """The values as orjson writes them, comma-separated, without the brackets."""
+    return orjson.dumps(values, option=orjson.OPT_SERIALIZE_NUMPY)[1:-1].decode()
+
+
+def _orjson_differs(text: str) -> bool:
+    """Whether orjson's text may not be json.dumps' (an exponent, null, the decade below 1e-4)."""
+    return "e" in text or "n" in text or "0.0000" in text
 
 
 def render_decimals(values: list[int], d: int) -> list[str]:

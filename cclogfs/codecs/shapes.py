@@ -15,6 +15,13 @@ from itertools import chain
 
 __all__ = ["ShapeMatcher", "split_text"]
 
+# The compiled row finder (cclogfs/codecs/_rows.c; setup.py builds it where a C compiler is):
+# the same rows as `_rows_python`, in half the time per window (bench/record_floor.py).
+try:
+    from ._rows import match_rows as _match_rows_c
+except ImportError:
+    _match_rows_c = None
+
 _STRING = r'"[^"\\]*(?:\\.[^"\\]*)*"'
 _NUMBER = r"[-+.0-9A-Za-z]++"  # numbers, true/false/null, NaN, Infinity
 # Possessive quantifiers: a text that does not tokenize fails fast instead of backtracking.
@@ -111,14 +118,25 @@ def _keep_quaternions(values: list[str], fixed: list[bool]) -> None:
 
 
 def _rows(shape: tuple, texts: list[str]) -> list[tuple | None]:
-    """Value rows of texts in a (literals, regex, skipper) shape; None where one misses.
+    """Value rows of texts in a (literals, regex, skipper, kinds) shape; None where one
+    misses: `pattern.fullmatch(text).groups()` of each text. From the compiled helper
+    when it is installed and the texts are one byte per character, else `_rows_python`."""
+    if _match_rows_c is not None:
+        rows = _match_rows_c(shape[0], shape[3], texts)
+        if rows is not NotImplemented:
+            return rows
+    return _rows_python(shape, texts)
+
+
+def _rows_python(shape: tuple, texts: list[str]) -> list[tuple | None]:
+    """`_rows` with the re module.
 
     The skipper finds the values without reading the literals; _rebuilds then checks
     them for the whole window at once. Where the regex matches, the skipper matches with
     the same values (both take each value possessively at the same offset), so a text the
     skipper misses is a miss; if the rebuild fails, the regex decides text by text.
     """
-    literals, pattern, skipper = shape
+    literals, pattern, skipper, _ = shape
     if skipper is None or len(texts) < 2:
         return [None if m is None else m.groups() for m in map(pattern.fullmatch, texts)]
     matches = list(map(skipper.fullmatch, texts))
@@ -145,7 +163,7 @@ class ShapeMatcher:
     def __init__(self, capacity: int = 256):
         self._capacity = capacity
         self._compiled: OrderedDict[tuple, re.Pattern[str] | None] = OrderedDict()
-        self._last: tuple[tuple[str, ...], re.Pattern[str], re.Pattern[str] | None] | None = None
+        self._last: tuple[tuple[str, ...], re.Pattern[str], re.Pattern[str] | None, tuple[bool, ...]] | None = None
 
     def _pattern(self, key: tuple, literals, values) -> re.Pattern[str] | None:
         pattern = self._compiled.get(key, False)
@@ -210,7 +228,8 @@ class ShapeMatcher:
         return out, sorted(unshaped)
 
     def _specialize(self, texts: list, pending: list[int]) -> tuple | None:
-        """(literals, regex, skipper) of the first pending text's shape, constants baked in.
+        """(literals, regex, skipper, kinds) of the first pending text's shape, constants
+        baked in (kinds: whether each value slot holds a string).
 
         None when that text has no shape; () when its shape is too large for a regex.
         """
@@ -235,7 +254,7 @@ class ShapeMatcher:
         merged, kept = bake(literals, values, fixed)
         key = (merged, tuple(v.startswith('"') for v in kept))
         pattern = self._pattern(key, merged, kept)
-        return merged, pattern, None if pattern is None else _skipper(merged, key[1])
+        return merged, pattern, None if pattern is None else _skipper(merged, key[1]), key[1]
 
     def group(self, texts: list[str | None]) -> tuple[dict[tuple, tuple[list[int], list]], list[int]]:
         """Group texts by shape: ({literals: (indices, value rows)}, indices without shape).

@@ -5,9 +5,9 @@ The `msg` text is kept byte for byte as it appears in the line (its exact slice)
 what goes into the store is what the producer wrote, and `convert` then `cat` gives the
 same file back.
 
-Speed: lines in the layout `format_line` writes take a fast path (one regular
-expression for the head, one `raw_decode` over the message to validate it and find its
-end); any other layout (other key order, spacing, escapes in the topic) goes through a
+Speed: lines in the layout `format_line` writes take a fast path: one regular expression
+for the head, and one check of the whole line as JSON (`split_canonical_bytes`, on the
+line's bytes: no decode before the check); any other layout (other key order, spacing, escapes in the topic) goes through a
 small scanner over the top-level object that uses the json module for every value.
 """
 
@@ -19,14 +19,16 @@ import re
 from json.decoder import scanstring
 
 from ..errors import InvalidInputError
-from .check import json_error
+from .check import json_error, object_members
 
-__all__ = ["JsonlLineError", "format_line", "parse_general", "parse_line", "split_canonical"]
+__all__ = ["JsonlLineError", "format_line", "parse_general", "parse_line", "split_canonical", "split_canonical_bytes"]
 
 # The layout format_line() writes; anything else takes the general path.
-_FAST_HEAD = re.compile(
-    r'\{"topic": "([^"\\\x00-\x1f]+)", "stamp_ns": (0|-?[1-9][0-9]{0,18}), "msg": (?=\{)'
-)
+_HEAD = r'\{"topic": "([^"\\\x00-\x1f]+)", "stamp_ns": (0|-?[1-9][0-9]{0,18}), "msg": '
+_FAST_HEAD = re.compile(_HEAD + r"(?=\{)")
+# The same layout as a whole line of bytes, its line ending included. The greedy ".*"
+# jumps to the end and backs off to the last "}}", so matching costs no scan of the message.
+_FAST_LINE = re.compile((_HEAD + r"(\{.*\})\}(?:\r?\n)?").encode(), re.S)
 _WS = re.compile(r"[ \t\n\r]*")
 _DECODER = json.JSONDecoder()
 _REQUIRED = ("topic", "stamp_ns", "msg")
@@ -67,6 +69,26 @@ def split_canonical(line: str) -> tuple[str, int, str] | None:
     if not _MIN_STAMP <= stamp <= _MAX_STAMP:
         return None
     return m.group(1), stamp, line[m.end() : -1]
+
+
+def split_canonical_bytes(raw: bytes) -> tuple[str, int, str] | None:
+    """(topic, stamp_ns, msg text) of a line's bytes (its line ending allowed) in the layout
+    `format_line` writes, the whole line checked to be JSON; None for any other layout, and
+    for any line the check does not settle (decode it and take `parse_line`).
+
+    The line must be one object of exactly three members: with the head matched and "}}"
+    at its end, its third member's value (an object, so it ends in "}") is exactly the
+    msg slice.
+    """
+    m = _FAST_LINE.fullmatch(raw)
+    if m is None:
+        return None
+    topic, stamp, msg = m.groups()
+    stamp = int(stamp)
+    if not _MIN_STAMP <= stamp <= _MAX_STAMP or object_members(raw) != 3:
+        return None
+    # Valid UTF-8 (simdjson checked it): these decodes cannot fail.
+    return topic.decode(), stamp, msg.decode()
 
 
 def parse_line(line: str) -> tuple[str, int, str, str]:

@@ -24,6 +24,9 @@ from cclogfs.errors import CodecError
 GOLDEN = Path(__file__).parent.parent / "golden" / "columnar"
 CODEC = ColumnarCodec()
 
+# Every test here runs on both row paths (tests/conftest.py: row_path).
+pytestmark = pytest.mark.usefixtures("row_path")
+
 
 def as_text(texts: list[bytes | str]) -> list[str]:
     """Texts as the codec boundary carries them (stray bytes as surrogate escapes)."""
@@ -256,7 +259,7 @@ def test_literals_of_equal_length_but_other_text_are_not_skipped_over():
     rows = [("0.5", "1"), ("0.5", "1")]
     assert shapes._rebuilds(literals, rows, [good, good])
     assert not shapes._rebuilds(literals, rows, [good, other])
-    shape = (literals, shapes._matcher(literals, ["0.5", "1"]), skipper)
+    shape = (literals, shapes._matcher(literals, ["0.5", "1"]), skipper, kinds)
     assert shapes._rows(shape, [good, other, "x", good]) == [("0.5", "1"), None, None, ("0.5", "1")]
 
 

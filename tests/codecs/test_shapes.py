@@ -7,6 +7,9 @@ import pytest
 
 from cclogfs.codecs.shapes import ShapeMatcher, split_text
 
+# Every test here runs on both row paths (tests/conftest.py: row_path).
+pytestmark = pytest.mark.usefixtures("row_path")
+
 
 def rebuild(literals, values):
     return "".join(a + b for a, b in zip(literals, list(values) + [""]))

@@ -99,6 +99,16 @@ def test_malformed_lines_skipped_and_reported(tmp_path):
     ]
 
 
+def test_a_topic_not_wanted_is_skipped_unchecked_in_the_canonical_layout(tmp_path):
+    """As before the bytes fast path: a broken message of a topic not read is no error."""
+    path = write(tmp_path, format_line("/a", 0, "{}") + '{"topic": "/b", "stamp_ns": 1, "msg": {"x": }}\n'
+                 + format_line("/a", 2, '{"x": NaN}') + format_line("/b", 3, '{"x": 1}'))  # fmt: skip
+    with JsonlSource(path, topics=["/a"]) as src:
+        assert [(m.stamp_ns, m.text) for m in src] == [(0, "{}"), (2, '{"x": NaN}')]
+    with JsonlSource(path) as src, pytest.raises(SourceError, match="line 2: invalid JSON"):
+        list(src)
+
+
 def test_invalid_utf8_is_a_line_error(tmp_path):
     path = tmp_path / "bin.jsonl"
     path.write_bytes(format_line("/a", 0, "{}").encode() + b'{"topic": "/\xff"}\n')

@@ -5,7 +5,7 @@ import json
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cclogfs.jsontext.lines import format_line, parse_line, split_canonical
+from cclogfs.jsontext.lines import JsonlLineError, format_line, parse_line, split_canonical, split_canonical_bytes
 
 topics = st.text(min_size=1, max_size=12)  # any name: quotes, escapes, non-ASCII
 stamps = st.integers(min_value=-(1 << 63), max_value=(1 << 63) - 1)
@@ -52,3 +52,41 @@ def test_a_message_nested_too_deeply_is_a_line_error_not_a_recursion_error():
     line = '{"topic":"/a","stamp_ns":1,"msg":' + "[" * 5000 + "]" * 5000 + "}"
     with pytest.raises(JsonlLineError, match="nested too deeply"):
         parse_line(line)
+
+
+def _parsed(raw: bytes):
+    """What the general path makes of a line's bytes: its message, or None for an error."""
+    try:
+        line = raw.decode("utf-8")
+        line = line[:-2] if line.endswith("\r\n") else line[:-1] if line.endswith("\n") else line
+        topic, stamp, msg, msgtype = parse_line(line)
+    except (UnicodeDecodeError, JsonlLineError):
+        return None
+    return (topic, stamp, msg) if not msgtype else None
+
+
+ENDINGS = st.sampled_from(["\n", "\r\n", "", " \n"])
+DAMAGE = st.sampled_from(["", "}", " ", ",", '"', "\\", "x", "\x00", "\ufeff", ', "msg": {}', ', "extra": 1', "NaN", "\ud800"])
+
+
+@settings(max_examples=400)
+@given(topics, stamps, msgs, msgtypes, ENDINGS, DAMAGE, st.integers(0, 10_000))
+def test_the_fast_bytes_split_agrees_with_the_general_parse(topic, stamp, msg, msgtype, ending, insert, at):
+    """Whatever line it settles (None: the caller asks parse_line), it settles as
+    parse_line does, damaged lines and other layouts included."""
+    line = format_line(topic, stamp, msg, msgtype)[:-1] + ending
+    at = at % (len(line) + 1)
+    for text in (line, line[:at] + insert + line[at:]):
+        raw = text.encode("utf-8", "surrogatepass")  # a lone surrogate: bytes that are not UTF-8
+        fast = split_canonical_bytes(raw)
+        if fast is not None:
+            assert fast == _parsed(raw)
+
+
+def test_the_fast_bytes_split_takes_only_the_rendered_layout():
+    assert split_canonical_bytes(b'{"topic": "/a", "stamp_ns": 7, "msg": {"k": {}}}\r\n') == ("/a", 7, '{"k": {}}')
+    assert split_canonical_bytes('{"topic": "/\u00e9", "stamp_ns": 0, "msg": {"\u00e9": 1}}'.encode()) == ("/\u00e9", 0, '{"\u00e9": 1}')
+    for other in (b'{"topic": "/a", "stamp_ns": 7, "msg": {} }', b'{"topic": "/a", "stamp_ns": 7, "msg": {}, "msg": {}}',
+                  b'{"topic": "/a", "stamp_ns": 7, "msg": {}, "msgtype": "T"}', b'{"topic": "/a", "stamp_ns": 7, "msg": {"x": NaN}}',
+                  b'{"topic": "/a", "stamp_ns": 9223372036854775808, "msg": {}}', b'{"topic": "/a", "stamp_ns": 7, "msg": {"\xff": 1}}'):  # fmt: skip
+        assert split_canonical_bytes(other) is None

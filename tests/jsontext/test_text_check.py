@@ -5,7 +5,7 @@ import json
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cclogfs.jsontext.check import json_error
+from cclogfs.jsontext.check import json_error, object_members
 
 VALUES = st.recursive(
     st.none() | st.booleans() | st.integers() | st.floats() | st.text(),
@@ -37,3 +37,13 @@ def test_same_answer_on_damaged_json(text, at, insert):
     at = at % (len(text) + 1)
     damaged = text[:at] + insert + text[at + 1 :]
     assert (json_error(damaged) is None) == python_says(damaged)
+
+
+@settings(max_examples=300)
+@given(st.one_of(VALUES.map(json.dumps), ODD, st.text(max_size=30)), st.sampled_from(["", "\n", " \r\n"]))
+def test_a_member_count_is_one_python_json_agrees_with(text, ending):
+    """object_members may decline (None) what json takes, never count what it refuses."""
+    count = object_members((text + ending).encode("utf-8", "surrogatepass"))
+    if count is not None:
+        pairs = json.loads(text, object_pairs_hook=lambda p: ("object", len(p)))
+        assert pairs == ("object", count)

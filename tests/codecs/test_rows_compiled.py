@@ -1,0 +1,94 @@
+"""The compiled row finder (cclogfs/codecs/_rows.c) gives exactly the re module's rows,
+and so the columnar encoder writes the same bytes with it as without it."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cclogfs.codecs import shapes
+from cclogfs.codecs.columnar import ColumnarCodec
+from cclogfs.codecs.shapes import _matcher, split_text
+
+COMPILED = shapes._match_rows_c  # as imported, whatever the row_path fixture sets later
+pytestmark = pytest.mark.skipif(COMPILED is None, reason="cclogfs.codecs._rows is not built")
+
+leaves = st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=6)
+values = st.recursive(leaves, lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=4), inner, max_size=3), max_leaves=8)  # fmt: skip
+texts = st.builds(json.dumps, values, ensure_ascii=st.booleans())
+# What a damaged or other text may hold where the shape's text has something else.
+INSERTS = st.sampled_from(["", '"', "\\", "\\\\", "\\\"", "x", "-", " ", ",", "é", "\u20ac", "\n", "1e5", '"a"'])
+
+
+def regex_rows(literals, values, candidates):
+    pattern = _matcher(literals, values)
+    return [None if m is None else m.groups() for m in map(pattern.fullmatch, candidates)]
+
+
+@settings(max_examples=500)
+@given(texts, st.lists(st.tuples(st.integers(0, 10_000), st.integers(0, 3), INSERTS), max_size=6), st.lists(texts, max_size=3))
+def test_the_same_rows_as_the_regex(text, edits, others):
+    split = split_text(text)
+    if split is None or _matcher(*split) is None:
+        return
+    literals, values = split
+    kinds = tuple(v.startswith('"') for v in values)
+    candidates = [text, *others]
+    for at, cut, insert in edits:  # the text damaged: characters replaced, removed, added
+        at %= len(text) + 1
+        candidates.append(text[:at] + insert + text[at + cut :])
+    got = COMPILED(literals, kinds, candidates)
+    if got is NotImplemented:  # a text or literal of more than one byte per character
+        assert not all(t.isascii() or max(map(ord, t)) < 256 for t in [*candidates, *literals])
+        return
+    assert got == regex_rows(literals, values, candidates)
+
+
+def test_edges_of_string_and_number_tokens():
+    literals, kinds = ('{"s": ', ', "n": ', "}"), (True, False)
+    candidates = ['{"s": "a\\"b", "n": -1.5e+3}', '{"s": "a\\", "n": 1}', '{"s": "a\\\\", "n": 1}', '{"s": "x", "n": }',
+                  '{"s": "x", "n": 1 }', '{"s": "\xe9", "n": nan}', '{"s": "x\n", "n": 1}', '{"s": "x", "n": 1}}']  # fmt: skip
+    want = regex_rows(literals, ['"s"', "0"], candidates)
+    assert COMPILED(literals, kinds, candidates) == want
+    assert want[0] == ('"a\\"b"', "-1.5e+3") and want[1] is None and want[2] == ('"a\\\\"', "1")
+
+
+def test_wider_characters_are_left_to_the_regex():
+    assert COMPILED(("[", "]"), (True,), ['["\u20ac"]']) is NotImplemented
+    assert COMPILED(("[\u20ac", "]"), (False,), ["[1]"]) is NotImplemented
+
+
+def _encode_both(windows):
+    out = {}
+    for path in ("compiled", "python"):
+        shapes._match_rows_c = COMPILED if path == "compiled" else None
+        try:
+            codec = ColumnarCodec()
+            out[path] = [codec.encode(list(range(len(w))), w) for w in windows]
+        finally:
+            shapes._match_rows_c = COMPILED
+    return out["compiled"], out["python"]
+
+
+@settings(max_examples=100)
+@given(st.lists(st.lists(texts, min_size=1, max_size=40), min_size=1, max_size=3))
+def test_the_encoder_writes_the_same_bytes_either_way(windows):
+    compiled, python = _encode_both(windows)
+    assert compiled == python
+
+
+@pytest.mark.parametrize("name", ["nav2_turtlebot.mcap", "tf_example.bag"])
+def test_real_windows_encode_the_same_either_way(shared_data, name):
+    from cclogfs.ingest import open_source
+
+    by_topic: dict[str, list[str]] = {}
+    with open_source(str(shared_data(name))) as source:
+        for m in source:
+            by_topic.setdefault(m.topic, []).append(m.text)
+    for topic, texts in by_topic.items():
+        windows = [texts[i : i + 200] for i in range(0, len(texts), 200)]
+        compiled, python = _encode_both(windows)
+        assert compiled == python, topic
