@@ -38,9 +38,9 @@ CODES = {"bool": "?", "byte": "b", "char": "B", "int8": "b", "uint8": "B", "int1
 BYTES = {"uint8", "char", "int8", "byte"}
 FLOATS = {"float32", "float64"}
 INTS = {"byte", "char", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64"}
-# Fixed-size numeric arrays up to this length are part of the template (a covariance's 36
-# numbers); longer ones are read and rendered on their own, keeping templates readable.
-INLINE_ARRAY = 64
+# Fixed-size numeric arrays shorter than this are part of the template; longer ones (a
+# covariance: 9 or 36 numbers) are rendered on their own, through a memo (roswire.ArrayMemo).
+MEMO_ARRAY = 9
 STAMP = ("header.stamp.sec", "header.stamp.nanosec")
 
 
@@ -255,13 +255,14 @@ class _Function:
             self.step(path, f"{s} = {render}(take(raw, pos, {length}))", f"pos += {length}")
             self.value(s)
             self.aligned = 1
-        elif typ in CODES and length <= INLINE_ARRAY:
+        elif typ in CODES and length < MEMO_ARRAY:
             self.number(typ, length, path)
             self.parts.append("[" + ", ".join(["%r"] * length) + "]")
         elif typ in CODES:
             fmt = f"{self.m.endian}{length}{CODES[typ]}"
-            reader = self.m.constant("unpack", f"Struct({fmt!r}).unpack_from")
-            self.step(path, f"{s} = numbers({reader}(raw, pos), {typ in FLOATS})", f"pos += {struct.calcsize(fmt)}")
+            size = struct.calcsize(fmt)
+            memo = self.m.constant("memo", f"ArrayMemo(Struct({fmt!r}).unpack, {typ in FLOATS}).text")
+            self.step(path, f"{s} = {memo}(raw[pos : pos + {size}])", f"pos += {size}")
             self.value(s)
             self.aligned = SIZEMAP[typ]
         else:
@@ -303,6 +304,8 @@ class _Function:
         values = f"{template} % ({', '.join(self.args)}{',' if len(self.args) == 1 else ''})"
         out = [f"def {self.signature}:"]
         if self.top:
+            out.append("    if raw.__class__ is not bytes:  # a memoryview slice has no decode()")
+            out.append("        raw = bytes(raw)")
             out += ["    raw = raw[4:]  # past the CDR header"] if self.m.cdr else []
             out.append("    pos = 0")
         out += ["    at = ''", "    try:", *("        " + line for line in self.lines),
