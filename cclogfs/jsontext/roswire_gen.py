@@ -42,6 +42,9 @@ INTS = {"byte", "char", "int8", "uint8", "int16", "uint16", "int32", "uint32", "
 # covariance: 9 or 36 numbers) are rendered on their own, through a memo (roswire.ArrayMemo).
 MEMO_ARRAY = 9
 STAMP = ("header.stamp.sec", "header.stamp.nanosec")
+# rosbags' stand-in field of an empty message (std_msgs/Empty): a uint8 in CDR, nothing in
+# ROS 1, never a field of the class (it has a default), so not in the JSON either: `{}`.
+MARKER = "structure_needs_at_least_one_member"
 
 
 class Unsupported(Exception):
@@ -93,10 +96,8 @@ class _Module:
         """The fields of `msgtype` as rosbags reads them, checked against the class's."""
         msgdef = self.typestore.get_msgdef(msgtype)
         names = [f.name for f in message_fields(msgdef.cls) or ()]
-        if [name for name, _ in msgdef.fields] != names:
+        if [name for name, _ in msgdef.fields if name != MARKER] != names:
             raise Unsupported(f"{msgtype}: fields {names} are not those rosbags reads")
-        if not self.cdr and "structure_needs_at_least_one_member" in names:
-            raise Unsupported(f"{msgtype}: rosbags skips this marker in ROS 1")
         return msgdef.fields
 
 
@@ -156,10 +157,18 @@ class _Function:
         entries = self.m.fields(msgtype)
         self.aligned = 8  # what rosbags' function for a nested message assumes on entry
         self.text("{")
-        for i, (current, following) in enumerate(pairwise([*entries, None])):
+        first = True
+        for current, following in pairwise([*entries, None]):
             name, desc = current
-            self.text((", " if i else "") + json_string(name) + ": ")
-            self.field(desc, f"{path}.{name}" if path else name)
+            here = f"{path}.{name}" if path else name
+            if name == MARKER:  # read as rosbags reads it, left out of the text
+                if self.m.cdr:
+                    self.step(here, "take(raw, pos, 1)", "pos += 1")
+                    self.aligned = 1
+            else:
+                self.text(("" if first else ", ") + json_string(name) + ": ")
+                self.field(desc, here)
+                first = False
             if self.m.cdr and following and self.aligned < (need := align(following[1], self.m.typestore)):
                 self.align_to(need)
         self.text("}")
@@ -308,7 +317,7 @@ class _Function:
             out.append("        raw = bytes(raw)")
             out += ["    raw = raw[4:]  # past the CDR header"] if self.m.cdr else []
             out.append("    pos = 0")
-        out += ["    at = ''", "    try:", *("        " + line for line in self.lines),
+        out += ["    at = ''", "    try:", *("        " + line for line in self.lines or ["pass  # no fields"]),
                 "    except WireError:", "        raise", "    except Exception as err:",
                 "        raise WireError.wrap(at, err) from err"]  # fmt: skip
         if not self.top:
