@@ -53,7 +53,7 @@ def messages(bag: Any, connections: Sequence[Any], name: str) -> Iterator[tuple[
                 if (a, b, c) != _ROSBAGS_CONST:
                     size = -1
             start = offset + _FIXED
-            if size >= 0 and start + size <= len(data) and sec * 1_000_000_000 + nsec == time:
+            if size >= 0 and start + size <= len(data) and sec * 1_000_000_000 + nsec == time and conn in by_id:
                 yield by_id[conn], time, data[start : start + size]
                 continue
         yield _general(data, offset, time, pos, by_id, name)
@@ -75,7 +75,10 @@ def _general(data: bytes, offset: int, time: int, pos: int, by_id: dict, name: s
     if len(conn) != 4 or len(stamp) != 8 or (t := _TIME(stamp))[0] * 1_000_000_000 + t[1] != time:
         raise SourceError(f"{name}: the message record at offset {offset:,} of the chunk at byte {pos:,} "
                           f"does not match the bag's index (connection or time)")  # fmt: skip
-    return by_id[_U32(conn)[0]], time, data[start : start + size]
+    if (con := by_id.get(_U32(conn)[0])) is None:
+        raise SourceError(f"{name}: the message record at offset {offset:,} of the chunk at byte {pos:,} names "
+                          f"connection {_U32(conn)[0]}, which the bag does not have")  # fmt: skip
+    return con, time, data[start : start + size]
 
 
 def _chunk(bag: Any, pos: int, name: str) -> bytes:

@@ -48,7 +48,10 @@ class WireError(ValueError):
 
     @classmethod
     def wrap(cls, field: str, err: Exception) -> WireError:
-        return cls(field, f"{err.__class__.__name__}: {err}" if not isinstance(err, ValueError) else str(err))
+        """`err`, raised reading `field`: struct's and the helpers' messages say what was
+        wrong (a buffer too short, a bad length, invalid UTF-8); others get their type named."""
+        plain = isinstance(err, (ValueError, struct.error))
+        return cls(field, str(err) if plain else f"{err.__class__.__name__}: {err}")
 
     def inside(self, outer: str) -> WireError:
         """The same error seen from the message holding this one as `outer`."""
