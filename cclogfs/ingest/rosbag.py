@@ -1,7 +1,10 @@
 """ROS 1 bags, ROS 2 bags (sqlite3 or MCAP storage) and ROS 2 MCAP files, through rosbags.
 
 rosbags needs no ROS install: it builds its type store from the message definitions
-stored in the bag, so every message type the bag describes can be read.
+stored in the bag, so every message type the bag describes can be read. rosbags opens the
+bag and reads its index; the messages' bytes become JSON through formatters generated per
+type from that type store (jsontext.roswire), and a ROS 1 bag's records are read from its
+chunks by ros1chunks (issue 14: 4x faster than rosbags' objects and json.dumps).
 """
 
 from __future__ import annotations

@@ -121,6 +121,7 @@ class _Function:
         self.args: list[str] = []  # its values, in order
         self.run: list[str] = []
         self.run_paths: list[str] = []
+        self.run_var = ""  # the variable the run is read into
         self.run_floats = False
         self.run_count = 0  # values read so far by the run
         self.names = 0
