@@ -33,6 +33,7 @@ from rosbags.typesys.msg import normalize_msgtype as _normalize
 from ..errors import InvalidInputError, SourceError
 from ..jsontext.rostypes import ros1_description
 from ..jsontext.ros import MessageConverter, message_stamp_ns
+from ..jsontext.roswire import WireError, WireFormatter
 from .base import SourceMessage, check_clock
 from .ros1seq import SeqCheck
 
@@ -144,6 +145,7 @@ class Ros1LiveSource:
         self._conns: dict[str, dict[str, Any]] = {}  # topic -> its first connection header
         self._typestores: dict[str, Any] = {}  # md5sum -> a type store with that definition
         self._converter = MessageConverter()
+        self._wires: dict[int, WireFormatter] = {}  # id(type store) -> its formatters
         self._stamped: tuple[str, int] | None = None  # a topic with header stamps, and receive time - stamp
         self._unstamped: set[str] = set()  # topics stored at their receive time
         self._clock_checked: set[str] = set()
@@ -239,16 +241,31 @@ class Ros1LiveSource:
         if topic not in self._conns:
             self._conns[topic] = header
         typestore = self._typestore(topic, msgtype, header)
+        text, stamp = self._text(topic, msgtype, recv_ns, raw, typestore)
+        self.received[topic] = self.received.get(topic, 0) + 1
+        stamp = stamp if self._header_clock else 0
+        if self._header_clock:  # header stamps and receive times mixed: say when they are far apart
+            self._note_clock(topic, stamp, recv_ns)
+        return SourceMessage(topic, stamp or recv_ns, text, msgtype)
+
+    def _text(self, topic: str, msgtype: str, recv_ns: int, raw: bytes, typestore: Any) -> tuple[str, int | None]:
+        """(JSON text, header stamp) of a message: through the type's generated formatter
+        (jsontext.roswire, as RosbagSource), else, or when it refuses the bytes, through
+        rosbags' objects, whose error is the one reported."""
+        wire = self._wires.get(id(typestore))
+        if wire is None:
+            wire = self._wires[id(typestore)] = WireFormatter(typestore, cdr=False)
+        if (fmt := wire.get(msgtype)) is not None:
+            try:
+                return fmt(raw)
+            except WireError:
+                pass
         try:
             msg = typestore.deserialize_ros1(raw, msgtype)
         except Exception as err:
             raise SourceError(f"{self.name}: cannot decode the {msgtype} message on {topic} "
                               f"received at {recv_ns} ns: {err}") from err  # fmt: skip
-        self.received[topic] = self.received.get(topic, 0) + 1
-        stamp = message_stamp_ns(msg) if self._header_clock else 0
-        if self._header_clock:  # header stamps and receive times mixed: say when they are far apart
-            self._note_clock(topic, stamp, recv_ns)
-        return SourceMessage(topic, stamp or recv_ns, self._converter.to_json(msg), msgtype)
+        return self._converter.to_json(msg), message_stamp_ns(msg)
 
     def _note_clock(self, topic: str, stamp: int, recv_ns: int) -> None:
         if stamp:

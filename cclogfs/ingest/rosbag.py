@@ -1,22 +1,28 @@
 """ROS 1 bags, ROS 2 bags (sqlite3 or MCAP storage) and ROS 2 MCAP files, through rosbags.
 
 rosbags needs no ROS install: it builds its type store from the message definitions
-stored in the bag, so every message type the bag describes can be read.
+stored in the bag, so every message type the bag describes can be read. rosbags opens the
+bag and reads its index; the messages' bytes become JSON through formatters generated per
+type from that type store (jsontext.roswire), and a ROS 1 bag's records are read from its
+chunks by ros1chunks (issue 14: 4x faster than rosbags' objects and json.dumps).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 from pathlib import Path
+from typing import Any
 
 from rosbags.highlevel import AnyReader
 from rosbags.interfaces import ConnectionExtRosbag1, MessageDefinitionFormat
+from rosbags.rosbag1 import Reader as Bag1Reader
 
 from ..errors import SourceError
-from ..jsontext.ros import message_stamp_ns
+from ..jsontext.ros import MessageConverter, message_stamp_ns
+from ..jsontext.roswire import WireError, WireFormatter
 from ..jsontext.rostypes import ros1_description
+from . import ros1chunks
 from .base import SourceMessage, check_clock, topic_filter
-from ..jsontext.ros import MessageConverter
 
 
 class RosbagSource:
@@ -32,6 +38,7 @@ class RosbagSource:
         self.name = str(path)
         self._header_clock = check_clock(clock) == "header"
         self._wanted = topic_filter(topics)
+        self._converter: MessageConverter | None = None
         try:
             self._reader = AnyReader([Path(path)])
             self._reader.open()
@@ -74,20 +81,54 @@ class RosbagSource:
         if not self._connections:
             return
         reader = self._reader
-        deserialize = reader.deserialize
-        to_json = MessageConverter().to_json
+        # One formatter per message type, generated from the bag's own definitions: bytes
+        # straight to JSON text (jsontext.roswire), 4-5x faster than rosbags objects +
+        # json.dumps; types it cannot format take that path (`_convert`).
+        wire = WireFormatter(reader.typestore, cdr=reader.is2)
+        formats = {c.id: wire.get(c.msgtype) for c in self._connections}
+        header_clock = self._header_clock
+        index = 0
         try:
-            for con, logtime, raw in reader.messages(connections=self._connections):
-                try:
-                    msg = deserialize(raw, con.msgtype)
-                except Exception as err:
-                    raise SourceError(
-                        f"{self.name}: cannot decode the {con.msgtype} message on {con.topic} "
-                        f"logged at {logtime} ns: {err}"
-                    ) from err
-                stamp = message_stamp_ns(msg) if self._header_clock else 0
-                yield SourceMessage(con.topic, stamp or logtime, to_json(msg), con.msgtype)
+            for con, logtime, raw in self._raw_messages():
+                index += 1
+                fmt = formats[con.id]
+                if fmt is None:
+                    text, stamp = self._convert(con, logtime, raw, index, None)
+                else:
+                    try:
+                        text, stamp = fmt(raw)
+                    except WireError as err:
+                        text, stamp = self._convert(con, logtime, raw, index, err)
+                yield SourceMessage(con.topic, (header_clock and stamp) or logtime, text, con.msgtype)
         except SourceError:
             raise
         except Exception as err:
             raise SourceError(f"{self.name}: reading the bag failed: {err}") from err
+
+    def _raw_messages(self) -> Iterator[tuple[Any, int, bytes]]:
+        """(connection, log time, bytes) of the selected topics, in log-time order. A ROS 1
+        bag's are read from its chunks by `ros1chunks` (rosbags' reader, 3-4x slower per
+        message, is the reference it is tested against); other kinds by rosbags."""
+        readers = self._reader.readers
+        if len(readers) == 1 and isinstance(readers[0], Bag1Reader):
+            return ros1chunks.messages(readers[0], self._connections, self.name)
+        return self._reader.messages(connections=self._connections)
+
+    def _convert(self, con: Any, logtime: int, raw: bytes, index: int,
+                 err: WireError | None) -> tuple[str, int | None]:
+        """A message through rosbags' objects and ros.MessageConverter: for types the
+        generated formatters do not handle, and to give rosbags the last word on bytes a
+        formatter refused (the two agree on every message tested; if they ever did not,
+        rosbags' reading is the reference). A message neither can read is an error naming
+        the file, the message's place in the bag, and the field when known."""
+        if self._converter is None:
+            self._converter = MessageConverter()
+        try:
+            msg = self._reader.deserialize(raw, con.msgtype)
+        except Exception as slow:
+            where = err or slow  # the formatter names the field
+            raise SourceError(
+                f"{self.name}: cannot decode message {index:,} of the bag ({con.msgtype} on {con.topic}, "
+                f"logged at {logtime} ns): {where}"
+            ) from slow
+        return self._converter.to_json(msg), message_stamp_ns(msg)

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ..jsontext.ros import MessageConverter, message_stamp_ns
+from ..jsontext.roswire import WireError, WireFormatter
 from .base import SourceMessage, check_clock, topic_filter
 
 _MSGDATA, _CHUNK, _CONNECTION = 2, 5, 7
@@ -49,6 +50,20 @@ class _Salvage:
         stamp = message_stamp_ns(msg) if self._header_clock else 0
         return SourceMessage(topic, stamp or logtime, self._convert(msg), msgtype)
 
+    def _from_bytes(self, topic: str, msgtype: str, logtime: int, raw: bytes, wire: WireFormatter) -> SourceMessage:
+        """The message in `raw`: through the type's generated formatter (as RosbagSource),
+        else, or when it refuses the bytes, through rosbags' objects (whose error stops
+        the salvage at this message)."""
+        if (fmt := wire.get(msgtype)) is not None:
+            try:
+                text, stamp = fmt(raw)
+                return SourceMessage(topic, (self._header_clock and stamp) or logtime, text, msgtype)
+            except WireError:
+                pass
+        store = wire.typestore
+        return self._message(topic, msgtype, logtime,
+                             store.deserialize_cdr(raw, msgtype) if wire.cdr else store.deserialize_ros1(raw, msgtype))
+
     def _stopped(self, offset: int, last_ns: int | None, count: int, err: Exception) -> None:
         if offset >= self.size and isinstance(err, EOFError) and str(err) == "end of file":
             return
@@ -65,6 +80,7 @@ class Ros1Salvage(_Salvage):
         from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
         store = get_typestore(Stores.EMPTY)
+        wire = WireFormatter(store, cdr=False)
         conns: dict[int, tuple[str, str]] = {}
         count, last, offset = 0, None, 0
         with open(self.name, "rb") as f:
@@ -103,7 +119,7 @@ class Ros1Salvage(_Salvage):
                             if self._wanted is None or topic in self._wanted:
                                 last = h.get_time("time")
                                 count += 1
-                                yield self._message(topic, msgtype, last, store.deserialize_ros1(body, msgtype))
+                                yield self._from_bytes(topic, msgtype, last, body, wire)
                     if len(data) < size:
                         raise EOFError(f"a chunk is cut short at byte {f.tell():,}")
             except (EOFError, Exception) as err:  # rosbags raises ReaderError, struct.error, KeyError...
@@ -119,6 +135,7 @@ class McapSalvage(_Salvage):
         from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
         store = get_typestore(Stores.EMPTY)
+        wire = WireFormatter(store, cdr=True)
         schemas: dict[int, str] = {}
         channels: dict[int, tuple[str, str]] = {}
         count, last = 0, None
@@ -136,7 +153,7 @@ class McapSalvage(_Salvage):
                         if self._wanted is None or topic in self._wanted:
                             last = rec.log_time
                             count += 1
-                            yield self._message(topic, msgtype, last, store.deserialize_cdr(rec.data, msgtype))
+                            yield self._from_bytes(topic, msgtype, last, rec.data, wire)
                 raise EOFError("end of file")
             except (EOFError, Exception) as err:
                 self._stopped(f.tell() if not isinstance(err, EOFError) else self.size, last, count, err)
