@@ -243,3 +243,25 @@ def test_a_crash_between_the_parts_of_a_split_window_is_not_silent(tmp_path):
 
     report = check_store(str(path), deep=True)
     assert report.findings, "fsck finds the store clean: the window's end is lost without a word"
+
+
+@pytest.mark.xfail(strict=True, reason="`cat` breaks ties between equal stamps of different streams "
+                   "by window order (start_ns, seq), and a split window's later parts start later than "
+                   "the window did: another stream's message at a stamp the window's later part also "
+                   "holds comes out before it, where the whole window put it after. FORMAT.md "
+                   "('Splitting') says cat prints the same lines as for the window whole")  # fmt: skip
+def test_cat_orders_equal_stamps_of_a_split_window_as_of_the_whole(tmp_path, monkeypatch, capsys):
+    from cclogfs.store import encode
+
+    def record(path, split_at):
+        monkeypatch.setattr(encode, "MAX_RECORD_RAW", split_at)
+        with cclogfs.open_store(path, create=True, codec="zstd") as store:
+            store.put_window("/b", [(48, '"b"')])  # 48: a stamp a part of /a ends and the next starts at
+            receipt = store.put_window("/a", _window(), meta={"k": 1})
+        monkeypatch.undo()
+        return receipt
+
+    assert record(tmp_path / "split", 4096).records > 1 and record(tmp_path / "whole", 1 << 24).records == 1
+    with cclogfs.open_store(tmp_path / "split", readonly=True) as store:
+        assert any(w.start_ns == 48 for w in store.query("/a"))
+    assert _cat(tmp_path / "split", capsys) == _cat(tmp_path / "whole", capsys)
