@@ -31,7 +31,7 @@ from . import planted
 from .index import OFFSET, SEQ, SegmentIndex
 from .manifest import Manifest
 from .records import intact_in
-from .segment import Problem, Segment, intact_after, open_segment, scan
+from .segment import Problem, ScanResult, Segment, intact_after, open_segment, scan
 
 
 @dataclass
@@ -176,18 +176,21 @@ class SegmentOpener:
         if not self.sealed or self.sealed[-1].size != self.sealed[-1].sealed_size:
             return  # a segment of the wrong size is refused by every read already
         seg = self.sealed[-1]
-        if seg.known_damage:
-            return  # its index skips the damaged records; the manifest's stretches say their seqs
+        # Damage the manifest declares is skipped (salvage), as a read of the segment does:
+        # returning early for it let a lower end_seq delete the active segment again.
+        declared = seg.known_damage
         index, start = self._last_indexed(seg)
-        result = scan(seg, start=start)
-        if result.problem is not None and start is not None:  # a stale or forged index
-            index, result = None, scan(seg)
-        if index is not None and result.problem is None and result.next_seq == seg.next_seq:
-            seg.set_index(index)  # read and confirmed: queries need not read it again
-        if result.problem is None and result.next_seq != seg.next_seq:
+        result = scan(seg, start=start, salvage=bool(declared))
+        if _undeclared(result, declared) and start is not None:  # a stale or forged index
+            index, result = None, scan(seg, salvage=bool(declared))
+        if _undeclared(result, declared) or (result.problem is not None and result.problem.offset in declared):
+            return  # other damage is reported by every read; a segment ending in declared damage has no last record to check
+        if result.next_seq != seg.next_seq:
             i = len(manifest.segments) - 1
             raise self._disagrees(f"segments[{i}].end_seq", seg.next_seq, f"{os.path.basename(seg.path)} "
                                   f"ends at seq {result.next_seq}")  # fmt: skip
+        if index is not None:
+            seg.set_index(index)  # read and confirmed: queries need not read it again
 
     def _last_indexed(self, seg: Segment) -> tuple[SegmentIndex | None, tuple[int, int] | None]:
         """The segment's index and the (offset, seq) of the last record it lists; None, None
@@ -412,3 +415,8 @@ def _name_lost_seqs(damage: list[Problem], next_seq: int, checkpoint_next: int) 
 def _holds_records(seg: Segment) -> bool:
     """Whether any intact record lies past the segment header (within its opened size)."""
     return seg.size > SEGMENT_HEADER_SIZE and next(intact_in(seg.fs, seg.fd, 1, seg.size), None) is not None
+
+
+def _undeclared(result: ScanResult, declared: set[int]) -> bool:
+    """Whether a scan met damage the manifest does not declare."""
+    return any(p.offset not in declared for p in (*result.damage, *([result.problem] if result.problem else [])))

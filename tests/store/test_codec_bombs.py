@@ -211,3 +211,57 @@ def test_a_message_larger_than_a_record_holds_is_refused(tmp_path, monkeypatch):
         with pytest.raises(InvalidInputError, match="message 1 for '/a' is 5002 bytes, over what one record holds"):
             store.put_window("/a", [(0, "1"), (1, json.dumps("x" * 5000))])
         assert list(store.query()) == []
+
+
+@pytest.mark.xfail(strict=True, reason="a kill -9 between the parts of a split window keeps the parts "
+                   "written before it, and nothing in them says the window went on: `cat` prints the "
+                   "prefix with exit 0 and fsck finds the store clean. Telling it needs the parts to say "
+                   "'part i of n' (a format change: a reserved meta key, checked by fsck and reads)")  # fmt: skip
+def test_a_crash_between_the_parts_of_a_split_window_is_not_silent(tmp_path):
+    path = tmp_path / "s"
+    child = textwrap.dedent(f"""
+        import json, os
+        import cclogfs
+        from cclogfs.store import encode
+        from cclogfs.store.store import Store
+        encode.MAX_RECORD_RAW = 4096
+        append = Store._append
+        def dying(self, name, enc):
+            if self.active.next_seq == 2:  # the first part is stored (and synced): kill -9 now
+                os._exit(9)
+            return append(self, name, enc)
+        Store._append = dying
+        s = cclogfs.open_store({str(path)!r}, create=True, codec="none", sync_every_ms=None, sync_every_bytes=1)
+        s.put_window("/b", [(0, "1")])
+        s.put_window("/a", [(i, json.dumps({{"i": i, "pad": "p" * 100}})) for i in range(100)])
+    """)  # fmt: skip
+    assert subprocess.run([sys.executable, "-c", child]).returncode == 9
+    with cclogfs.open_store(path, readonly=True) as store:
+        kept = [m for w in store.query("/a") for m in w.messages()]
+    assert 0 < len(kept) < 100  # the prefix the crash left: one part of several
+    from cclogfs.store import check_store
+
+    report = check_store(str(path), deep=True)
+    assert report.findings, "fsck finds the store clean: the window's end is lost without a word"
+
+
+@pytest.mark.xfail(strict=True, reason="`cat` breaks ties between equal stamps of different streams "
+                   "by window order (start_ns, seq), and a split window's later parts start later than "
+                   "the window did: another stream's message at a stamp the window's later part also "
+                   "holds comes out before it, where the whole window put it after. FORMAT.md "
+                   "('Splitting') says cat prints the same lines as for the window whole")  # fmt: skip
+def test_cat_orders_equal_stamps_of_a_split_window_as_of_the_whole(tmp_path, monkeypatch, capsys):
+    from cclogfs.store import encode
+
+    def record(path, split_at):
+        monkeypatch.setattr(encode, "MAX_RECORD_RAW", split_at)
+        with cclogfs.open_store(path, create=True, codec="zstd") as store:
+            store.put_window("/b", [(48, '"b"')])  # 48: a stamp a part of /a ends and the next starts at
+            receipt = store.put_window("/a", _window(), meta={"k": 1})
+        monkeypatch.undo()
+        return receipt
+
+    assert record(tmp_path / "split", 4096).records > 1 and record(tmp_path / "whole", 1 << 24).records == 1
+    with cclogfs.open_store(tmp_path / "split", readonly=True) as store:
+        assert any(w.start_ns == 48 for w in store.query("/a"))
+    assert _cat(tmp_path / "split", capsys) == _cat(tmp_path / "whole", capsys)

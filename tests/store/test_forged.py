@@ -382,3 +382,31 @@ def test_an_end_seq_short_of_the_log_is_refused_with_its_index_gone(tmp_path, ca
     body["segments"][-1]["end_seq"] -= 1
     _write_manifest(path, body)
     _refused_everywhere(path, capsys, "segments[1].end_seq is 7", "00000000000000000004.seg")
+
+
+def test_an_end_seq_short_of_a_segment_with_declared_damage_is_refused(tmp_path, capsys):
+    # The end_seq check returned early for a last sealed segment whose damage the manifest
+    # declares: a lower end_seq then made the writer delete the active segment's synced
+    # windows again (issue 16's loss, through a segment fsck had already reported).
+    path = tmp_path / "s"
+    crash = (f"import cclogfs, json, os\n"
+             f"s = cclogfs.open_store({str(path)!r}, create=True, codec='none', sync_every_ms=None)\n"
+             f"for i in range(6):\n"
+             f"    s.put_window('/odom', [(i * 10 + k, json.dumps({{'x': 'abcdefgh' * 4}})) for k in range(3)])\n"
+             f"    s.sync()\n"
+             f"os._exit(9)\n")  # fmt: skip
+    subprocess.run([sys.executable, "-c", crash], check=False)
+    seg = path / "00000000000000000000.seg"
+    data = bytearray(seg.read_bytes())
+    data[200] ^= 0xFF  # the first record's payload, below the synced point: kept, declared
+    seg.write_bytes(bytes(data))
+    with cclogfs.open_store(path, sync_every_ms=None) as s:
+        assert [d["first_seq"] for d in s.damage()] == [0]
+        s.seal()
+        for i in range(6, 9):
+            s.put_window("/odom", [(i * 10, json.dumps({"x": i}))])
+    body = _body(path)
+    assert body["segments"][-1]["damaged"] and body["segments"][-1]["end_seq"] == 6
+    body["segments"][-1]["end_seq"] -= 2
+    _write_manifest(path, body)
+    _refused_everywhere(path, capsys, "segments[0].end_seq is 4", "00000000000000000000.seg")
