@@ -6,7 +6,7 @@ import heapq
 from collections.abc import Iterable, Iterator
 from typing import TextIO
 
-from ..jsontext.lines import format_line
+from ..jsontext.lines import format_lines
 from .base import Progress, StoredWindow
 
 
@@ -15,10 +15,23 @@ def merged_messages(
 ) -> Iterator[tuple[str, int, str]]:
     """(stream, stamp_ns, text) in stamp order, from windows sorted by start_ns.
 
+    Equal stamps keep window order, then message order (see `merged_runs`).
+    """
+    for name, run in merged_runs(windows, start_ns, end_ns):
+        for stamp, text in run:
+            yield name, stamp, text
+
+
+def merged_runs(
+    windows: Iterable[StoredWindow], start_ns: int | None = None, end_ns: int | None = None
+) -> Iterator[tuple[str, list[tuple[int, str]]]]:
+    """(stream, [(stamp_ns, text), ...]): runs of one stream, in stamp order when chained.
+
     Equal stamps keep window order, then message order. A window is opened only once
     the merge reaches its start, so memory holds just the windows that overlap in time.
     A window that overlaps none (most stores: one stream, windows one after another)
-    goes out as it is, without the heap: nothing can come between its messages.
+    goes out as one run, without the heap: nothing can come between its messages. Runs
+    let the writer format and write a window at once rather than message by message.
     """
     lo = -(1 << 63) if start_ns is None else start_ns
     hi = (1 << 63) if end_ns is None else end_ns
@@ -30,11 +43,17 @@ def merged_messages(
         while nxt is not None and (not heap or nxt.start_ns <= heap[0][0]):
             after = next(pending, None)
             if not heap and (after is None or after.start_ns > nxt.end_ns):  # alone in time
-                for stamp, text in nxt.messages():
-                    if stamp > hi:
-                        return
-                    if stamp >= lo:
-                        yield nxt.name, stamp, text
+                if lo <= nxt.start_ns and nxt.end_ns <= hi:  # wholly inside the range
+                    yield nxt.name, list(nxt.messages())
+                else:
+                    run = []
+                    for stamp, text in nxt.messages():
+                        if stamp > hi:
+                            yield nxt.name, run
+                            return
+                        if stamp >= lo:
+                            run.append((stamp, text))
+                    yield nxt.name, run
             else:
                 it = iter(nxt.messages())
                 first = next(it, None)
@@ -48,7 +67,7 @@ def merged_messages(
         if stamp > hi:
             break  # windows not yet opened start after `stamp`, so all that is left is later
         if lo <= stamp <= hi:
-            yield name, stamp, text
+            yield name, [(stamp, text)]
         following = next(it, None)
         if following is None:
             heapq.heappop(heap)
@@ -66,11 +85,10 @@ def write_jsonl(
 ) -> int:
     """Write each message in [start_ns, end_ns] as one JSONL line; returns the count."""
     n = 0
-    for name, stamp, text in merged_messages(windows, start_ns, end_ns):
-        out.write(format_line(name, stamp, text))
-        n += 1
-        if progress is not None and n % 1024 == 0:
-            progress(1024)
-    if progress is not None:
-        progress(n % 1024)
+    for name, run in merged_runs(windows, start_ns, end_ns):
+        if run:
+            out.write(format_lines(name, run))
+            n += len(run)
+            if progress is not None:
+                progress(len(run))
     return n

@@ -16,12 +16,14 @@ from __future__ import annotations
 import functools
 import json
 import re
+from collections.abc import Sequence
+from itertools import chain
 from json.decoder import scanstring
 
 from ..errors import InvalidInputError
 from .check import json_error, object_members
 
-__all__ = ["JsonlLineError", "format_line", "parse_general", "parse_line", "split_canonical", "split_canonical_bytes"]
+__all__ = ["JsonlLineError", "format_line", "format_lines", "parse_general", "parse_line", "split_canonical", "split_canonical_bytes"]
 
 # The layout format_line() writes; anything else takes the general path.
 _HEAD = r'\{"topic": "([^"\\\x00-\x1f]+)", "stamp_ns": (0|-?[1-9][0-9]{0,18}), "msg": '
@@ -51,6 +53,22 @@ def format_line(topic: str, stamp_ns: int, text: str, msgtype: str = "") -> str:
     if msgtype:
         return f'{head}{text}, "msgtype": {json.dumps(msgtype)}}}\n'
     return f"{head}{text}}}\n"
+
+
+def format_lines(topic: str, messages: Sequence[tuple[int, str]]) -> str:
+    """The lines `format_line` writes for each (stamp_ns, text) of one topic, joined.
+
+    For a window's worth of messages at once: the line's %-template repeated once per
+    message and filled in one call, with the stamps and texts interleaved, so no string
+    is made per message (per message, `format_line`, the join and the `write` were a
+    fifth of a full scan). The line-break check looks at each text with `in` (a memchr),
+    not with a count of LF over the result (a byte loop, 5 % of a full scan).
+    """
+    line = '{"topic": ' + _topic_json(topic).replace("%", "%%") + ', "stamp_ns": %d, "msg": %s}\n'
+    if any("\n" in text or "\r" in text for _, text in messages):
+        for stamp, text in messages:
+            format_line(topic, stamp, text)  # raises for the first text with a line break
+    return (line * len(messages)) % tuple(chain.from_iterable(messages))
 
 
 class JsonlLineError(ValueError):

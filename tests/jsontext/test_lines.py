@@ -2,10 +2,12 @@
 
 import json
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cclogfs.jsontext.lines import JsonlLineError, format_line, parse_line, split_canonical, split_canonical_bytes
+from cclogfs.errors import InvalidInputError
+from cclogfs.jsontext.lines import JsonlLineError, format_line, format_lines, parse_line, split_canonical, split_canonical_bytes
 
 topics = st.text(min_size=1, max_size=12)  # any name: quotes, escapes, non-ASCII
 stamps = st.integers(min_value=-(1 << 63), max_value=(1 << 63) - 1)
@@ -90,3 +92,18 @@ def test_the_fast_bytes_split_takes_only_the_rendered_layout():
                   b'{"topic": "/a", "stamp_ns": 7, "msg": {}, "msgtype": "T"}', b'{"topic": "/a", "stamp_ns": 7, "msg": {"x": NaN}}',
                   b'{"topic": "/a", "stamp_ns": 9223372036854775808, "msg": {}}', b'{"topic": "/a", "stamp_ns": 7, "msg": {"\xff": 1}}'):  # fmt: skip
         assert split_canonical_bytes(other) is None
+
+
+@given(
+    st.text(st.characters(blacklist_categories=("Cs",)), min_size=1),
+    st.lists(st.tuples(st.integers(-(1 << 63), (1 << 63) - 1), st.sampled_from(['{}', '{"a": "%s %d"}', '{"\\u00e9": 1}']))),
+)
+def test_format_lines_is_format_line_joined(topic, messages):
+    # A topic or text with "%" in it must not be taken for part of the template.
+    assert format_lines(topic, messages) == "".join(format_line(topic, s, t) for s, t in messages)
+
+
+@pytest.mark.parametrize("brk", ["\n", "\r"])
+def test_format_lines_names_a_text_with_a_line_break(brk):
+    with pytest.raises(InvalidInputError, match="at 2 ns contains a line break"):
+        format_lines("/a", [(1, "{}"), (2, "{" + brk + "}"), (3, "{}")])
