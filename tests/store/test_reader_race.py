@@ -19,22 +19,31 @@ from cclogfs.store.fsck import check_store
 from cclogfs.store.segment import open_segment
 
 
-class Growing(FileSystem):
-    """A reader's view of segment files that a writer is still appending to: every call the
-    reader makes (size, read) lets `step` more bytes of the file become visible."""
+class SegmentsSeen(FileSystem):
+    """A file system that notes which descriptors are segment files (`segments`), for the
+    views below that act only on segments."""
 
-    def __init__(self, visible: int, step: int, full: int):
-        self.visible, self.step, self.full, self.segments = visible, step, full, set()
-
-    def _tick(self) -> int:
-        self.visible = min(self.full, self.visible + self.step)
-        return self.visible
+    def __init__(self):
+        self.segments = set()
 
     def open(self, path, *, write=False, create=False):
         fd = super().open(path, write=write, create=create)
         if path.endswith(".seg"):
             self.segments.add(fd)
         return fd
+
+
+class Growing(SegmentsSeen):
+    """A reader's view of segment files that a writer is still appending to: every call the
+    reader makes (size, read) lets `step` more bytes of the file become visible."""
+
+    def __init__(self, visible: int, step: int, full: int):
+        super().__init__()
+        self.visible, self.step, self.full = visible, step, full
+
+    def _tick(self) -> int:
+        self.visible = min(self.full, self.visible + self.step)
+        return self.visible
 
     def size(self, fd):
         return self._tick() if fd in self.segments else super().size(fd)
@@ -132,18 +141,13 @@ def test_fsck_while_the_writer_drops_and_rewrites_the_segments_it_checks(tmp_pat
     assert report.errors == [] and report.records == 8
 
 
-class WriterActsOnce(FileSystem):
+class WriterActsOnce(SegmentsSeen):
     """A reader's file system that lets the writer act (`action`) once, when the reader
     first takes the size of a segment: after it read the manifest and listed the directory."""
 
     def __init__(self, action):
-        self.action, self.segments = action, set()
-
-    def open(self, path, *, write=False, create=False):
-        fd = super().open(path, write=write, create=create)
-        if path.endswith(".seg"):
-            self.segments.add(fd)
-        return fd
+        super().__init__()
+        self.action = action
 
     def size(self, fd):
         if fd in self.segments and self.action is not None:
