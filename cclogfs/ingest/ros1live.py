@@ -33,7 +33,7 @@ from rosbags.typesys.msg import normalize_msgtype as _normalize
 from ..errors import InvalidInputError, SourceError
 from ..jsontext.rostypes import ros1_description
 from ..jsontext.ros import MessageConverter, message_stamp_ns
-from ..jsontext.roswire import WireError, WireFormatter
+from ..jsontext.roswire import WireFormatter
 from .base import SourceMessage, check_clock
 from .ros1seq import SeqCheck
 
@@ -255,13 +255,10 @@ class Ros1LiveSource:
         wire = self._wires.get(id(typestore))
         if wire is None:
             wire = self._wires[id(typestore)] = WireFormatter(typestore, cdr=False)
-        if (fmt := wire.get(msgtype)) is not None:
-            try:
-                return fmt(raw)
-            except WireError:
-                pass
+        if (done := wire.format(msgtype, raw)) is not None:
+            return done
         try:
-            msg = typestore.deserialize_ros1(raw, msgtype)
+            msg = wire.deserialize(msgtype, raw)
         except Exception as err:
             raise SourceError(f"{self.name}: cannot decode the {msgtype} message on {topic} "
                               f"received at {recv_ns} ns: {err}") from err  # fmt: skip

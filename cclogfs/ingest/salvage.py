@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ..jsontext.ros import MessageConverter, message_stamp_ns
-from ..jsontext.roswire import WireError, WireFormatter
+from ..jsontext.roswire import WireFormatter
 from .base import SourceMessage, check_clock, topic_filter
 
 _MSGDATA, _CHUNK, _CONNECTION = 2, 5, 7
@@ -54,15 +54,10 @@ class _Salvage:
         """The message in `raw`: through the type's generated formatter (as RosbagSource),
         else, or when it refuses the bytes, through rosbags' objects (whose error stops
         the salvage at this message)."""
-        if (fmt := wire.get(msgtype)) is not None:
-            try:
-                text, stamp = fmt(raw)
-                return SourceMessage(topic, (self._header_clock and stamp) or logtime, text, msgtype)
-            except WireError:
-                pass
-        store = wire.typestore
-        return self._message(topic, msgtype, logtime,
-                             store.deserialize_cdr(raw, msgtype) if wire.cdr else store.deserialize_ros1(raw, msgtype))
+        if (done := wire.format(msgtype, raw)) is not None:
+            text, stamp = done
+            return SourceMessage(topic, (self._header_clock and stamp) or logtime, text, msgtype)
+        return self._message(topic, msgtype, logtime, wire.deserialize(msgtype, raw))
 
     def _stopped(self, offset: int, last_ns: int | None, count: int, err: Exception) -> None:
         if offset >= self.size and isinstance(err, EOFError) and str(err) == "end of file":

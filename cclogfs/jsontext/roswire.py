@@ -221,6 +221,22 @@ class WireFormatter:
             self._made[msgtype] = self._make(msgtype)
         return self._made[msgtype]
 
+    def format(self, msgtype: str, raw: bytes) -> tuple[str, int | None] | None:
+        """(JSON text, header stamp or None) of one message through the type's formatter, or
+        None when there is none or it refuses the bytes: then the caller reads them with
+        rosbags (`deserialize`), whose error, if any, is the one to report."""
+        if (fmt := self.get(msgtype)) is not None:
+            try:
+                return fmt(raw)
+            except WireError:
+                pass
+        return None
+
+    def deserialize(self, msgtype: str, raw: bytes) -> Any:
+        """The message as rosbags' object, the slow path `format` falls back to."""
+        store = self.typestore
+        return store.deserialize_cdr(raw, msgtype) if self.cdr else store.deserialize_ros1(raw, msgtype)
+
     def _make(self, msgtype: str) -> Format | None:
         try:
             if not self.cdr:
