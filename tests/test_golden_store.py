@@ -101,3 +101,34 @@ def test_golden_store_v3_reads_back(tmp_path):
     assert not check_store(str(tmp_path / "s")).findings
     data = before["00000000000000000003.seg"]
     assert data[4:6] == b"\x01\x00" and data[32 + 5] == 2  # segment header 1, record version 2
+
+
+def test_golden_store_v3_digest_is_opened_by_the_writer_from_its_checkpoint(tmp_path, monkeypatch):
+    # The checkpoint's xxh3 pinned: the XXH3-64 of the active segment's first `synced` bytes
+    # followed by its checkpoint index file. The writer trusts that index (a scan of nothing
+    # past the checkpoint) and changes no file; the windows are store_v3's.
+    import xxhash
+
+    from cclogfs.store import check_store, recovery
+    from cclogfs.store.format import unpack_manifest
+
+    expected = json.loads((GOLDEN / "store_v3.expected.json").read_text())
+    shutil.copytree(GOLDEN / "store_v3_digest", tmp_path / "s")
+    before = {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir()}
+    mark = unpack_manifest(before["MANIFEST"])["checkpoint"]
+    seg, idx = before["00000000000000000003.seg"], before["00000000000000000003.idx"]
+    assert mark["first_seq"] == 3 and mark["synced"] == len(seg)
+    assert mark["xxh3"] == xxhash.xxh3_64_intdigest(seg + idx)
+    starts = []
+    real = recovery.scan
+    monkeypatch.setattr(recovery, "scan", lambda s, **kw: starts.append((s.first_seq, kw.get("start"))) or real(s, **kw))
+    for opts in ({"readonly": True}, {"sync_every_ms": None, "segment_age_s": 1e12}):
+        with cclogfs.open_store(tmp_path / "s", **opts) as store:
+            assert store.recovery.clean and not store.damage()
+            got = [{"seq": w.seq, "name": w.name, "meta": w.meta, "messages": [list(m) for m in w.messages()]}
+                   for w in sorted(store.query(), key=lambda w: w.seq)]  # fmt: skip
+            assert got == expected
+    assert [s for s in starts if s[0] == 3] == [(3, (len(seg), 5))] * 2  # reader and writer alike
+    after = {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir() if p.name not in ("LOCK", "RESERVE")}
+    assert after == before
+    assert not check_store(str(tmp_path / "s")).findings

@@ -116,7 +116,8 @@ class Manifest(Mapping[str, Any]):
     @property
     def checkpoint(self) -> dict[str, int]:
         """What a clean close proved durable of the active segment: {"first_seq", "synced",
-        "next_seq"} (FORMAT.md, "Proof of what was synced"); {} when none."""
+        "next_seq"} and, when it knew it, "xxh3": the digest of the segment's first `synced`
+        bytes and its checkpoint index (FORMAT.md, "Proof of what was synced"); {} when none."""
         return self._body.get("checkpoint", {})
 
     def damage(self) -> list[tuple[dict[str, Any], dict[str, Any]]]:
@@ -138,9 +139,11 @@ class Manifest(Mapping[str, Any]):
         """A segment sealed: appended to the list."""
         return self._next(segments=[*self.segments, info])
 
-    def with_checkpoint(self, first_seq: int, synced: int, next_seq: int) -> Manifest:
-        """A clean close: the active segment is durable up to `synced` bytes, `next_seq`."""
-        return self._next(checkpoint={"first_seq": first_seq, "synced": synced, "next_seq": next_seq})
+    def with_checkpoint(self, first_seq: int, synced: int, next_seq: int, xxh3: int | None = None) -> Manifest:
+        """A clean close: the active segment is durable up to `synced` bytes, `next_seq`;
+        `xxh3` (when known) the digest that lets the writer's next open trust its index."""
+        mark = {"first_seq": first_seq, "synced": synced, "next_seq": next_seq}
+        return self._next(checkpoint=mark if xxh3 is None else dict(mark, xxh3=xxh3))
 
     @property
     def quarantine(self) -> list[str]:

@@ -126,4 +126,6 @@ def check_body(body: Any) -> None:
         cp_first = _int(mark, "first_seq", "checkpoint.first_seq", 0, U64_END - 1)
         _int(mark, "synced", "checkpoint.synced", 0, MAX_NS)
         _int(mark, "next_seq", "checkpoint.next_seq", cp_first, U64_END)
+        if "xxh3" in mark:  # a digest is a u64 (absent from what older versions wrote)
+            _int(mark, "xxh3", "checkpoint.xxh3", 0, U64_END - 1)
     _check_quarantine(body.get("quarantine", []))

@@ -14,6 +14,8 @@ import threading
 from operator import itemgetter
 from dataclasses import dataclass, field
 
+import xxhash
+
 from ..errors import CorruptionError
 from .format import (
     MANIFEST,
@@ -31,7 +33,7 @@ from . import planted
 from .index import OFFSET, SEQ, SegmentIndex
 from .manifest import Manifest
 from .records import intact_in
-from .segment import Problem, ScanResult, Segment, intact_after, open_segment, scan
+from .segment import Problem, ScanResult, Segment, hash_file, intact_after, open_segment, scan
 
 
 @dataclass
@@ -296,12 +298,16 @@ class SegmentOpener:
         """Scan one tail segment; keep every intact record below the synced point (damage
         there is declared in `seg.damage`, never cut) and cut an unsynced torn tail. True
         when it had to be cut. A reader of a checkpointed segment scans only what followed
-        the last clean close, and leaves the records before it to the segment's first use."""
+        the last clean close, and leaves the records before it to the segment's first use;
+        the writer scans only what followed it too, when those bytes still hash the same."""
         deferred = self._defers_prefix(seg, checkpoint)
-        if deferred:
+        verified = None if self.readonly else self._verified_prefix(seg, checkpoint)
+        if deferred or verified is not None:
             result = scan(seg, salvage=True, start=(checkpoint["synced"], checkpoint["next_seq"]))
         else:
             result = scan(seg, salvage=True)
+        if verified is not None:
+            result.rows[:0] = verified[0].rows()
         self.recovery.skipped.extend(result.skipped)
         seg.synced = max(result.synced, SEGMENT_HEADER_SIZE)
         if checkpoint.get("first_seq") == seg.first_seq:
@@ -316,10 +322,11 @@ class SegmentOpener:
         self.recovery.damage.extend(seg.damage)
         end = cut.offset if cut is not None else seg.size  # the size scanned, never a later one
         seg.rows = [r for r in result.rows if r[5] < end]
-        lowest = seg.first_seq
+        lowest = checkpoint["next_seq"] if deferred or verified is not None else seg.first_seq
         if deferred:
             seg.defer_prefix(functools.partial(self._load_prefix, checkpoint=checkpoint))
-            lowest = checkpoint["next_seq"]
+        if verified is not None:  # what followed the checkpoint, up to the end kept, is hashed on
+            seg.digest = hash_file(self.fs, seg.fd, checkpoint["synced"], end, verified[1])
         seg.next_seq = max([r[2] + 1 for r in seg.rows] + [p.seqs[1] for p in seg.damage] + [lowest])
         if cut is None:
             seg.size = end
@@ -345,6 +352,26 @@ class SegmentOpener:
         return (self.trust_checkpoint and checkpoint.get("first_seq") == seg.first_seq
                 and SEGMENT_HEADER_SIZE <= checkpoint["synced"] <= seg.size
                 and self.fs.exists(self._file(index_name(seg.first_seq))))  # fmt: skip
+
+    def _verified_prefix(self, seg: Segment, checkpoint: dict) -> tuple[SegmentIndex, xxhash.xxh3_64] | None:
+        """Writer: the index a clean close wrote of the segment's first `synced` bytes, and
+        the hash of those bytes, when they and the index still hash to the checkpoint's
+        `xxh3` (FORMAT.md, "checkpoint"). Any byte changed below the checkpoint since (bit
+        rot, a bad copy) or another index makes it None: the writer then scans the segment
+        whole and names the damage before it appends. One streamed hash, no record parsed."""
+        digest, synced = checkpoint.get("xxh3"), checkpoint.get("synced", 0)
+        if digest is None or checkpoint["first_seq"] != seg.first_seq or not SEGMENT_HEADER_SIZE <= synced <= seg.size:
+            return None
+        data = self._checkpoint_index_bytes(seg)
+        if data is None:
+            return None
+        state = hash_file(self.fs, seg.fd, 0, synced)
+        whole = state.copy()
+        whole.update(data)
+        if whole.intdigest() != digest:
+            return None
+        index = self._checkpointed_prefix(seg, checkpoint, data)
+        return None if index is None else (index, state)
 
     def _load_prefix(self, seg: Segment, *, checkpoint: dict) -> None:
         """The segment's records below the checkpoint, on its first use (FORMAT.md,
@@ -373,18 +400,28 @@ class SegmentOpener:
         seg.damage[:0] = problems
         seg.rows[:0] = rows
 
-    def _checkpointed_prefix(self, seg: Segment, checkpoint: dict) -> SegmentIndex | None:
+    def _checkpointed_prefix(self, seg: Segment, checkpoint: dict, data: bytes | None = None) -> SegmentIndex | None:
         """The index a clean close wrote of the segment's first `checkpoint["synced"]` bytes,
         when it describes exactly those bytes: every seq from the segment's first to the
         checkpoint's `next_seq`, in records that tile the bytes from the segment header to
-        the synced point. None otherwise (no index, a damaged or stale one)."""
+        the synced point. None otherwise (no index, a damaged or stale one). `data`: the
+        index file's bytes, when already read."""
         synced, next_seq = checkpoint["synced"], checkpoint["next_seq"]
+        data = self._checkpoint_index_bytes(seg) if data is None else data
+        if data is None:
+            return None
         try:
-            data = self.fs.read_file(self._file(index_name(seg.first_seq)))
             index = SegmentIndex.decode(data, seg.first_seq, synced)
-        except (OSError, RecordError, ValueError, TypeError):
+        except (RecordError, ValueError, TypeError):
             return None
         return index if index.tiles(seg.first_seq, next_seq, SEGMENT_HEADER_SIZE, synced) else None
+
+    def _checkpoint_index_bytes(self, seg: Segment) -> bytes | None:
+        """The checkpoint index file's bytes; None when it cannot be read."""
+        try:
+            return self.fs.read_file(self._file(index_name(seg.first_seq)))
+        except OSError:
+            return None
 
     def _keep_tail(self, seg: Segment, offset: int) -> str:
         """Copy the bytes recovery is about to cut to a side file, when intact records lie

@@ -15,6 +15,8 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
+import xxhash
+
 from .._signals import signals_deferred as _signals_deferred
 from ..codecs import codec_from_config
 from ..errors import (
@@ -49,7 +51,7 @@ from .fs import FileSystem
 from .index import SEQ, START, SegmentIndex, SegmentSpans, merge_stream_stats
 from .manifest import Manifest, SealedSegment
 from .recovery import Recovery, SegmentOpener
-from .segment import WRITE_BUFFER, Segment
+from .segment import WRITE_BUFFER, Segment, hash_file
 from .window import Receipt, Window
 
 if TYPE_CHECKING:
@@ -270,8 +272,9 @@ class Store:
             seg.fd = -1
 
     def _open_segments(self, removed: list[str]) -> None:
-        # The writer scans the active segment whole: damage below the synced point must be
-        # found and sealed before it appends (FORMAT.md, "Checkpoint index").
+        # The writer checks the whole active segment: damage below the synced point must be
+        # found and sealed before it appends. Below a clean close's checkpoint one hash of the
+        # bytes does it, when it matches the checkpoint's; else it scans (FORMAT.md, "checkpoint").
         opener = SegmentOpener(self.fs, self.path, self.readonly, self.lock,
                                trust_checkpoint=self.readonly and not self.verify)  # fmt: skip
         opener.recovery.removed_files = removed
@@ -310,11 +313,14 @@ class Store:
         path = self.file_path(segment_name(first_seq))
         created = time.time_ns()
         fd = self.fs.open(path, write=True, create=True)
-        self.fs.pwrite(fd, pack_segment_header(first_seq, created, self.manifest.generation), 0)
+        header = pack_segment_header(first_seq, created, self.manifest.generation)
+        self.fs.pwrite(fd, header, 0)
         self.fs.fsync(fd)
         if "no-dir-fsync" not in planted.BUGS:
             self.fs.fsync_dir(self.path)
-        return Segment(self.fs, path, first_seq, created, fd, SEGMENT_HEADER_SIZE, lock=self.lock)
+        seg = Segment(self.fs, path, first_seq, created, fd, SEGMENT_HEADER_SIZE, lock=self.lock)
+        seg.digest = xxhash.xxh3_64(header)  # appends feed it the rest (see _checkpoint)
+        return seg
 
     # -- writing ---------------------------------------------------------------------------
 
@@ -527,16 +533,30 @@ class Store:
         what was synced"), so recovery can tell damage in its last group from a torn tail."""
         seg = self.active
         mark = {"first_seq": seg.first_seq, "synced": seg.synced, "next_seq": seg.next_seq}
-        if self._dirty and self.manifest.checkpoint != mark:
+        if self._dirty and {k: self.manifest.checkpoint.get(k) for k in mark} != mark:
             try:
                 # Its index first, so that a reader need not scan it: a crash before the manifest
                 # leaves an index no checkpoint matches, which readers ignore.
-                self.fs.write_file_atomic(self._index_path(seg), seg.index().encode(seg.first_seq, seg.size))
-                self.commit_manifest(self.manifest.with_checkpoint(**mark))
+                index = seg.index().encode(seg.first_seq, seg.size)
+                self.fs.write_file_atomic(self._index_path(seg), index)
+                self.commit_manifest(self.manifest.with_checkpoint(**mark, xxh3=self._checkpoint_digest(seg, index)))
             except OSError as err:  # a project error, not a raw OSError from close()
                 self._failed = err
                 raise StoreFailedError(f"{self.file_path(MANIFEST)}: writing the checkpoint failed: {err}; "
                                        "everything put is synced, reopen the store to recover") from err  # fmt: skip
+
+    def _checkpoint_digest(self, seg: Segment, index: bytes) -> int | None:
+        """XXH3-64 of the segment's first `synced` bytes followed by its checkpoint index
+        (FORMAT.md, "checkpoint"): from what this writer appended when it knows the bytes
+        before them, else read back (after an open that scanned). None when `synced` is not
+        the segment's end (a segment rolled to and never written: its header only)."""
+        if seg.synced != seg.end:
+            return None
+        if seg.digest is None:
+            seg.digest = hash_file(self.fs, seg.fd, 0, seg.size)
+        state = seg.digest.copy()
+        state.update(index)
+        return state.intdigest()
 
     def _start_flusher(self) -> None:
         if self.sync_every_ms:

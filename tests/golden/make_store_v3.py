@@ -21,9 +21,15 @@ OUT = HERE / "store_v3"
 
 
 def main():
-    if OUT.exists():
-        shutil.rmtree(OUT)
-    with cclogfs.open_store(OUT, create=True, codec="none", segment_records=3, sync_every_ms=None) as store:
+    windows = write_store(OUT)
+    (HERE / "store_v3.expected.json").write_text(json.dumps(windows, indent=1) + "\n")
+
+
+def write_store(out: Path) -> list[dict]:
+    """The store's puts (make_store_v3_digest.py makes the same ones); its windows."""
+    if out.exists():
+        shutil.rmtree(out)
+    with cclogfs.open_store(out, create=True, codec="none", segment_records=3, sync_every_ms=None) as store:
         for i in range(5):
             name = "/tf" if i % 2 else "/odom"
             store.put_window(name, [(1_000_000_000 * i + k, json.dumps({"i": i, "k": k})) for k in range(3)],
@@ -32,8 +38,9 @@ def main():
                 store.sync()
         windows = [{"seq": w.seq, "name": w.name, "meta": w.meta, "messages": [list(m) for m in w.messages()]}
                    for w in sorted(store.query(), key=lambda w: w.seq)]  # fmt: skip
-    (OUT / "LOCK").unlink()
-    (HERE / "store_v3.expected.json").write_text(json.dumps(windows, indent=1) + "\n")
+    (out / "LOCK").unlink()
+    (out / "RESERVE").unlink(missing_ok=True)  # space set aside, not data (FORMAT.md, "Reserve")
+    return windows
 
 
 if __name__ == "__main__":
