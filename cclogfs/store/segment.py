@@ -26,6 +26,10 @@ from .records import BytesAt, ChunkReader, count_intact_in, intact_in, read_reco
 # Hand buffered records to the OS past this size even when no fsync is due, so the
 # writer's memory stays bounded whatever the sync policy.
 WRITE_BUFFER = 1 << 20
+# Reads of a segment that is only hashed: small enough for malloc to reuse one block (a
+# fresh process maps each 4 MiB buffer anew, and its page faults cost more than the hash:
+# 40.8 MB took 7.9 ms CPU in 4 MiB reads, 5.0 ms in 256 KiB reads, xxh3 itself 3 ms).
+HASH_CHUNK = 256 << 10
 
 
 @dataclass
@@ -231,11 +235,11 @@ def open_segment(fs: FileSystem, path: str, *, write: bool,
 def hash_file(fs: FileSystem, fd: int, start: int, end: int,
               state: xxhash.xxh3_64 | None = None) -> xxhash.xxh3_64:  # fmt: skip
     """`state` (a new XXH3-64 when None) fed the file's bytes [start, end), in reads of
-    ChunkReader's size: memory stays bounded whatever the segment's size. A file shorter
-    than `end` feeds fewer bytes, so its digest differs."""
+    HASH_CHUNK: memory stays bounded whatever the segment's size. A file shorter than `end`
+    feeds fewer bytes, so its digest differs."""
     state = state or xxhash.xxh3_64()
-    for pos in range(start, end, ChunkReader.CHUNK):
-        state.update(fs.pread(fd, min(ChunkReader.CHUNK, end - pos), pos))
+    for pos in range(start, end, HASH_CHUNK):
+        state.update(fs.pread(fd, min(HASH_CHUNK, end - pos), pos))
     return state
 
 
