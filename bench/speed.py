@@ -205,8 +205,9 @@ def open_time(store: Path) -> float:
 
 
 def append_open_time(store: Path, work: Path) -> float:
-    """Opening a copy of `store` for append: the writer scans its active segment whole, so
-    that damage below the synced point is named before it appends (FORMAT.md)."""
+    """Opening a copy of `store` for append: the writer checks its active segment whole, so
+    that damage below the synced point is named before it appends (FORMAT.md): by one hash
+    of the bytes below a clean close's checkpoint (`checkpoint.xxh3`), else by a scan."""
     from cclogfs.store import open_store
 
     copy = work / "append.store"
