@@ -20,7 +20,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from cclogfs.jsontext.ros import MessageConverter, message_stamp_ns
 from cclogfs.jsontext.roswire import ArrayMemo, WireError, WireFormatter, formatter_source, main, number_texts, numbers
-from cclogfs.jsontext.roswire_gen import MARKER
+from cclogfs.jsontext.roswire_gen import MARKER, _TypeTable
 
 SAMPLE = 1500  # messages per file, evenly spread (the long files hold up to 22,692)
 
@@ -152,6 +152,16 @@ SLOW = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCh
 def test_every_type_of_rosbags_stores_has_a_formatter():
     for wire, formatter in FORMATTERS.items():
         assert [t for t in sorted(STORES[wire].fielddefs) if formatter.get(t) is None] == [], wire
+
+
+def test_the_generator_reads_the_fields_rosbags_reads():
+    """The generator reads `fielddefs` itself (rosbags' get_msgdef compiles serializers it
+    does not need); the fields and classes must be get_msgdef's, for every type."""
+    for store in STORES.values():
+        table = _TypeTable(store)
+        for msgtype in store.fielddefs:
+            ours, theirs = table.get_msgdef(msgtype), store.get_msgdef(msgtype)
+            assert (ours.fields, ours.cls) == (theirs.fields, theirs.cls), msgtype
 
 
 @SLOW
