@@ -41,6 +41,8 @@ class RosbagSource:
         self._converter: MessageConverter | None = None
         try:
             self._reader = AnyReader([Path(path)])
+            if not self._reader.is2:  # the same reader, its index read faster (issue 14)
+                self._reader.readers = [ros1chunks.IndexedReader(p) for p in self._reader.paths]
             self._reader.open()
         except Exception as err:  # rosbags raises several unrelated types for a bad bag
             raise SourceError(f"Cannot open {self.name} as a rosbag: {err}") from err
@@ -87,6 +89,9 @@ class RosbagSource:
         wire = WireFormatter(reader.typestore, cdr=reader.is2)
         formats = {c.id: wire.get(c.msgtype) for c in self._connections}
         header_clock = self._header_clock
+        # SourceMessage(...) runs the named tuple's Python-level __new__; tuple.__new__
+        # builds the same object in C, 0.5 us less per message (issue 14).
+        make = tuple.__new__
         index = 0
         try:
             for con, logtime, raw in self._raw_messages():
@@ -99,7 +104,7 @@ class RosbagSource:
                         text, stamp = fmt(raw)
                     except WireError as err:
                         text, stamp = self._convert(con, logtime, raw, index, err)
-                yield SourceMessage(con.topic, (header_clock and stamp) or logtime, text, con.msgtype)
+                yield make(SourceMessage, (con.topic, (header_clock and stamp) or logtime, text, con.msgtype))
         except SourceError:
             raise
         except Exception as err:

@@ -4,8 +4,9 @@
 dataclasses and numpy arrays, `to_dict` turns them into dicts and lists, and `json.dumps`
 walks those. Recording a bag spent most of its time there (issue 14). Here, once per
 message type, `roswire_gen` writes the source of a function that reads the type's bytes
-with `struct` and fills a %-template of its JSON text: `'{"header": {"seq": %r, ...'`. A
-`nav_msgs/Odometry` is then three struct reads, two strings and one `%`.
+with `struct` and returns an f-string of its JSON text: `f'{{"header": {{"seq": {t0}, ...'`,
+its numbers rendered by one orjson call (`number_texts`). A `nav_msgs/Odometry` is then
+three struct reads, two strings, two memo look-ups, one orjson call and the f-string.
 
 The text is byte for byte `MessageConverter().to_json(typestore.deserialize_*(raw))`
 (tests/jsontext/test_roswire.py compares every message of the shared data and random
@@ -28,6 +29,8 @@ import sys
 from collections.abc import Callable
 from json.encoder import encode_basestring_ascii as json_string  # what json.dumps uses
 from typing import Any
+
+import orjson
 
 from .roswire_gen import Unsupported, module_source
 
@@ -58,30 +61,44 @@ class WireError(ValueError):
         return WireError(f"{outer}.{self.field}" if self.field else outer, self.reason)
 
 
-class Spelled(str):
-    """A value whose %r is its JSON spelling: stands in for NaN and the infinities, which
-    `repr` spells `nan` and `inf` and json.dumps `NaN`, `Infinity` and `-Infinity`."""
-
-    __repr__ = str.__str__
-
-
-_NAN, _INF, _NEG_INF = Spelled("NaN"), Spelled("Infinity"), Spelled("-Infinity")
+def json_number(value: int | float) -> str:
+    """One number as json.dumps writes it: repr, except NaN and the infinities, which
+    repr spells `nan` and `inf` and json.dumps `NaN`, `Infinity` and `-Infinity`."""
+    if value - value == 0:  # ints, and finite floats
+        return repr(value)
+    return "NaN" if value != value else "Infinity" if value > 0 else "-Infinity"
 
 
-def spelled(values: tuple) -> tuple:
-    """`values` with NaN and infinities replaced by their JSON spellings (ints kept)."""
-    return tuple(v if v - v == 0 else _NAN if v != v else _INF if v > 0 else _NEG_INF for v in values)
+def _orjson_may_differ(text: str) -> bool:
+    """Whether orjson's text of numbers may not be json.dumps': an exponent, `null` (its
+    NaN and infinities), or the decade below 1e-4, which orjson writes in full (`0.00001`,
+    repr `1e-05`). The columnar codec's rule (codecs/columns_read.py); every other float,
+    and every int, has the same text in both."""
+    return "e" in text or "n" in text or "0.0000" in text
 
 
-def numbers(values: tuple, floats: bool) -> str:
-    """A JSON array of numbers as json.dumps writes it.
+def number_texts(values: tuple) -> list[str]:
+    """The JSON text of each number (ints or floats; at least one), as json.dumps writes it.
 
-    Floats: the sum of finite floats is finite or overflows to inf, and any NaN or infinity
-    makes it NaN or inf, so `x - x` is 0 exactly when there may be nothing to respell.
+    orjson writes shortest round-trip floats as repr does, 3-4x faster than `%r` per
+    float (issue 14: rendering floats was most of formatting a message); the few tokens
+    it may write otherwise are rendered again with repr.
     """
-    if floats and (x := sum(values)) - x:
-        values = spelled(values)
-    return "[" + ", ".join(map(repr, values)) + "]"
+    text = orjson.dumps(values)[1:-1].decode()
+    tokens = text.split(",")
+    if _orjson_may_differ(text):
+        tokens = [json_number(v) if _orjson_may_differ(t) else t for v, t in zip(values, tokens)]
+    return tokens
+
+
+def numbers(values: tuple) -> str:
+    """A JSON array of numbers as json.dumps writes it."""
+    if not values:
+        return "[]"
+    text = orjson.dumps(values)[1:-1].decode()
+    if _orjson_may_differ(text):
+        return "[" + ", ".join(number_texts(values)) + "]"
+    return "[" + text.replace(",", ", ") + "]"  # numbers hold no comma
 
 
 class ArrayMemo:
@@ -96,9 +113,8 @@ class ArrayMemo:
 
     LIMIT = 64
 
-    def __init__(self, unpack: Callable, floats: bool) -> None:
+    def __init__(self, unpack: Callable) -> None:
         self.unpack = unpack
-        self.floats = floats
         self.seen: dict[bytes, str] = {}
         self.hits = 0
         self.on = True
@@ -109,7 +125,7 @@ class ArrayMemo:
             if text is not None:
                 self.hits += 1
                 return text
-        text = numbers(self.unpack(data), self.floats)
+        text = numbers(self.unpack(data))
         if self.on:
             self.seen[data] = text
             if len(self.seen) >= self.LIMIT:
@@ -196,7 +212,8 @@ def messages(element: Callable, raw: bytes, pos: int, size: int, align: int, pat
 
 # What generated code finds in its globals besides its own constants.
 RUNTIME = {
-    "Struct": struct.Struct, "ArrayMemo": ArrayMemo, "unpack_from": struct.unpack_from, "WireError": WireError, "spelled": spelled, "numbers": numbers,
+    "Struct": struct.Struct, "ArrayMemo": ArrayMemo, "unpack_from": struct.unpack_from, "WireError": WireError,
+    "number_texts": number_texts, "numbers": numbers,
     "bools": bools, "b64": b64, "take": take, "json_string": json_string, "ros1_string": ros1_string,
     "cdr_string": cdr_string, "count": count, "strings": strings, "messages": messages,
 }  # fmt: skip

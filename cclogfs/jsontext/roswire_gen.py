@@ -3,10 +3,10 @@
 `module_source(typestore, msgtype, wire)` writes a small Python module (print it to read
 it) whose function `message(raw)` returns (JSON text, header stamp in ns or None). For a
 ROS 1 `nav_msgs/Odometry` it reads `header.seq` and the stamp with one struct call, the two
-strings, then the pose and twist (85 float64, covariances included) with one more, and
-fills one %-template: nested messages are inlined into the template, consecutive numbers
-are read together ("a run"), and only arrays of messages call another generated function
-(`f_<type>`) per element.
+strings, the pose, the covariances (through a memo) and the twist, renders its 16 numbers
+with one call, and returns one f-string: nested messages are inlined into the f-string,
+consecutive numbers are read together ("a run"), and only arrays of messages call another
+generated function (`f_<type>`) per element.
 
 Why generated source rather than a walk over the fields (or closures per field): the walk
 costs a call and type tests per field per message, which is what the rosbags objects +
@@ -24,9 +24,10 @@ import re
 import struct
 from itertools import pairwise
 from json.encoder import encode_basestring_ascii as json_string
-from typing import Any
+from typing import Any, NamedTuple
 
 from rosbags.interfaces import Nodetype
+from rosbags.typesys.base import normalize_fieldname
 from rosbags.serde.utils import SIZEMAP, align, align_after
 
 from .ros import message_fields
@@ -36,9 +37,8 @@ CODES = {"bool": "?", "byte": "b", "char": "B", "int8": "b", "uint8": "B", "int1
          "int32": "i", "uint32": "I", "int64": "q", "uint64": "Q", "float32": "f", "float64": "d"}  # fmt: skip
 # Arrays rosbags reads as numpy uint8/int8 (its ndtype: char -> uint8, byte -> int8): base64 in ros.py.
 BYTES = {"uint8", "char", "int8", "byte"}
-FLOATS = {"float32", "float64"}
 INTS = {"byte", "char", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64"}
-# Fixed-size numeric arrays shorter than this are part of the template; longer ones (a
+# Fixed-size numeric arrays shorter than this are part of the f-string; longer ones (a
 # covariance: 9 or 36 numbers) are rendered on their own, through a memo (roswire.ArrayMemo).
 MEMO_ARRAY = 9
 STAMP = ("header.stamp.sec", "header.stamp.nanosec")
@@ -57,11 +57,36 @@ def module_source(typestore: Any, msgtype: str, wire: str) -> str:
     return _Module(typestore, wire).source(msgtype)
 
 
+class Definitions(NamedTuple):
+    """The part of rosbags' `Msgdef` the generator reads."""
+
+    fields: list[tuple[str, Any]]
+    cls: type
+
+
+class _TypeTable:
+    """A type store as the generator and rosbags' `align` helpers read it: `get_msgdef`
+    giving each type's fields (named as rosbags' own `get_msgdef` names them) and class.
+
+    rosbags' `get_msgdef` also compiles the type's eleven serializers, and `align` asks
+    for every nested type: 25 ms for an Odometry and an Imu, 17x the formatters' own
+    generation (issue 14). This reads the same `fielddefs` without compiling anything.
+    """
+
+    def __init__(self, typestore: Any) -> None:
+        self.store = typestore
+        self.max_sequence_length = typestore.max_sequence_length
+
+    def get_msgdef(self, msgtype: str) -> Definitions:
+        entries = [(normalize_fieldname(name), desc) for name, desc in self.store.fielddefs[msgtype][1]]
+        return Definitions(entries, self.store.types[msgtype])
+
+
 class _Module:
-    """The constants (struct readers, templates) and functions of one generated module."""
+    """The constants (struct readers, memos) and functions of one generated module."""
 
     def __init__(self, typestore: Any, wire: str) -> None:
-        self.typestore = typestore
+        self.typestore = _TypeTable(typestore)
         self.wire = wire
         self.cdr = wire != "ros1"
         self.endian = ">" if wire == "be" else "<"
@@ -106,10 +131,14 @@ def function_name(msgtype: str) -> str:
 
 
 class _Function:
-    """One generated function: its statements, the JSON template and the template's values.
+    """One generated function: its statements and the f-string of its JSON text.
 
-    Numbers are gathered into a run (struct codes, '%r' slots) that one struct call reads
-    when something else comes (a string, an array, a CDR alignment step): `flush`.
+    Numbers are gathered into a run (struct codes) that one struct call reads when
+    something else comes (a string, an array, a CDR alignment step): `flush`. All the
+    function's numbers are rendered at its end by one call (`number_texts`, orjson) into
+    `t0, t1, ...`, the f-string's slots for them. An f-string, not a %-template: Python
+    builds it by joining its pieces, where `%` parses its template again on every message
+    (2-3x slower for an Odometry, issue 14).
     """
 
     def __init__(self, module: _Module, signature: str) -> None:
@@ -117,24 +146,23 @@ class _Function:
         self.signature = signature
         self.top = signature.startswith("message(")
         self.lines: list[str] = []
-        self.parts: list[str] = []  # the template
-        self.args: list[str] = []  # its values, in order
+        self.parts: list[str] = []  # the f-string's text, braces doubled, and its {slots}
         self.run: list[str] = []
         self.run_paths: list[str] = []
         self.run_var = ""  # the variable the run is read into
-        self.run_floats = False
         self.run_count = 0  # values read so far by the run
+        self.runs: list[str] = []  # the variables of the runs read, in order
+        self.numbered = 0  # numbers in the runs so far: the next one's slot is t<numbered>
         self.names = 0
         self.aligned = 8  # rosbags' static alignment tracking (CDR)
         self.stamp: dict[str, str] = {}
 
-    # -- the template ----------------------------------------------------------
+    # -- the f-string ----------------------------------------------------------
     def text(self, s: str) -> None:
-        self.parts.append(s.replace("%", "%%"))
+        self.parts.append(s.replace("{", "{{").replace("}", "}}"))
 
-    def value(self, expr: str) -> None:
-        self.parts.append("%s")
-        self.args.append(expr)
+    def value(self, name: str) -> None:
+        self.parts.append("{" + name + "}")
 
     def new(self, prefix: str) -> str:
         self.names += 1
@@ -154,7 +182,7 @@ class _Function:
         return self.finish()
 
     def inline(self, msgtype: str, path: str) -> None:
-        """A message's fields into the template, in definition order."""
+        """A message's fields into the f-string, in definition order."""
         entries = self.m.fields(msgtype)
         self.aligned = 8  # what rosbags' function for a nested message assumes on entry
         self.text("{")
@@ -205,26 +233,26 @@ class _Function:
             self.value(s)
             self.aligned = 1
         elif typ in CODES:
-            self.number(typ, 1, path)
-            self.parts.append("%r")
+            self.value(self.number(typ, 1, path)[0])
         else:
             raise Unsupported(f"{path}: base type {typ}")
 
     def read_string(self) -> str:
         return "cdr_string" if self.m.cdr else "ros1_string"
 
-    def number(self, typ: str, n: int, path: str) -> None:
-        """`n` numbers of `typ` joining the run."""
+    def number(self, typ: str, n: int, path: str) -> list[str]:
+        """`n` numbers of `typ` joining the run; their slots' names."""
         if not self.run:
             self.run_var = self.new("v")
             self.run_count = 0
         self.run.append(CODES[typ] * n if n < 4 else f"{n}{CODES[typ]}")
         self.run_paths.append(path)
-        self.run_floats |= typ in FLOATS
         if path in STAMP and typ in INTS:
             self.stamp[path] = f"{self.run_var}[{self.run_count}]"
         self.run_count += n
         self.aligned = SIZEMAP[typ]
+        self.numbered += n
+        return [f"t{k}" for k in range(self.numbered - n, self.numbered)]
 
     def flush(self) -> None:
         """Read the pending run with one struct call."""
@@ -235,11 +263,8 @@ class _Function:
         paths = self.run_paths[0] + (f" .. {self.run_paths[-1]}" if len(self.run_paths) > 1 else "")
         v = self.run_var
         self.lines += [f"at = {paths!r}", f"{v} = {reader}(raw, pos)", f"pos += {struct.calcsize(fmt)}"]
-        if self.run_floats:
-            self.lines.append(f"if (x := sum({v})) - x:  # a NaN or an infinity: spell it as json.dumps does")
-            self.lines.append(f"    {v} = spelled({v})")
-        self.args.append(f"*{v}")
-        self.run, self.run_paths, self.run_floats = [], [], False
+        self.runs.append(v)
+        self.run, self.run_paths = [], []
 
     def array(self, sub: Any, length: int, path: str) -> None:
         """A fixed-size array (rosbags: numpy for numbers, lists otherwise)."""
@@ -266,12 +291,16 @@ class _Function:
             self.value(s)
             self.aligned = 1
         elif typ in CODES and length < MEMO_ARRAY:
-            self.number(typ, length, path)
-            self.parts.append("[" + ", ".join(["%r"] * length) + "]")
+            slots = self.number(typ, length, path)
+            self.text("[")
+            for k, slot in enumerate(slots):
+                self.text(", " if k else "")
+                self.value(slot)
+            self.text("]")
         elif typ in CODES:
             fmt = f"{self.m.endian}{length}{CODES[typ]}"
             size = struct.calcsize(fmt)
-            memo = self.m.constant("memo", f"ArrayMemo(Struct({fmt!r}).unpack, {typ in FLOATS}).text")
+            memo = self.m.constant("memo", f"ArrayMemo(Struct({fmt!r}).unpack).text")
             self.step(path, f"{s} = {memo}(raw[pos : pos + {size}])", f"pos += {size}")
             self.value(s)
             self.aligned = SIZEMAP[typ]
@@ -303,15 +332,14 @@ class _Function:
             if self.m.cdr and self.aligned < size:
                 self.lines += ["if n:", f"    pos = (pos + {size - 1}) & -{size}"]
             fmt = f"{self.m.endian}{{n}}{CODES[typ]}"
-            self.lines += [f"{s} = numbers(unpack_from(f{fmt!r}, raw, pos), {typ in FLOATS})", f"pos += n * {size}"]
+            self.lines += [f"{s} = numbers(unpack_from(f{fmt!r}, raw, pos))", f"pos += n * {size}"]
             self.aligned = size
         self.value(s)
         self.aligned = min(4, self.aligned)
 
     # -- the function ------------------------------------------------------------
     def finish(self) -> str:
-        template = self.m.constant("TEMPLATE", repr("".join(self.parts)))
-        values = f"{template} % ({', '.join(self.args)}{',' if len(self.args) == 1 else ''})"
+        values = "f" + repr("".join(self.parts))  # the slots are plain names: no quotes, no backslashes
         out = [f"def {self.signature}:"]
         if self.top:
             out.append("    if raw.__class__ is not bytes:  # a memoryview slice has no decode()")
@@ -321,8 +349,10 @@ class _Function:
         out += ["    at = ''", "    try:", *("        " + line for line in self.lines or ["pass  # no fields"]),
                 "    except WireError:", "        raise", "    except Exception as err:",
                 "        raise WireError.wrap(at, err) from err"]  # fmt: skip
+        slots = ", ".join(f"t{k}" for k in range(self.numbered)) + ("," if self.numbered == 1 else "")
+        render = [f"    {slots} = number_texts({' + '.join(self.runs)})"] if self.runs else []
         if not self.top:
-            return "\n".join([*out, f"    return {values}, pos", "", ""])
+            return "\n".join([*out, *render, f"    return {values}, pos", "", ""])
         # rosbags: a ROS 1 message must end exactly at its last field; CDR may pad to 4 bytes.
         slack = 3 if self.m.cdr else 0
         out += [f"    if pos + {slack} < len(raw):" if slack else "    if pos != len(raw):",
@@ -330,4 +360,4 @@ class _Function:
         stamp = "None"
         if len(self.stamp) == 2:
             stamp = f"{self.stamp[STAMP[0]]} * 1000000000 + {self.stamp[STAMP[1]]}"
-        return "\n".join([*out, f"    return {values}, {stamp}", "", ""])
+        return "\n".join([*out, *render, f"    return {values}, {stamp}", "", ""])

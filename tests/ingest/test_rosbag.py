@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import struct
 
 import pytest
 
@@ -155,6 +156,41 @@ def test_ros1chunks_reads_what_rosbags_reads(tmp_path, shared_data, monkeypatch)
                     want = [(c.id, t, raw) for c, t, raw in reader.messages(connections=conns)]
                     got = [(c.id, t, raw) for c, t, raw in ros1chunks.messages(reader.readers[0], conns, str(bag))]
                     assert got == want and want
+
+
+def test_the_indexed_reader_reads_rosbags_index_and_fails_as_rosbags_fails(tmp_path, shared_data):
+    """ros1chunks.IndexedReader: the same indexes (IndexData, in the same order) and
+    connections as rosbags' reader; on a cut or altered index, rosbags' own error."""
+    from rosbags.rosbag1 import Reader
+
+    from cclogfs.ingest.ros1chunks import IndexedReader
+
+    def opened(cls, path):
+        try:
+            with cls(path) as reader:
+                indexes = {k: [(type(e), *e) for e in v] for k, v in reader.indexes.items()}
+                return indexes, reader.connections, sorted(reader.chunks)
+        except Exception as err:  # noqa: BLE001 - the failure is what is compared
+            return type(err), str(err)
+
+    bags = [shared_data("tf_example.bag"), _odometry_bag(tmp_path / "odom.bag", 40),
+            _odometry_bag(tmp_path / "chunks.bag", 40, chunk=4096)]  # fmt: skip
+    for bag in bags:
+        want = opened(Reader, bag)
+        assert opened(IndexedReader, bag) == want and isinstance(want[0], dict)
+    # The second index data record (the first teaches rosbags the header's layout): its
+    # count, its data size, both (a record that reads), a size past the end of the file.
+    data = bags[2].read_bytes()
+    op = data.index(b"op=\x04", data.index(b"op=\x04") + 1)
+    count_at, size_at = data.index(b"count=", op - 50) + 6, data.rindex(b"/\0\0\0", 0, op) + 51
+    count, size = struct.unpack_from("<I", data, count_at)[0], struct.unpack_from("<I", data, size_at)[0]
+    for new_count, new_size in [(count + 1, size), (count, size + 12), (count + 1, size + 12), (10**6, 12 * 10**6)]:
+        damaged = bytearray(data)
+        struct.pack_into("<I", damaged, count_at, new_count)
+        struct.pack_into("<I", damaged, size_at, new_size)
+        bad = tmp_path / "bad.bag"
+        bad.write_bytes(damaged)
+        assert opened(IndexedReader, bad) == opened(Reader, bad)
 
 
 def test_ros1chunks_refuses_a_record_that_is_not_the_indexed_message(tmp_path):

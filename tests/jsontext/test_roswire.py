@@ -19,8 +19,8 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_typestore
 
 from cclogfs.jsontext.ros import MessageConverter, message_stamp_ns
-from cclogfs.jsontext.roswire import ArrayMemo, WireError, WireFormatter, formatter_source, main
-from cclogfs.jsontext.roswire_gen import MARKER
+from cclogfs.jsontext.roswire import ArrayMemo, WireError, WireFormatter, formatter_source, main, number_texts, numbers
+from cclogfs.jsontext.roswire_gen import MARKER, _TypeTable
 
 SAMPLE = 1500  # messages per file, evenly spread (the long files hold up to 22,692)
 
@@ -154,6 +154,16 @@ def test_every_type_of_rosbags_stores_has_a_formatter():
         assert [t for t in sorted(STORES[wire].fielddefs) if formatter.get(t) is None] == [], wire
 
 
+def test_the_generator_reads_the_fields_rosbags_reads():
+    """The generator reads `fielddefs` itself (rosbags' get_msgdef compiles serializers it
+    does not need); the fields and classes must be get_msgdef's, for every type."""
+    for store in STORES.values():
+        table = _TypeTable(store)
+        for msgtype in store.fielddefs:
+            ours, theirs = table.get_msgdef(msgtype), store.get_msgdef(msgtype)
+            assert (ours.fields, ours.cls) == (theirs.fields, theirs.cls), msgtype
+
+
 @SLOW
 @given(serialized("ros1"))
 def test_random_ros1_messages(case):
@@ -209,8 +219,21 @@ def test_nan_infinities_and_negative_zero_are_spelled_as_json_dumps_does():
     assert text == MessageConverter().to_json(store.deserialize_ros1(raw, "nav_msgs/msg/Odometry"))
 
 
+NUMBERS = st.lists(st.floats() | st.floats(width=32) | st.integers(-(2**63), 2**64 - 1)
+                   | st.sampled_from([1e-05, 9.9e-05, 1e-4, 1e16, 1e15 + 0.5, 5e-324, -0.0]), max_size=40)  # fmt: skip
+
+
+@given(NUMBERS)
+def test_numbers_are_rendered_as_json_dumps_renders_them(values):
+    """orjson writes the numbers; the tokens it may write otherwise (exponents, NaN, the
+    decade below 1e-4) are rendered again: every text is json.dumps'."""
+    if values:  # generated code calls it with the numbers of a message, never none
+        assert number_texts(tuple(values)) == [json.dumps(v) for v in values]
+    assert numbers(tuple(values)) == json.dumps(values)
+
+
 def test_the_memo_tells_arrays_apart_by_their_bytes_and_stops_when_they_keep_changing():
-    memo = ArrayMemo(struct.Struct("<3d").unpack, True)
+    memo = ArrayMemo(struct.Struct("<3d").unpack)
     zero, negative = struct.pack("<3d", 0.0, 0.0, 0.0), struct.pack("<3d", -0.0, 0.0, 0.0)
     assert [memo.text(zero), memo.text(negative), memo.text(zero)] == ["[0.0, 0.0, 0.0]", "[-0.0, 0.0, 0.0]"] + ["[0.0, 0.0, 0.0]"]
     assert memo.hits == 1
@@ -249,7 +272,7 @@ def test_errors_name_the_field():
 
 def test_the_generated_source_can_be_read(shared_data, capsys):
     source = formatter_source(STORES["ros1"], "nav_msgs/msg/Odometry")
-    assert "def message(raw):" in source and '"frame_id": %s' in source and "memo_" in source
+    assert "def message(raw):" in source and '"frame_id": {s2}' in source and "memo_" in source
     compile(source, "odometry", "exec")
     assert main([str(shared_data("tf_example.bag")), "tf2_msgs/msg/TFMessage"]) == 0
     out = capsys.readouterr().out
