@@ -77,6 +77,9 @@ class OneClassModel:
         # Second stage (set by the caller after `fit`, None: none): per feature, the value
         # a vector must exceed in at least one feature for a flag to stand.
         self.limits_: np.ndarray | None = None
+        # The limits learnt online (0: none; see `score`): a limit grows to this many times
+        # the largest value the robot has shown while the SVM judged it nominal.
+        self.limit_growth_ = 0.0
 
     # -- training ---------------------------------------------------------------------
 
@@ -161,8 +164,9 @@ class OneClassModel:
             out[rows] = np.exp(-self.gamma_ * np.maximum(d2, 0.0)) @ self.dual_coef_
         return out + self.intercept_
 
-    def score_one(self, x: np.ndarray) -> float:
-        """`score` of one vector with few numpy calls (the live path, once per message)."""
+    def score_one(self, x: np.ndarray, envelope: np.ndarray | None = None) -> float:
+        """`score` of one vector with few numpy calls (the live path, once per message);
+        `envelope` as in `score`, updated in place."""
         sv = self.support_vectors_
         if getattr(self, "_sv_of", None) is not sv:
             self._sv_of, self._sv_sq = sv, np.einsum("ij,ij->i", sv, sv)
@@ -173,18 +177,39 @@ class OneClassModel:
         d = float(np.exp(-self.gamma_ * d2) @ self.dual_coef_) + self.intercept_
         s = (self.threshold_ - d) / max(-self.intercept_, 1e-12)
         if self.limits_ is not None:
-            s = min(s, float(np.max(x / self.limits_)) - 1.0)
+            grow = envelope is not None and self.limit_growth_ > 0
+            limits = np.maximum(self.limits_, self.limit_growth_ * envelope) if grow else self.limits_
+            if grow and s <= 0.0:
+                np.maximum(envelope, x, out=envelope)
+            s = min(s, float(np.max(x / limits)) - 1.0)
         return s
 
-    def score(self, X: np.ndarray) -> np.ndarray:
+    def score(self, X: np.ndarray, envelope: np.ndarray | None = None) -> np.ndarray:
         """Anomaly score: how far below the threshold, in units of rho (so comparable
         across models); > 0 is anomalous, NaN rows give NaN. With limits (the second
         stage), the smaller of that and how far the vector's largest feature is beyond
-        its limit (a fraction of the limit): both must say anomalous."""
+        its limit (a fraction of the limit): both must say anomalous.
+
+        `envelope` (per feature, updated in place; None: rows scored independently):
+        X is a run in time order, and the limits grow online (`limit_growth_` > 0). The
+        largest values of the vectors the SVM judged nominal so far form the robot's
+        envelope; each row's limit is at least `limit_growth_` x the envelope of the rows
+        before it. Two minutes of training miss some of a robot's ordinary manoeuvres;
+        when the SVM later sees them as nominal, the limits stop flagging them. A vector
+        the SVM flags never widens a limit, so an anomaly is not learnt from."""
         s = (self.threshold_ - self.decision_function(X)) / max(-self.intercept_, 1e-12)
-        if self.limits_ is not None:
-            s = np.minimum(s, np.max(np.atleast_2d(X) / self.limits_, axis=1) - 1.0)
-        return s
+        if self.limits_ is None:
+            return s
+        X = np.atleast_2d(X)
+        limits = self.limits_
+        if envelope is not None and self.limit_growth_ > 0 and len(X):
+            seen = np.where((s <= 0.0)[:, None], np.nan_to_num(X, nan=0.0), 0.0)
+            np.maximum.accumulate(seen, axis=0, out=seen)
+            np.maximum(seen, envelope, out=seen)  # the envelope after each row
+            before = np.vstack([envelope, seen[:-1]])
+            envelope[:] = seen[-1]
+            limits = np.maximum(self.limits_, self.limit_growth_ * before)
+        return np.minimum(s, np.max(X / limits, axis=1) - 1.0)
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         """True where a vector is anomalous."""
@@ -201,8 +226,12 @@ class OneClassModel:
             out["limits"] = self.limits_
         return out
 
-    def set_limits(self, limits: np.ndarray | None) -> OneClassModel:
-        """Set the second stage (None: none) and the model id, which covers it."""
+    def set_limits(self, limits: np.ndarray | None, growth: float = 0.0) -> OneClassModel:
+        """Set the second stage (None: none), how its limits grow online (`score`; 0:
+        they do not) and the model id, which covers both."""
+        if not growth >= 0:
+            raise ModelError(f"Limit growth must be >= 0, got {growth!r}.")
+        self.limit_growth_ = float(growth) if limits is not None else 0.0
         self.limits_ = None if limits is None else np.asarray(limits, dtype=np.float64)
         if self.limits_ is not None and (self.limits_.shape != (self.n_features_in_,) or not (self.limits_ > 0).all()):
             raise ModelError(f"Limits need {self.n_features_in_} positive values, got {self.limits_}.")
@@ -212,7 +241,7 @@ class OneClassModel:
     def _header(self) -> dict:
         import sklearn
 
-        return {
+        out = {
             "format": FORMAT, "format_version": FORMAT_VERSION,
             "feature_config": self.feature_config, "n_features": int(self.n_features_in_),
             "gamma": self.gamma_, "nu": self.nu_, "threshold": self.threshold_,
@@ -222,6 +251,9 @@ class OneClassModel:
             "versions": {"cclogfs": __version__, "numpy": np.__version__,
                          "sklearn": sklearn.__version__},
         }  # fmt: skip
+        if self.limit_growth_:  # absent: fixed limits (files written before it existed)
+            out["limit_growth"] = self.limit_growth_
+        return out
 
     def _digest(self) -> str:
         h = hashlib.sha256()
@@ -300,4 +332,8 @@ class OneClassModel:
             raise ModelError(f"{npath}: support vector shapes do not match n_features/n_support.")
         if limits is not None and (limits.shape != (model.n_features_in_,) or not (limits > 0).all()):
             raise ModelError(f"{npath}: 'limits' must hold {model.n_features_in_} positive values.")
+        growth = header.get("limit_growth", 0.0)
+        if not isinstance(growth, (int, float)) or not growth >= 0 or (growth and limits is None):
+            raise ModelError(f"{jpath}: 'limit_growth' must be a number >= 0, and needs limits in {npath}.")
+        model.limit_growth_ = float(growth)
         return model
