@@ -174,8 +174,8 @@ class Detector:
     def reset(self) -> None:
         self._stream = self.features.stream()
         self._twist = TwistFromPoses()
-        # The robot's envelope seen live, from which the model's limits grow (`OneClassModel.score`).
-        self.envelope = np.zeros(self.model.n_features_in_)
+        # The robot's limits now: the model's, grown live (`OneClassModel.score`).
+        self.limits = None if self.model.limits_ is None else self.model.limits_.copy()
 
     def lookback_ns(self, X: np.ndarray) -> np.ndarray:
         """Per vector, how long before its message the anomaly's evidence starts: the
@@ -194,8 +194,9 @@ class Detector:
         odom = _as_odom(odom)
         X, valid = self.features.batch(odom)
         scores = np.full(len(odom), np.nan)
-        if valid.any():  # the envelope grows over this run alone, as from a fresh detector
-            scores[valid] = self.model.score(X[valid], np.zeros(X.shape[1]))
+        if valid.any():  # the limits grow over this run alone, as from a fresh detector
+            fresh = None if self.model.limits_ is None else self.model.limits_.copy()
+            scores[valid] = self.model.score(X[valid], fresh)
         flags = np.nan_to_num(scores, nan=-np.inf) > 0
         lookback = np.zeros(len(odom), dtype=np.int64)
         lookback[flags] = self.lookback_ns(X[flags])
@@ -216,7 +217,7 @@ class Detector:
         if got is None or not got[1]:
             return math.nan, False
         self.last_vector = got[0]
-        score = self.model.score_one(got[0], self.envelope)
+        score = self.model.score_one(got[0], self.limits)
         return score, score > 0
 
     def parse(self, msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
@@ -288,7 +289,7 @@ class SmartLogger:
     def _drain(self) -> list[PendingWindow]:
         """Score the held odometry vectors at once, then run the windows over the held messages."""
         V = np.array(self._vectors)
-        s = self.detector.model.score(V, self.detector.envelope) if self._vectors else np.empty(0)
+        s = self.detector.model.score(V, self.detector.limits) if self._vectors else np.empty(0)
         back = np.zeros(len(s), dtype=np.int64)
         back[s > 0] = self.detector.lookback_ns(V[s > 0]) if (s > 0).any() else 0
         found = iter(zip(s.tolist(), back.tolist()))

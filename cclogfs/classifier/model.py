@@ -77,8 +77,8 @@ class OneClassModel:
         # Second stage (set by the caller after `fit`, None: none): per feature, the value
         # a vector must exceed in at least one feature for a flag to stand.
         self.limits_: np.ndarray | None = None
-        # The limits learnt online (0: none; see `score`): a limit grows to this many times
-        # the largest value the robot has shown while the SVM judged it nominal.
+        # How the limits grow online (0: they do not; see `score`): to this many times the
+        # largest value the robot has shown while the SVM judged it nominal.
         self.limit_growth_ = 0.0
 
     # -- training ---------------------------------------------------------------------
@@ -164,9 +164,9 @@ class OneClassModel:
             out[rows] = np.exp(-self.gamma_ * np.maximum(d2, 0.0)) @ self.dual_coef_
         return out + self.intercept_
 
-    def score_one(self, x: np.ndarray, envelope: np.ndarray | None = None) -> float:
+    def score_one(self, x: np.ndarray, limits: np.ndarray | None = None) -> float:
         """`score` of one vector with few numpy calls (the live path, once per message);
-        `envelope` as in `score`, updated in place."""
+        `limits` as in `score`, grown in place."""
         sv = self.support_vectors_
         if getattr(self, "_sv_of", None) is not sv:
             self._sv_of, self._sv_sq = sv, np.einsum("ij,ij->i", sv, sv)
@@ -177,38 +177,40 @@ class OneClassModel:
         d = float(np.exp(-self.gamma_ * d2) @ self.dual_coef_) + self.intercept_
         s = (self.threshold_ - d) / max(-self.intercept_, 1e-12)
         if self.limits_ is not None:
-            grow = envelope is not None and self.limit_growth_ > 0
-            limits = np.maximum(self.limits_, self.limit_growth_ * envelope) if grow else self.limits_
-            if grow and s <= 0.0:
-                np.maximum(envelope, x, out=envelope)
-            s = min(s, float(np.max(x / limits)) - 1.0)
+            over = float(np.max(x / (self.limits_ if limits is None else limits))) - 1.0
+            if limits is not None and s <= 0.0 and self.limit_growth_ > 0:
+                g = self.limit_growth_
+                np.maximum(limits, x if g == 1.0 else g * x, out=limits)
+            s = min(s, over)
         return s
 
-    def score(self, X: np.ndarray, envelope: np.ndarray | None = None) -> np.ndarray:
+    def score(self, X: np.ndarray, limits: np.ndarray | None = None) -> np.ndarray:
         """Anomaly score: how far below the threshold, in units of rho (so comparable
         across models); > 0 is anomalous, NaN rows give NaN. With limits (the second
         stage), the smaller of that and how far the vector's largest feature is beyond
         its limit (a fraction of the limit): both must say anomalous.
 
-        `envelope` (per feature, updated in place; None: rows scored independently):
-        X is a run in time order, and the limits grow online (`limit_growth_` > 0). The
-        largest values of the vectors the SVM judged nominal so far form the robot's
-        envelope; each row's limit is at least `limit_growth_` x the envelope of the rows
-        before it. Two minutes of training miss some of a robot's ordinary manoeuvres;
-        when the SVM later sees them as nominal, the limits stop flagging them. A vector
-        the SVM flags never widens a limit, so an anomaly is not learnt from."""
+        `limits`: the robot's limits now (per feature, at least `limits_`; grown in place;
+        None: `limits_`, and the rows are scored independently). X is then a run in time
+        order and the limits grow online (`limit_growth_` > 0): each row is judged by the
+        limits left by the rows before it, and a row the SVM judges nominal raises every
+        limit to at least `limit_growth_` x its value. Two minutes of training miss some
+        of a robot's ordinary manoeuvres; when the SVM later sees them as nominal, the
+        limits stop flagging them. A vector the SVM flags never raises a limit, so an
+        anomaly is not learnt from."""
         s = (self.threshold_ - self.decision_function(X)) / max(-self.intercept_, 1e-12)
         if self.limits_ is None:
             return s
         X = np.atleast_2d(X)
-        limits = self.limits_
-        if envelope is not None and self.limit_growth_ > 0 and len(X):
-            seen = np.where((s <= 0.0)[:, None], np.nan_to_num(X, nan=0.0), 0.0)
+        if limits is None:
+            limits = self.limits_
+        elif self.limit_growth_ > 0 and len(X):
+            seen = np.where((s <= 0.0)[:, None], self.limit_growth_ * np.nan_to_num(X, nan=0.0), 0.0)
             np.maximum.accumulate(seen, axis=0, out=seen)
-            np.maximum(seen, envelope, out=seen)  # the envelope after each row
-            before = np.vstack([envelope, seen[:-1]])
-            envelope[:] = seen[-1]
-            limits = np.maximum(self.limits_, self.limit_growth_ * before)
+            np.maximum(seen, limits, out=seen)  # the limits after each row
+            before = np.vstack([limits, seen[:-1]])
+            limits[:] = seen[-1]
+            limits = before
         return np.minimum(s, np.max(X / limits, axis=1) - 1.0)
 
     def predict(self, X: np.ndarray) -> np.ndarray:

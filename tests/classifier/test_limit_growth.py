@@ -25,8 +25,8 @@ def test_limits_grow_only_from_vectors_the_svm_calls_nominal():
     X, ok = make_features(grown.feature_config).batch(odom)
     X = X[ok]
     svm = svm_only.score(X)
-    envelope = np.zeros(X.shape[1])
-    got = grown.score(X, envelope)
+    limits = grown.limits_.copy()
+    got = grown.score(X, limits)
     # The rule, row by row: a row's limits are at least the largest values of the rows
     # before it that the SVM called nominal.
     seen, want = np.zeros(X.shape[1]), []
@@ -35,9 +35,9 @@ def test_limits_grow_only_from_vectors_the_svm_calls_nominal():
         if s <= 0:
             seen = np.maximum(seen, x)
     np.testing.assert_allclose(got, want, atol=1e-12)
-    np.testing.assert_array_equal(envelope, seen)
-    # Growth only takes flags away, and here it does take some; without an envelope the
-    # rows are scored independently, as with fixed limits.
+    np.testing.assert_array_equal(limits, np.maximum(grown.limits_, seen))
+    # Growth only takes flags away, and here it does take some; without the limits to
+    # grow, the rows are scored independently, as with fixed limits.
     flagged_fixed = fixed.score(X) > 0
     assert not ((got > 0) & ~flagged_fixed).any() and ((got <= 0) & flagged_fixed).any()
     np.testing.assert_allclose(grown.score(X), fixed.score(X), atol=1e-12)
@@ -51,10 +51,11 @@ def test_live_batch_and_chunked_scores_agree():
     ok = np.isfinite(batch)
     np.testing.assert_allclose(one[ok], batch[ok], atol=1e-9)
     X, valid = make_features(grown.feature_config).batch(odom)
-    env = np.zeros(X.shape[1])
-    chunks = np.concatenate([grown.score(c, env) for c in np.array_split(X[valid], 7)])
+    limits = grown.limits_.copy()
+    chunks = np.concatenate([grown.score(c, limits) for c in np.array_split(X[valid], 7)])
     np.testing.assert_allclose(chunks, batch[valid], atol=1e-12)
-    np.testing.assert_array_equal(env, live.envelope)
+    np.testing.assert_array_equal(limits, live.limits)
+    assert (limits > grown.limits_).any()
 
 
 def test_growth_saved_and_old_or_bad_files(tmp_path):
