@@ -77,6 +77,9 @@ class OneClassModel:
         # Second stage (set by the caller after `fit`, None: none): per feature, the value
         # a vector must exceed in at least one feature for a flag to stand.
         self.limits_: np.ndarray | None = None
+        # How the limits grow online (0: they do not; see `score`): to this many times the
+        # largest value the robot has shown while the SVM judged it nominal.
+        self.limit_growth_ = 0.0
 
     # -- training ---------------------------------------------------------------------
 
@@ -161,8 +164,9 @@ class OneClassModel:
             out[rows] = np.exp(-self.gamma_ * np.maximum(d2, 0.0)) @ self.dual_coef_
         return out + self.intercept_
 
-    def score_one(self, x: np.ndarray) -> float:
-        """`score` of one vector with few numpy calls (the live path, once per message)."""
+    def score_one(self, x: np.ndarray, limits: np.ndarray | None = None) -> float:
+        """`score` of one vector with few numpy calls (the live path, once per message);
+        `limits` as in `score`, grown in place."""
         sv = self.support_vectors_
         if getattr(self, "_sv_of", None) is not sv:
             self._sv_of, self._sv_sq = sv, np.einsum("ij,ij->i", sv, sv)
@@ -173,18 +177,41 @@ class OneClassModel:
         d = float(np.exp(-self.gamma_ * d2) @ self.dual_coef_) + self.intercept_
         s = (self.threshold_ - d) / max(-self.intercept_, 1e-12)
         if self.limits_ is not None:
-            s = min(s, float(np.max(x / self.limits_)) - 1.0)
+            over = float(np.max(x / (self.limits_ if limits is None else limits))) - 1.0
+            if limits is not None and s <= 0.0 and self.limit_growth_ > 0:
+                g = self.limit_growth_
+                np.maximum(limits, x if g == 1.0 else g * x, out=limits)
+            s = min(s, over)
         return s
 
-    def score(self, X: np.ndarray) -> np.ndarray:
+    def score(self, X: np.ndarray, limits: np.ndarray | None = None) -> np.ndarray:
         """Anomaly score: how far below the threshold, in units of rho (so comparable
         across models); > 0 is anomalous, NaN rows give NaN. With limits (the second
         stage), the smaller of that and how far the vector's largest feature is beyond
-        its limit (a fraction of the limit): both must say anomalous."""
+        its limit (a fraction of the limit): both must say anomalous.
+
+        `limits`: the robot's limits now (per feature, at least `limits_`; grown in place;
+        None: `limits_`, and the rows are scored independently). X is then a run in time
+        order and the limits grow online (`limit_growth_` > 0): each row is judged by the
+        limits left by the rows before it, and a row the SVM judges nominal raises every
+        limit to at least `limit_growth_` x its value. Two minutes of training miss some
+        of a robot's ordinary manoeuvres; when the SVM later sees them as nominal, the
+        limits stop flagging them. A vector the SVM flags never raises a limit, so an
+        anomaly is not learnt from."""
         s = (self.threshold_ - self.decision_function(X)) / max(-self.intercept_, 1e-12)
-        if self.limits_ is not None:
-            s = np.minimum(s, np.max(np.atleast_2d(X) / self.limits_, axis=1) - 1.0)
-        return s
+        if self.limits_ is None:
+            return s
+        X = np.atleast_2d(X)
+        if limits is None:
+            limits = self.limits_
+        elif self.limit_growth_ > 0 and len(X):
+            seen = np.where((s <= 0.0)[:, None], self.limit_growth_ * np.nan_to_num(X, nan=0.0), 0.0)
+            np.maximum.accumulate(seen, axis=0, out=seen)
+            np.maximum(seen, limits, out=seen)  # the limits after each row
+            before = np.vstack([limits, seen[:-1]])
+            limits[:] = seen[-1]
+            limits = before
+        return np.minimum(s, np.max(X / limits, axis=1) - 1.0)
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         """True where a vector is anomalous."""
@@ -201,8 +228,12 @@ class OneClassModel:
             out["limits"] = self.limits_
         return out
 
-    def set_limits(self, limits: np.ndarray | None) -> OneClassModel:
-        """Set the second stage (None: none) and the model id, which covers it."""
+    def set_limits(self, limits: np.ndarray | None, growth: float = 0.0) -> OneClassModel:
+        """Set the second stage (None: none), how its limits grow online (`score`; 0:
+        they do not) and the model id, which covers both."""
+        if not growth >= 0:
+            raise ModelError(f"Limit growth must be >= 0, got {growth!r}.")
+        self.limit_growth_ = float(growth) if limits is not None else 0.0
         self.limits_ = None if limits is None else np.asarray(limits, dtype=np.float64)
         if self.limits_ is not None and (self.limits_.shape != (self.n_features_in_,) or not (self.limits_ > 0).all()):
             raise ModelError(f"Limits need {self.n_features_in_} positive values, got {self.limits_}.")
@@ -212,7 +243,7 @@ class OneClassModel:
     def _header(self) -> dict:
         import sklearn
 
-        return {
+        out = {
             "format": FORMAT, "format_version": FORMAT_VERSION,
             "feature_config": self.feature_config, "n_features": int(self.n_features_in_),
             "gamma": self.gamma_, "nu": self.nu_, "threshold": self.threshold_,
@@ -222,6 +253,9 @@ class OneClassModel:
             "versions": {"cclogfs": __version__, "numpy": np.__version__,
                          "sklearn": sklearn.__version__},
         }  # fmt: skip
+        if self.limit_growth_:  # absent: fixed limits (files written before it existed)
+            out["limit_growth"] = self.limit_growth_
+        return out
 
     def _digest(self) -> str:
         h = hashlib.sha256()
@@ -300,4 +334,8 @@ class OneClassModel:
             raise ModelError(f"{npath}: support vector shapes do not match n_features/n_support.")
         if limits is not None and (limits.shape != (model.n_features_in_,) or not (limits > 0).all()):
             raise ModelError(f"{npath}: 'limits' must hold {model.n_features_in_} positive values.")
+        growth = header.get("limit_growth", 0.0)
+        if not isinstance(growth, (int, float)) or not growth >= 0 or (growth and limits is None):
+            raise ModelError(f"{jpath}: 'limit_growth' must be a number >= 0, and needs limits in {npath}.")
+        model.limit_growth_ = float(growth)
         return model
