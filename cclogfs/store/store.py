@@ -493,6 +493,9 @@ class Store:
             info["damaged"] = [p.damage_info() for p in seg.damage]
         self.commit_manifest(self.manifest.with_sealed(info))
         seg.sealed_size = seg.size
+        # Named now, as the manifest names it to a store that opens it sealed: `fsck --repair`
+        # named the damage of a segment sealed on open a second time.
+        seg.known_damage = {p.offset for p in seg.damage}
         self.sealed.append(seg)
 
     def release_reserve(self) -> None:
