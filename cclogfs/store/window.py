@@ -118,6 +118,18 @@ class Window:
         return self._read()[0].flags
 
     @property
+    def continues(self) -> bool:
+        """Whether this record is a part of a split window that goes on in the next record
+        (flag PART, FORMAT.md "Splitting"): the window is this record and those after it."""
+        if self._record is None and self._over_decode_limit():
+            return False  # never read here: messages() refuses it before reading it
+        return bool(self._read()[0].flags & RecordFlag.PART)
+
+    def _over_decode_limit(self) -> bool:
+        """Whether the index entry's length is over what a read decodes (FORMAT.md, "Limits")."""
+        return self._length > format.MAX_HEADER + format.DECODE_RAW_LIMIT + format.ENC_SLACK
+
+    @property
     def aged(self) -> Any:
         """How the texts differ from what was put (meta key "aged"), or None when byte-exact."""
         header = self._read()[0]
@@ -128,7 +140,7 @@ class Window:
         # A read decodes at most DECODE_RAW_LIMIT of window (FORMAT.md, "Limits"): checked on
         # the index entry's length before the record is read, then on the header's raw_len.
         limit = format.DECODE_RAW_LIMIT
-        if self._record is None and self._length > format.MAX_HEADER + limit + format.ENC_SLACK:
+        if self._record is None and self._over_decode_limit():
             raise self._too_large(f"is {self._length} bytes long")
         header, payload = self._read()
         if header.raw_len > limit:

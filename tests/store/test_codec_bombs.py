@@ -265,11 +265,8 @@ def test_a_crash_between_the_parts_of_a_split_window_is_not_silent(tmp_path, cap
                                         "RESERVE"]  # fmt: skip
 
 
-@pytest.mark.xfail(strict=True, reason="`cat` breaks ties between equal stamps of different streams "
-                   "by window order (start_ns, seq), and a split window's later parts start later than "
-                   "the window did: another stream's message at a stamp the window's later part also "
-                   "holds comes out before it, where the whole window put it after. FORMAT.md "
-                   "('Splitting') says cat prints the same lines as for the window whole")  # fmt: skip
+# `cat` breaks ties between equal stamps of different streams by window order, and a split
+# window's later parts start later than the window: the parts keep their first part's place.
 def test_cat_orders_equal_stamps_of_a_split_window_as_of_the_whole(tmp_path, monkeypatch, capsys):
     from cclogfs.store import encode
 
