@@ -14,6 +14,11 @@ from .format import AGED_META_KEY, Reason, RecordFlag, RecordHeader
 from .segment import Segment
 
 
+# How to read a record an older version wrote over the decode limit (FORMAT.md, "Limits"):
+# the command line says it with its own words (cclogfs.cli replaces this text).
+RAISE_DECODE_LIMIT = "raise cclogfs.store.format.DECODE_RAW_LIMIT (at most 256 MiB) before opening the store"
+
+
 @dataclass(frozen=True)
 class Receipt:
     """What `put_window` stored. Durable once a later `sync()` (or group commit) completes."""
@@ -172,7 +177,7 @@ class Window:
         return CorruptionError(
             f"{self._segment.path}: record at offset {self._offset} (seq {self.seq}) {what}, over the "
             f"{format.DECODE_RAW_LIMIT}-byte limit of what a read decodes: forged, or written by an older "
-            "cclogfs (FORMAT.md, \"Limits\", says how to read it)",
+            f"cclogfs; to read it, {RAISE_DECODE_LIMIT}",
             path=self._segment.path, offset=self._offset, reason=Reason.BAD_LENGTH,
         )  # fmt: skip
 

@@ -282,3 +282,31 @@ def test_cat_orders_equal_stamps_of_a_split_window_as_of_the_whole(tmp_path, mon
     with cclogfs.open_store(tmp_path / "split", readonly=True) as store:
         assert any(w.start_ns == 48 for w in store.query("/a"))
     assert _cat(tmp_path / "split", capsys) == _cat(tmp_path / "whole", capsys)
+
+
+def test_records_an_older_version_wrote_over_the_limit_read_with_max_record_mib(tmp_path, capsys, monkeypatch):
+    # Older versions wrote records of up to 256 MiB: the commands read them when told to.
+    from cclogfs.cli import main
+    from cclogfs.store import format
+
+    monkeypatch.setattr(format, "DECODE_RAW_LIMIT", format.DECODE_RAW_LIMIT)  # main() sets it for its process
+    path = tmp_path / "s"
+    with cclogfs.open_store(path, create=True):
+        pass
+    texts = [json.dumps("x" * (1 << 20)) for _ in range(17)]  # 17 MiB of window in one record
+    raw = frame(list(range(17)), texts)
+    record = pack_record(seq=0, start_ns=0, end_ns=16, count=17, codec=1, name=b"/a", config=b'{"id":"none"}',
+                         meta=b"{}", raw_len=len(raw), payload=raw, synced=SEGMENT_HEADER_SIZE)  # fmt: skip
+    with open(path / "00000000000000000000.seg", "ab") as f:
+        f.write(record)
+    assert main(["cat", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert "record at offset 32 (seq 0) holds a" in err and "pass --max-record-mib N (N at most 256) to cat" in err
+    assert main(["fsck", "--deep", str(path)]) == 1 and "--max-record-mib" in capsys.readouterr().out
+    assert main(["cat", str(path), "--max-record-mib", "18"]) == 0
+    assert capsys.readouterr().out.count("\n") == 17
+    assert main(["fsck", "--deep", "--max-record-mib", "18", str(path)]) == 0
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        main(["cat", str(path), "--max-record-mib", "300"])
+    assert "'300' is not a whole number of MiB from 16 to 256" in capsys.readouterr().err
