@@ -94,6 +94,9 @@ class Record:
         return self.offset + self.header.record_len
 
 
+_PART = int(RecordFlag.PART)
+
+
 def records(source: Source, start: int, size: int, first_seq: int) -> Iterator[Record]:
     """Every record from `start` to `size` in log order, each fully checked (framing,
     checksums, sequence continuity from `first_seq`, fields, and that each part of a split
@@ -123,7 +126,7 @@ def records(source: Source, start: int, size: int, first_seq: int) -> Iterator[R
                 raise UnfinishedPut(put, (pos, seq), f"then seq {seq}: {err}", cause=err) from err
             raise
         yield Record(pos, header, payload, skip)
-        if skip is None and header.flags & RecordFlag.PART:
+        if skip is None and header.flags & _PART:
             put, last = put or (pos, seq), header
         else:
             put = last = None

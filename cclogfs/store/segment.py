@@ -271,6 +271,9 @@ def _resume(fs: FileSystem, fd: int, err: RecordError, size: int, seq: int) -> t
     return next_intact(fs, fd, err.offset, size, seq)
 
 
+_PART, _AGED = int(RecordFlag.PART), int(RecordFlag.AGED)  # ints: IntFlag arithmetic is slow per record
+
+
 def _add(result: ScanResult, held: list[tuple], path: str, rec) -> None:
     header = rec.header
     result.synced = max(result.synced, header.synced)
@@ -278,14 +281,15 @@ def _add(result: ScanResult, held: list[tuple], path: str, rec) -> None:
         result.skipped.append(Problem(path, rec.offset, rec.skip, f"kind {header.kind} version "
                                       f"{header.version} flags {header.flags}"))  # fmt: skip
     else:
-        held.append((header.name, header.count, header.seq, header.start_ns, header.end_ns, rec.offset,
-                     header.record_len, header.raw_len, header.flags & RecordFlag.AGED))  # fmt: skip
-        if header.flags & RecordFlag.PART:
+        row = (header.name, header.count, header.seq, header.start_ns, header.end_ns, rec.offset,
+               header.record_len, header.raw_len)  # fmt: skip
+        held.append((row, header.flags & _AGED))
+        if header.flags & _PART:
             return  # the valid prefix ends before a window until its last part is read
-    for row in held:
-        if row[8]:
+    for row, aged in held:
+        result.rows.append(row)
+        if aged:
             result.aged[row[0]] = result.aged.get(row[0], 0) + 1
-        result.rows.append(row[:8])
     held.clear()
     result.next_seq, result.end = header.seq + 1, rec.end
 
