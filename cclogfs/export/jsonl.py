@@ -22,6 +22,15 @@ def merged_messages(
             yield name, stamp, text
 
 
+def continues(window: StoredWindow) -> bool:
+    """Whether the window is a part of a split window that goes on (a store `Window`'s
+    `continues`; other windows never do)."""
+    try:
+        return window.continues  # type: ignore[attr-defined]
+    except AttributeError:
+        return False
+
+
 # A record holds at most 2**24 messages (FORMAT.md, "Limits"): the message numbers of a split
 # window's part j start at j << 24, after those of the parts before it.
 PART_SHIFT = 24
@@ -50,11 +59,11 @@ def merged_runs(
     while heap or nxt is not None:
         while nxt is not None and (not heap or nxt.start_ns <= heap[0][0]):
             after = next(pending, None)
-            if (nxt.name, nxt.seq) in parts:
+            if parts and (nxt.name, nxt.seq) in parts:
                 own, part = parts.pop((nxt.name, nxt.seq))
             else:
                 own, part, order = order, 0, order + 1
-            if getattr(nxt, "continues", False):
+            if continues(nxt):
                 parts[nxt.name, nxt.seq + 1] = (own, part + 1)
             if not heap and (after is None or after.start_ns > nxt.end_ns):  # alone in time
                 if lo <= nxt.start_ns and nxt.end_ns <= hi:  # wholly inside the range

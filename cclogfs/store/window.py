@@ -19,6 +19,9 @@ from .segment import Segment
 RAISE_DECODE_LIMIT = "raise cclogfs.store.format.DECODE_RAW_LIMIT (at most 256 MiB) before opening the store"
 
 
+_PART = int(RecordFlag.PART)
+
+
 @dataclass(frozen=True)
 class Receipt:
     """What `put_window` stored. Durable once a later `sync()` (or group commit) completes."""
@@ -126,9 +129,12 @@ class Window:
     def continues(self) -> bool:
         """Whether this record is a part of a split window that goes on in the next record
         (flag PART, FORMAT.md "Splitting"): the window is this record and those after it."""
-        if self._record is None and self._over_decode_limit():
-            return False  # never read here: messages() refuses it before reading it
-        return bool(self._read()[0].flags & RecordFlag.PART)
+        record = self._record
+        if record is None:
+            if self._over_decode_limit():
+                return False  # never read here: messages() refuses it before reading it
+            record = self._read()
+        return record[0].flags & _PART != 0
 
     def _over_decode_limit(self) -> bool:
         """Whether the index entry's length is over what a read decodes (FORMAT.md, "Limits")."""
