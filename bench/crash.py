@@ -6,7 +6,8 @@ system, and at every operation boundary open every disk image a crash could leav
 Workloads: every sequence of up to 3 operations (as CrashMonkey's ACE) of put, big put
 (handed to the OS unsynced), sync, close and reopen, kill -9 and reopen on the same page
 cache, seal, age (rewrite), drop the oldest segment, and a failed fsync (then reopen),
-after a synced start; then random longer ones, and every fourth run the group-commit
+after a synced start; then random longer ones (with split puts too: a window over the
+record limit, stored as parts flagged PART), and every fourth run the group-commit
 thread and the upkeep (aging) thread working on their own. At each boundary: one image per
 failure mode for every file (lost, all, prefix, torn, zero, garbage, reorder, hole), plus
 MIXED images where each file fails in its own mode and directory operations land
@@ -16,7 +17,8 @@ are crashed again at each of their own boundaries.
 The check of each image: the store opens; it holds a gapless run of seqs that starts where
 retention left the log, each window the one put with that seq (messages exact, or aged
 within its time range after an age step), ending at or after every put an fsync had made
-durable (a sync, a group commit, a close, or recovery's own rewrite); it names no damage;
+durable (a sync, a group commit, a close, or recovery's own rewrite), and never inside a
+split put (a prefix of its parts); it names no damage;
 it takes a put, and reopens clean. Identical images are opened once: the figure is the
 number of distinct crash states checked (the number of images made is printed too).
 """
@@ -37,7 +39,9 @@ import cclogfs
 from cclogfs.errors import StoreFailedError
 from cclogfs.store import Replacement, repair_store
 from cclogfs.store.format import SEGMENT_HEADER_SIZE, RecordError, RecordFlag
-from cclogfs.store.records import BytesAt, records
+from cclogfs.store import encode, segment
+from cclogfs.store.encode import split_bounds
+from cclogfs.store.records import BytesAt, UnfinishedPut, records
 
 from ._diskmodel import MODES, DiskModel
 from ._memfs import MemFileSystem, RecordingMemFileSystem
@@ -45,6 +49,10 @@ from ._memfs import MemFileSystem, RecordingMemFileSystem
 DIR = "/cclogfs-crash-store"  # its parent is "/": creation lists the real parent for stale creations
 OPTS = dict(sync_every_ms=None, segment_bytes=4096, segment_records=4, codec="zstd")
 STEPS = ("put", "big", "sync", "reopen", "kill", "seal", "age", "drop", "failsync")
+# A split put (do_split): the random long workloads use it too; tests/store/test_crash_split.py
+# checks every workload of a step, a split and a step.
+LONG_STEPS = (*STEPS, "split")
+SPLIT_RAW = 600  # the record limit a split put is stored under: its 24 messages make 4-5 parts
 MIXED = 3  # images per boundary where each file fails in its own mode
 WRITE_EVERY = 4  # every 4th distinct image is also written to and reopened (it costs twice the open)
 
@@ -59,9 +67,12 @@ def digest(name: str, messages) -> bytes:
 
 @dataclass
 class Put:
+    """What one seq must hold: a put, or one part of a split put (`last`: its final part)."""
+
     name: str
     messages: list
     digest: bytes
+    last: bool = True
 
 
 @dataclass
@@ -104,8 +115,10 @@ class Workload:
                     for i in range(count)]  # fmt: skip
         self.t += count
         # Listed first: a put whose own group commit fails raises StoreFailedError with its
-        # record handed to the OS, so it may or may not survive (an unknown outcome).
-        self.puts.append(Put(name, messages, digest(name, messages)))
+        # record handed to the OS, so it may or may not survive (an unknown outcome). One
+        # entry per record: a window over the record limit is stored as parts, seq on.
+        for lo, hi in split_bounds(name, [text for _, text in messages]):
+            self.puts.append(Put(name, messages[lo:hi], digest(name, messages[lo:hi]), last=hi == count))
         self.store.put_window(name, messages, codec=codec)
 
     def do_put(self) -> None:
@@ -117,6 +130,17 @@ class Workload:
         self.put(24, 31, codec="none")
         with self.store.lock:
             self.store.active.flush()
+
+    def do_split(self) -> None:
+        """A window over the record limit (lowered to SPLIT_RAW), stored as parts with the
+        PART flag, each handed to the OS as its own write (as parts over the 1 MiB write
+        buffer are), uncompressed: crashes fall between the parts and inside them."""
+        saved = encode.MAX_RECORD_RAW, segment.WRITE_BUFFER
+        encode.MAX_RECORD_RAW, segment.WRITE_BUFFER = SPLIT_RAW, 1
+        try:
+            self.put(24, 31, codec="none")
+        finally:
+            encode.MAX_RECORD_RAW, segment.WRITE_BUFFER = saved
 
     def do_sync(self) -> None:
         self.store.sync()
@@ -215,6 +239,8 @@ def prefix_end(data: bytes, first_seq: int) -> int:
     try:
         for rec in records(BytesAt(data), SEGMENT_HEADER_SIZE, len(data), first_seq):
             end = rec.header.seq + 1
+    except UnfinishedPut as err:  # durable parts of a put whose last part is not: none of it is
+        end = err.first[1]
     except RecordError:
         pass
     return end
@@ -283,6 +309,8 @@ def violation(seen: Seen, ref: tuple, must: int, firsts: frozenset) -> str | Non
             return f"seq {seq} holds other messages than were put"
         if stamps is not None and not set(stamps) <= {t for t, _ in put.messages}:
             return f"aged seq {seq} holds stamps that were never put"
+    if own and not ref[own[-1][0]].last:
+        return f"the log ends inside a split put: seq {own[-1][0]} is a part whose window goes on"
     # `fsck --repair` appends what it salvaged from a side file (meta "salvaged"): copies of
     # puts, after the prefix, and synced by the repair's own sync.
     end = seen.first_seq + len(seen.windows)
@@ -403,7 +431,7 @@ def run(states: int, seed: int, long_len: int = 20, nested_every: int = 8, out=s
         if i % 4 == 3:
             explore(run_background(rng.randrange(2**32)), tally, rng, f"background {i}", nested_every)
         else:
-            steps = [rng.choice(STEPS) for _ in range(rng.randint(4, long_len))]
+            steps = [rng.choice(LONG_STEPS) for _ in range(rng.randint(4, long_len))]
             explore(run_steps(steps, rng.choice((None, 700, 2500))), tally, rng, "long " + ",".join(steps), nested_every)
         i += 1
         if i % 100 == 0:

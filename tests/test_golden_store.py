@@ -132,3 +132,38 @@ def test_golden_store_v3_digest_is_opened_by_the_writer_from_its_checkpoint(tmp_
     after = {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir() if p.name not in ("LOCK", "RESERVE")}
     assert after == before
     assert not check_store(str(tmp_path / "s")).findings
+
+
+def test_golden_store_of_split_windows_reads_back(tmp_path):
+    # Record flag PART (issue 16): a window over the record limit is stored as parts, every
+    # part but the last flagged; the records of earlier versions carry no such flag.
+    from cclogfs.store import check_store
+    from cclogfs.store.format import RecordFlag, unpack_manifest
+
+    expected = json.loads((GOLDEN / "store_v3_split.expected.json").read_text())
+    assert [w["flags"] for w in expected] == [2, 2, 2, 2, 0, 0, 2, 0]
+    shutil.copytree(GOLDEN / "store_v3_split", tmp_path / "s")
+    before = {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir()}
+    body = unpack_manifest(before["MANIFEST"])
+    assert [(s["first_seq"], s["end_seq"]) for s in body["segments"]] == [(0, 5)]  # all 5 parts, though 4 a segment
+    assert body["checkpoint"]["next_seq"] == 8
+    for opts in ({"readonly": True}, {"readonly": True, "verify": True}, {"sync_every_ms": None, "segment_age_s": 1e12}):
+        with cclogfs.open_store(tmp_path / "s", **opts) as store:
+            assert store.recovery.clean and not store.damage()
+            got = [{"seq": w.seq, "name": w.name, "meta": w.meta, "flags": w.flags,
+                    "messages": [list(m) for m in w.messages()]}
+                   for w in sorted(store.query(), key=lambda w: w.seq)]  # fmt: skip
+            assert got == expected
+    after = {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir() if p.name not in ("LOCK", "RESERVE")}
+    assert after == before
+    assert not check_store(str(tmp_path / "s"), deep=True).findings
+    # The first part of /tf's split window, as today's encoder writes it.
+    from cclogfs.codecs import frame
+
+    messages = [m for w in expected if w["seq"] == 6 for m in w["messages"]]
+    raw = frame([t for t, _ in messages], [s for _, s in messages])
+    record = pack_record(seq=6, start_ns=messages[0][0], end_ns=messages[-1][0], count=len(messages),
+                         codec=CodecId.NONE, name=b"/tf", config=b'{"id":"none"}', meta=b'{"window":3}',
+                         raw_len=len(raw), payload=raw, flags=RecordFlag.PART,
+                         synced=0)  # fmt: skip
+    assert record in before["00000000000000000005.seg"]

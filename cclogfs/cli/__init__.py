@@ -49,10 +49,16 @@ def main(argv: list[str] | None = None) -> int:
     # The top-level parser has no options but --help, so a command comes first or not at all.
     command = argv[0] if argv and argv[0] in COMMANDS else ""
     args = build_parser(command).parse_args(argv)
+    if getattr(args, "max_record_mib", None):
+        from ..store import format as store_format  # here: `cclog --help` need not import the store
+
+        store_format.DECODE_RAW_LIMIT = args.max_record_mib << 20
     try:
         return int(args.func(args) or 0)
     except CclogError as err:
-        print(f"cclog: error: {_cli_words(str(err))}", file=sys.stderr)
+        from .common import cli_words
+
+        print(f"cclog: error: {cli_words(str(err))}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("cclog: interrupted", file=sys.stderr)
@@ -63,16 +69,3 @@ def main(argv: list[str] | None = None) -> int:
         where = " -> ".join(str(p) for p in (err.filename, err.filename2) if p is not None)
         print(f"cclog: error: {where + ': ' if where else ''}{err.strerror or err}", file=sys.stderr)
         return 1
-
-
-# The store's errors name its Python API; on the command line they name the command.
-_API_WORDS = {
-    "pass create=True to make one": "`cclog record SOURCE --store PATH` makes one",
-    "open it with readonly=True to read": "commands that only read (info, cat, export, play) work meanwhile",
-}
-
-
-def _cli_words(message: str) -> str:
-    for api, cli in _API_WORDS.items():
-        message = message.replace(api, cli)
-    return message

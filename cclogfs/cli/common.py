@@ -53,6 +53,24 @@ def add_selection(p: argparse.ArgumentParser) -> None:
     p.add_argument("--skip-damaged", action="store_true",
                    help="read every intact window of a damaged store; say on stderr what was skipped "
                         f"and exit {EXIT_SKIPPED} (without it, damage is an error)")  # fmt: skip
+    add_record_limit(p)
+
+
+def add_record_limit(p: argparse.ArgumentParser) -> None:
+    """--max-record-mib: read records an older cclogfs wrote above the 16 MiB decode limit."""
+    p.add_argument("--max-record-mib", type=record_mib, metavar="N",
+                   help="decode records of up to N MiB of window (16 to 256; default 16), as older "
+                        "versions wrote up to 256 MiB; reading one costs up to 16 x N MiB of memory")  # fmt: skip
+
+
+def record_mib(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if not 16 <= value <= 256:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number of MiB from 16 to 256")
+    return value
 
 
 # Exit status of a reading command that skipped damaged windows (--skip-damaged): not 0,
@@ -251,3 +269,19 @@ def damaged_exit(source) -> int:
         return 0
     print(f"cclog: input damaged, kept what could be read: {lost}", file=sys.stderr)
     return DAMAGED_EXIT
+
+
+# The store's errors name its Python API; on the command line they name the command.
+_API_WORDS = {
+    "pass create=True to make one": "`cclog record SOURCE --store PATH` makes one",
+    "open it with readonly=True to read": "commands that only read (info, cat, export, play) work meanwhile",
+    "raise cclogfs.store.format.DECODE_RAW_LIMIT (at most 256 MiB) before opening the store":
+        "pass --max-record-mib N (N at most 256) to cat, export or fsck",
+}
+
+
+def cli_words(message: str) -> str:
+    """A store error's text with the words of the command line for its Python API."""
+    for api, cli in _API_WORDS.items():
+        message = message.replace(api, cli)
+    return message

@@ -7,6 +7,8 @@ import json
 import os
 import sys
 
+from .common import add_record_limit, cli_words
+
 
 EXAMPLES = """examples:
   cclog fsck out/demo/store
@@ -32,6 +34,7 @@ DESCRIPTION = (
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("store", help="store directory")
     p.add_argument("--deep", action="store_true", help="decode every window's messages too")
+    add_record_limit(p)
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.add_argument("--repair", action="store_true",
                    help="repair: rebuild indexes, cut an unsynced torn tail, salvage intact records of side "
@@ -95,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
                           "findings": [vars(f) for f in report.findings]}, indent=2))  # fmt: skip
     else:
         for finding in report.findings:
-            print(finding)
+            print(cli_words(str(finding)))
         state = "DAMAGED" if report.errors else "clean"
         deep = f", {report.decoded} windows decoded" if args.deep else ""
         deep += f", {report.aged} aged windows" if report.aged else ""

@@ -22,12 +22,28 @@ def merged_messages(
             yield name, stamp, text
 
 
+def continues(window: StoredWindow) -> bool:
+    """Whether the window is a part of a split window that goes on (a store `Window`'s
+    `continues`; other windows never do)."""
+    try:
+        return window.continues  # type: ignore[attr-defined]
+    except AttributeError:
+        return False
+
+
+# A record holds at most 2**24 messages (FORMAT.md, "Limits"): the message numbers of a split
+# window's part j start at j << 24, after those of the parts before it.
+PART_SHIFT = 24
+
+
 def merged_runs(
     windows: Iterable[StoredWindow], start_ns: int | None = None, end_ns: int | None = None
 ) -> Iterator[tuple[str, list[tuple[int, str]]]]:
     """(stream, [(stamp_ns, text), ...]): runs of one stream, in stamp order when chained.
 
-    Equal stamps keep window order, then message order. A window is opened only once
+    Equal stamps keep window order, then message order; the parts of a split window (a
+    store `Window` whose `continues` is true goes on in the record after it) keep the order
+    of its first part, so they merge as the window whole would. A window is opened only once
     the merge reaches its start, so memory holds just the windows that overlap in time.
     A window that overlaps none (most stores: one stream, windows one after another)
     goes out as one run, without the heap: nothing can come between its messages. Runs
@@ -39,9 +55,16 @@ def merged_runs(
     pending = iter(windows)
     nxt = next(pending, None)
     order = 0
+    parts: dict[tuple[str, int], tuple[int, int]] = {}  # (stream, seq) of a next part -> (order, part number)
     while heap or nxt is not None:
         while nxt is not None and (not heap or nxt.start_ns <= heap[0][0]):
             after = next(pending, None)
+            if parts and (nxt.name, nxt.seq) in parts:
+                own, part = parts.pop((nxt.name, nxt.seq))
+            else:
+                own, part, order = order, 0, order + 1
+            if continues(nxt):
+                parts[nxt.name, nxt.seq + 1] = (own, part + 1)
             if not heap and (after is None or after.start_ns > nxt.end_ns):  # alone in time
                 if lo <= nxt.start_ns and nxt.end_ns <= hi:  # wholly inside the range
                     yield nxt.name, list(nxt.messages())
@@ -57,9 +80,8 @@ def merged_runs(
             else:
                 it = iter(nxt.messages())
                 first = next(it, None)
-                if first is not None:
-                    heapq.heappush(heap, (first[0], order, 0, nxt.name, first[1], it))
-                order += 1
+                if first is not None:  # a part's messages count on from the part before's
+                    heapq.heappush(heap, (first[0], own, part << PART_SHIFT, nxt.name, first[1], it))
             nxt = after
         if not heap:
             continue

@@ -38,7 +38,7 @@ from .format import (
 from .fs import FileSystem
 from .index import SegmentIndex, merge_stream_stats
 from .manifest import Manifest
-from .records import ChunkReader, Record, records
+from .records import ChunkReader, Record, not_continued, records
 from .segment import Segment, open_segment
 from .window import Window
 
@@ -147,6 +147,9 @@ def _replacement_record(codecs: Codecs, seg: Segment, header: RecordHeader, rep:
                                 "it must return None (keep the record) or a Replacement")  # fmt: skip
     if not isinstance(rep.flags, int) or rep.flags & ~KNOWN_FLAGS:
         raise InvalidInputError(f"{where}: flags {rep.flags!r} hold bits this format does not define")
+    if rep.flags & RecordFlag.PART:
+        raise InvalidInputError(f"{where}: the PART flag is not the caller's: a replacement keeps the "
+                                "PART flag of the record it replaces")  # fmt: skip
     if rep.flags & RecordFlag.AGED and not (isinstance(rep.meta, Mapping) and AGED_META_KEY in rep.meta):
         raise InvalidInputError(f"{where}: the AGED flag needs meta[{AGED_META_KEY!r}] saying how "
                                 "the texts differ from what was put")  # fmt: skip
@@ -159,7 +162,8 @@ def _replacement_record(codecs: Codecs, seg: Segment, header: RecordHeader, rep:
         raise InvalidInputError(f"{where}: its messages span {first}..{last} ns, outside the "
                                 f"record's {header.start_ns}..{header.end_ns}; a rewrite may not "
                                 "move a window in time")  # fmt: skip
-    return enc.pack(header.seq, rep.flags)
+    # A part of a split window stays one: the window's records keep their places and flags.
+    return enc.pack(header.seq, rep.flags | (header.flags & RecordFlag.PART))
 
 
 @dataclass
@@ -177,6 +181,7 @@ def _replay(codecs: Codecs, seg: Segment, end_seq: int, fn: Callable, manifest_g
     """Call `fn` on every record of a sealed segment; the records it keeps or replaces.
     `manifest_gen`: the generation the manifest that commits them will have at least."""
     out = _Replayed(bytearray(pack_segment_header(seg.first_seq, seg.created_ns, manifest_gen)))
+    last: RecordHeader | None = None  # the record before, when it is a part of a split window
     for rec, data in _records(seg, end_seq):
         header, rep = rec.header, None
         if rec.skip is None:
@@ -188,6 +193,11 @@ def _replay(codecs: Codecs, seg: Segment, end_seq: int, fn: Callable, manifest_g
         else:
             record, out.replaced = _replacement_record(codecs, seg, header, rep), out.replaced + 1
             new_header = parse_header(record[: check_fixed(record[:RECORD_FIXED_SIZE], len(record))])
+        if last is not None and (why := not_continued(last, new_header, rec.skip)):
+            raise InvalidInputError(f"{os.path.basename(seg.path)}: replacement for seq {header.seq} of "
+                                    f"{header.name!r} would break its split window: {why}; the parts of "
+                                    "a window keep its meta (apart from 'aged')")  # fmt: skip
+        last = new_header if rec.skip is None and new_header.flags & RecordFlag.PART else None
         if rec.skip is None:
             out.rows.append((new_header.name, new_header.count, new_header.seq, new_header.start_ns,
                              new_header.end_ns, len(out.buf), len(record), new_header.raw_len))  # fmt: skip

@@ -95,7 +95,7 @@ def encode_parts(codecs: Codecs, name: str, messages: Sequence[tuple[int, str]],
     chosen = codecs.for_stream(name, codec)
     config, codec_number = codecs.header(chosen)
     raw_len = raw_size(stamps, texts)
-    bounds = [(0, len(stamps))] if raw_len <= MAX_RECORD_RAW else _split(name, texts) if split else None
+    bounds = [(0, len(stamps))] if raw_len <= MAX_RECORD_RAW else split_bounds(name, texts) if split else None
     if bounds is None:
         raise InvalidInputError(f"window for {name!r} is {raw_len} bytes, over the {MAX_RECORD_RAW}-byte "
                                 "record limit; split it into several windows")  # fmt: skip
@@ -107,7 +107,7 @@ def encode_parts(codecs: Codecs, name: str, messages: Sequence[tuple[int, str]],
     return parts
 
 
-def _split(name: str, texts: Sequence[str]) -> list[tuple[int, int]]:
+def split_bounds(name: str, texts: Sequence[str]) -> list[tuple[int, int]]:
     """[lo, hi) message ranges whose canonical framing is each at most MAX_RECORD_RAW."""
     bounds, lo, size = [], 0, 4
     for i, text in enumerate(texts):

@@ -63,9 +63,10 @@ class RecordFlag(IntFlag):
     """Record flag bits. Values never change; a bit not listed here is skipped and reported."""
 
     AGED = 1  # the texts are not byte-exact what was put; meta key "aged" says how they differ
+    PART = 2  # this window continues in the next record (seq + 1): every part of a split window but its last
 
 
-KNOWN_FLAGS = int(RecordFlag.AGED)
+KNOWN_FLAGS = int(RecordFlag.AGED | RecordFlag.PART)
 AGED_META_KEY = "aged"
 
 
@@ -86,6 +87,7 @@ class Reason:
     UNKNOWN_KIND = "unknown record kind"
     UNSUPPORTED_VERSION = "unsupported record version"
     UNKNOWN_FLAGS = "unknown record flags"
+    UNFINISHED_PUT = "unfinished put"
     BAD_SEGMENT_HEADER = "bad segment header"
     DROPPED_SEGMENT = "segment after the torn tail"
     CODEC_MISMATCH = "codec mismatch"

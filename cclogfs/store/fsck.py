@@ -73,6 +73,9 @@ def check_store(path: str, *, deep: bool = False, fs: FileSystem | None = None) 
                 report.add("error", _loc(p), f"{p.reason} in the active segment with {p.intact_after} intact "
                                              f"records after it; the writer will keep the {p.dropped_bytes} "
                                              "bytes from here in a side file and truncate")  # fmt: skip
+            elif p.reason == Reason.UNFINISHED_PUT:  # a crash (or a writer now) between the parts of a put
+                report.add("warning", _loc(p), f"{p.detail}: a put never acknowledged; the writer will cut "
+                                               f"its {p.dropped_bytes} bytes on open, readers do not show it")  # fmt: skip
             else:
                 report.add("warning", _loc(p), f"{p.reason}: the writer will truncate this torn tail on open "
                                                f"({p.dropped_bytes} bytes of unsynced writes)")  # fmt: skip

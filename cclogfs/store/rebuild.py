@@ -94,8 +94,9 @@ def _sealed_info(fs: FileSystem, file: str, first_seq: int, gen: int, end_seq: i
         fs.close(seg.fd)
     damage = [*result.damage, *([result.problem] if result.problem else [])]
     for p in damage:
-        p.seqs = p.seqs or (result.next_seq, max(end_seq, result.next_seq))
-    info = {"first_seq": first_seq, "end_seq": max(end_seq, result.next_seq), "size": seg.size, "gen": gen,
+        lost = p.put_end[1] if p.put_end else 0  # an unfinished put's parts run to the end
+        p.seqs = p.seqs or (result.next_seq, max(end_seq, result.next_seq, lost))
+    info = {"first_seq": first_seq, "end_seq": max(end_seq, result.next_seq, *(p.seqs[1] for p in damage)), "size": seg.size, "gen": gen,
             "streams": SegmentIndex.build(result.rows).stream_stats(), "aged": result.aged}  # fmt: skip
     if damage:
         info["damaged"] = [p.damage_info() for p in damage]

@@ -9,15 +9,18 @@ count of intact records past damage, compaction and fsck all go through these tw
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Protocol
 
 from .format import (
+    AGED_META_KEY,
     RECORD_FIXED_SIZE,
     RECORD_MAGIC,
     Reason,
     RecordError,
+    RecordFlag,
     RecordHeader,
     check_fields,
     check_fixed,
@@ -91,23 +94,82 @@ class Record:
         return self.offset + self.header.record_len
 
 
+_PART = int(RecordFlag.PART)
+
+
 def records(source: Source, start: int, size: int, first_seq: int) -> Iterator[Record]:
     """Every record from `start` to `size` in log order, each fully checked (framing,
-    checksums, sequence continuity from `first_seq`, fields). Stops by raising RecordError
-    (with `offset` set) at the first record that fails."""
+    checksums, sequence continuity from `first_seq`, fields, and that each part of a split
+    window is followed by its continuation). Stops by raising RecordError (with `offset`
+    set) at the first record that fails.
+
+    A record flagged PART is yielded before its continuation is seen: when the put it
+    belongs to turns out unfinished (the next record is not its continuation, fails a
+    check, or the range ends), the error is an `UnfinishedPut` whose `offset` is the put's
+    first part, so that a caller drops what it took from the put's parts."""
     pos, seq = start, first_seq
+    put: tuple[int, int] | None = None  # (offset, seq) of the first part of a put not finished yet
+    last: RecordHeader | None = None  # the record before, while `put` is open
     while pos < size:
-        header, payload = read_record(source, pos, size - pos)
         try:
+            header, payload = read_record(source, pos, size - pos)
             if header.seq != seq:
                 raise RecordError(Reason.SEQ_GAP, f"seq {header.seq}, expected {seq}")
             skip = check_fields(header)
+            if put is not None and (why := not_continued(last, header, skip)):
+                raise UnfinishedPut(put, (pos, seq), why)
+        except UnfinishedPut:
+            raise
         except RecordError as err:
             err.offset = pos
+            if put is not None:  # the put's last part is not there: it ends here unfinished
+                raise UnfinishedPut(put, (pos, seq), f"then seq {seq}: {err}", cause=err) from err
             raise
         yield Record(pos, header, payload, skip)
+        if skip is None and header.flags & _PART:
+            put, last = put or (pos, seq), header
+        else:
+            put = last = None
         pos += header.record_len
         seq += 1
+    if put is not None:
+        raise UnfinishedPut(put, (pos, seq), "the range ends before its last part")
+
+
+class UnfinishedPut(RecordError):
+    """A split window whose last part is not there (FORMAT.md, "Splitting"): `offset` and
+    `seqs[0]` are its first part's, `end` the (offset, seq) one past its last part found
+    (where the next record starts, or the range ends), `cause` the failure there, if any."""
+
+    def __init__(self, first: tuple[int, int], end: tuple[int, int], why: str, cause: RecordError | None = None):
+        super().__init__(Reason.UNFINISHED_PUT, f"seqs {first[1]}..{end[1] - 1} are parts of a split window "
+                                                f"whose last part is missing ({why})", first[0])  # fmt: skip
+        self.first, self.end, self.cause = first, end, cause
+
+
+def not_continued(last: RecordHeader, header: RecordHeader, skip: str | None) -> str | None:
+    """Why `header` (the record after `last`, which is flagged PART) is not the next part of
+    its window, or None: a part carries on the same stream, from where the part before
+    ended, with the same meta (the key `aged` apart: compaction ages each part alone)."""
+    if skip is not None:
+        return f"a record this reader skips ({skip})"
+    if header.name != last.name:
+        return f"a window of {header.name!r}, not {last.name!r}"
+    if header.start_ns < last.end_ns:
+        return f"it starts at {header.start_ns} ns, before the part before ends ({last.end_ns} ns)"
+    if header.meta != last.meta and _meta_apart_from_aged(header.meta) != _meta_apart_from_aged(last.meta):
+        return "its meta differs"
+    return None
+
+
+def _meta_apart_from_aged(meta: bytes) -> object:
+    try:
+        value = json.loads(meta)
+    except (ValueError, RecursionError):
+        return meta
+    if isinstance(value, dict):
+        value.pop(AGED_META_KEY, None)
+    return value
 
 
 # The magic search reads this much at a time: with one record (at most the limits of

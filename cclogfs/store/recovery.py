@@ -334,7 +334,8 @@ class SegmentOpener:
         # A cut is a torn tail, not declared damage: what a salvaging scan found past it is
         # counted below, and the bytes to the end of the snapshot are what is dropped.
         cut.seqs, cut.dropped_bytes = None, seg.size - cut.offset
-        cut.intact_after = intact_after(seg, cut.offset)
+        # An unfinished put's own parts are no evidence: it was never acknowledged.
+        cut.intact_after = intact_after(seg, cut.put_end[0] - 1 if cut.put_end else cut.offset)
         self.recovery.problems.append(cut)
         if not self.readonly:
             if cut.intact_after:
@@ -445,8 +446,9 @@ def _name_lost_seqs(damage: list[Problem], next_seq: int, checkpoint_next: int) 
     """Damage that runs to the end of what was scanned: only the checkpoint knows the seqs
     it lost, from `next_seq` (the scan's) on."""
     for problem in damage:
-        if problem.seqs is None:
-            problem.seqs = (next_seq, max(checkpoint_next, next_seq + 1))
+        if problem.seqs is None:  # an unfinished put's parts run to the end of what was scanned
+            lost = problem.put_end[1] if problem.put_end else next_seq + 1
+            problem.seqs = (next_seq, max(checkpoint_next, lost))
 
 
 def _holds_records(seg: Segment) -> bool:

@@ -21,7 +21,7 @@ from .format import (
 )
 from .fs import FileSystem
 from .index import SegmentIndex
-from .records import BytesAt, ChunkReader, count_intact_in, intact_in, read_record, records
+from .records import BytesAt, ChunkReader, UnfinishedPut, count_intact_in, intact_in, read_record, records
 
 # Hand buffered records to the OS past this size even when no fsync is due, so the
 # writer's memory stays bounded whatever the sync policy.
@@ -45,6 +45,8 @@ class Problem:
     kept_in: str = ""  # side file holding the dropped bytes, when intact records were among them
     # Damage below the synced point (never cut): the sequence numbers it lost, [first, end).
     seqs: tuple[int, int] | None = None
+    # An unfinished put (`offset` its first part): (offset, seq) one past its last part found.
+    put_end: tuple[int, int] | None = None
 
     def __str__(self) -> str:
         dropped = f", {self.dropped_bytes} bytes dropped" if self.dropped_bytes else ""
@@ -256,12 +258,14 @@ def scan(segment: Segment, *, salvage: bool = False, start: tuple[int, int] | No
     size = segment.size  # the size taken when it was opened: one snapshot (see open_segment)
     pos, seq = start or (SEGMENT_HEADER_SIZE, segment.first_seq)
     result = ScanResult(end=pos, next_seq=seq)
+    held: list[tuple] = []  # rows of a split window's parts, kept once its last part is read
     while True:
         try:
             for rec in records(ChunkReader(fs, fd), pos, size, seq):
-                _add(result, segment.path, rec)
+                _add(result, held, segment.path, rec)
             return result
         except RecordError as err:
+            held.clear()  # an unfinished put: its parts are not part of the valid prefix
             if "skip-bad-record" in planted.BUGS:
                 found = next_intact(fs, fd, err.offset, size, result.next_seq)
                 if found is not None:
@@ -269,8 +273,10 @@ def scan(segment: Segment, *, salvage: bool = False, start: tuple[int, int] | No
                     continue
             problem = Problem(segment.path, err.offset, err.reason, str(err), size - err.offset)
             result.end = err.offset
-            found = next_intact(fs, fd, err.offset, size, result.next_seq) if salvage else None
+            found = _resume(fs, fd, err, size, result.next_seq) if salvage else None
             if found is None:
+                if isinstance(err, UnfinishedPut):
+                    problem.put_end = err.end
                 result.problem = problem
                 return result
             pos, seq = found
@@ -278,19 +284,36 @@ def scan(segment: Segment, *, salvage: bool = False, start: tuple[int, int] | No
             result.damage.append(problem)
 
 
-def _add(result: ScanResult, path: str, rec) -> None:
+def _resume(fs: FileSystem, fd: int, err: RecordError, size: int, seq: int) -> tuple[int, int] | None:
+    """Where a salvaging scan goes on after `err`: at the record that showed a split window
+    unfinished (it is intact), else at the next intact record past the failure."""
+    if isinstance(err, UnfinishedPut):
+        if err.cause is None:
+            return err.end if err.end[0] < size else None
+        return next_intact(fs, fd, err.cause.offset, size, seq)
+    return next_intact(fs, fd, err.offset, size, seq)
+
+
+_PART, _AGED = int(RecordFlag.PART), int(RecordFlag.AGED)  # ints: IntFlag arithmetic is slow per record
+
+
+def _add(result: ScanResult, held: list[tuple], path: str, rec) -> None:
     header = rec.header
+    result.synced = max(result.synced, header.synced)
     if rec.skip:
         result.skipped.append(Problem(path, rec.offset, rec.skip, f"kind {header.kind} version "
                                       f"{header.version} flags {header.flags}"))  # fmt: skip
     else:
-        if header.flags & RecordFlag.AGED:
-            result.aged[header.name] = result.aged.get(header.name, 0) + 1
-        result.rows.append(
-            (header.name, header.count, header.seq, header.start_ns, header.end_ns, rec.offset,
-             header.record_len, header.raw_len)
-        )  # fmt: skip
-    result.synced = max(result.synced, header.synced)
+        row = (header.name, header.count, header.seq, header.start_ns, header.end_ns, rec.offset,
+               header.record_len, header.raw_len)  # fmt: skip
+        held.append((row, header.flags & _AGED))
+        if header.flags & _PART:
+            return  # the valid prefix ends before a window until its last part is read
+    for row, aged in held:
+        result.rows.append(row)
+        if aged:
+            result.aged[row[0]] = result.aged.get(row[0], 0) + 1
+    held.clear()
     result.next_seq, result.end = header.seq + 1, rec.end
 
 

@@ -41,6 +41,7 @@ from .format import (
     SEGMENT_HEADER_SIZE,
     TMP_SUFFIX,
     Reason,
+    RecordFlag,
     index_name,
     pack_segment_header,
     parse_seq_name,
@@ -355,16 +356,33 @@ class Store:
         with self.lock:
             self.check_writable()
             first = self.active.next_seq
-            stored = sum(self._append(name, enc) for enc in parts)
+            if len(parts) == 1:
+                stored = self._append(name, parts[0])
+            else:
+                stored = self._append_parts(name, parts)
             return Receipt(first, name, parts[0].stamps[0], parts[-1].stamps[-1], sum(len(e.stamps) for e in parts),
                            sum(e.raw_len for e in parts), stored, records=len(parts))  # fmt: skip
 
-    def _append(self, name: str, enc: Encoded) -> int:
-        """Append one record with the next seq (the lock held); its length."""
+    def _append_parts(self, name: str, parts: list[Encoded]) -> int:
+        """Append a split window's parts, each but the last flagged PART, as one unit: no
+        group commit (and so no seal) falls between them, so a synced point never lies inside
+        a window (FORMAT.md, "Splitting"). Whatever stops it half way (an interrupt, an error)
+        leaves the store failed: a later put after the unfinished one would make it damage."""
+        with _signals_deferred():
+            try:
+                return sum(self._append(name, enc, last=i == len(parts) - 1) for i, enc in enumerate(parts))
+            except BaseException as err:
+                self._failed = self._failed or err
+                raise
+
+    def _append(self, name: str, enc: Encoded, *, last: bool = True) -> int:
+        """Append one record with the next seq (the lock held); its length. `last` False: a
+        part of a split window that goes on in the next record (flag PART), after which no
+        commit is due yet."""
         seg = self.active
         seq = seg.next_seq
         stamps = enc.stamps
-        record = enc.pack(seq, synced=seg.synced)
+        record = enc.pack(seq, 0 if last else RecordFlag.PART, synced=seg.synced)
         row = (name, len(stamps), seq, stamps[0], stamps[-1], seg.end, len(record), enc.raw_len)
         if self._unsynced_since is None:  # before the append: a commit must never skip its fsync
             self._unsynced_since = time.monotonic()
@@ -378,8 +396,8 @@ class Store:
         self._unsynced_bytes += len(record)
         self._dirty = True
         # A full segment is committed (and so sealed) at once, not at the next group
-        # commit: the limits bound what recovery must scan.
-        if self._commit_due() or seg.end >= self.segment_bytes or len(seg.rows) >= self.segment_records:
+        # commit: the limits bound what recovery must scan. Never inside a split window.
+        if last and (self._commit_due() or seg.end >= self.segment_bytes or len(seg.rows) >= self.segment_records):
             self._commit()
         return len(record)
 
@@ -481,6 +499,9 @@ class Store:
             info["damaged"] = [p.damage_info() for p in seg.damage]
         self.commit_manifest(self.manifest.with_sealed(info))
         seg.sealed_size = seg.size
+        # Named now, as the manifest names it to a store that opens it sealed: `fsck --repair`
+        # named the damage of a segment sealed on open a second time.
+        seg.known_damage = {p.offset for p in seg.damage}
         self.sealed.append(seg)
 
     def release_reserve(self) -> None:

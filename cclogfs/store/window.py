@@ -14,6 +14,14 @@ from .format import AGED_META_KEY, Reason, RecordFlag, RecordHeader
 from .segment import Segment
 
 
+# How to read a record an older version wrote over the decode limit (FORMAT.md, "Limits"):
+# the command line says it with its own words (cclogfs.cli replaces this text).
+RAISE_DECODE_LIMIT = "raise cclogfs.store.format.DECODE_RAW_LIMIT (at most 256 MiB) before opening the store"
+
+
+_PART = int(RecordFlag.PART)
+
+
 @dataclass(frozen=True)
 class Receipt:
     """What `put_window` stored. Durable once a later `sync()` (or group commit) completes."""
@@ -118,6 +126,21 @@ class Window:
         return self._read()[0].flags
 
     @property
+    def continues(self) -> bool:
+        """Whether this record is a part of a split window that goes on in the next record
+        (flag PART, FORMAT.md "Splitting"): the window is this record and those after it."""
+        record = self._record
+        if record is None:
+            if self._over_decode_limit():
+                return False  # never read here: messages() refuses it before reading it
+            record = self._read()
+        return record[0].flags & _PART != 0
+
+    def _over_decode_limit(self) -> bool:
+        """Whether the index entry's length is over what a read decodes (FORMAT.md, "Limits")."""
+        return self._length > format.MAX_HEADER + format.DECODE_RAW_LIMIT + format.ENC_SLACK
+
+    @property
     def aged(self) -> Any:
         """How the texts differ from what was put (meta key "aged"), or None when byte-exact."""
         header = self._read()[0]
@@ -128,7 +151,7 @@ class Window:
         # A read decodes at most DECODE_RAW_LIMIT of window (FORMAT.md, "Limits"): checked on
         # the index entry's length before the record is read, then on the header's raw_len.
         limit = format.DECODE_RAW_LIMIT
-        if self._record is None and self._length > format.MAX_HEADER + limit + format.ENC_SLACK:
+        if self._record is None and self._over_decode_limit():
             raise self._too_large(f"is {self._length} bytes long")
         header, payload = self._read()
         if header.raw_len > limit:
@@ -160,7 +183,7 @@ class Window:
         return CorruptionError(
             f"{self._segment.path}: record at offset {self._offset} (seq {self.seq}) {what}, over the "
             f"{format.DECODE_RAW_LIMIT}-byte limit of what a read decodes: forged, or written by an older "
-            "cclogfs (FORMAT.md, \"Limits\", says how to read it)",
+            f"cclogfs; to read it, {RAISE_DECODE_LIMIT}",
             path=self._segment.path, offset=self._offset, reason=Reason.BAD_LENGTH,
         )  # fmt: skip
 

@@ -213,12 +213,10 @@ def test_a_message_larger_than_a_record_holds_is_refused(tmp_path, monkeypatch):
         assert list(store.query()) == []
 
 
-@pytest.mark.xfail(strict=True, reason="a kill -9 between the parts of a split window keeps the parts "
-                   "written before it, and nothing in them says the window went on: `cat` prints the "
-                   "prefix with exit 0 and fsck finds the store clean. Telling it needs the parts to say "
-                   "'part i of n' (a format change: a reserved meta key, checked by fsck and reads)")  # fmt: skip
-def test_a_crash_between_the_parts_of_a_split_window_is_not_silent(tmp_path):
-    path = tmp_path / "s"
+def _killed_between_parts(path, at_seq=2, sync_every_bytes=1):
+    """A writer killed (kill -9) while it appends the parts of a split window: /b at seq 0,
+    then /a's parts from seq 1, the process dying as it is about to append seq `at_seq`, the
+    parts before handed to the OS (as a part over the 1 MiB write buffer would be)."""
     child = textwrap.dedent(f"""
         import json, os
         import cclogfs
@@ -226,30 +224,49 @@ def test_a_crash_between_the_parts_of_a_split_window_is_not_silent(tmp_path):
         from cclogfs.store.store import Store
         encode.MAX_RECORD_RAW = 4096
         append = Store._append
-        def dying(self, name, enc):
-            if self.active.next_seq == 2:  # the first part is stored (and synced): kill -9 now
+        def dying(self, name, enc, **kw):
+            if self.active.next_seq == {at_seq}:
+                self.active.flush()
                 os._exit(9)
-            return append(self, name, enc)
+            return append(self, name, enc, **kw)
         Store._append = dying
-        s = cclogfs.open_store({str(path)!r}, create=True, codec="none", sync_every_ms=None, sync_every_bytes=1)
+        s = cclogfs.open_store({str(path)!r}, create=True, codec="none", sync_every_ms=None,
+                               sync_every_bytes={sync_every_bytes})
         s.put_window("/b", [(0, "1")])
         s.put_window("/a", [(i, json.dumps({{"i": i, "pad": "p" * 100}})) for i in range(100)])
     """)  # fmt: skip
     assert subprocess.run([sys.executable, "-c", child]).returncode == 9
-    with cclogfs.open_store(path, readonly=True) as store:
-        kept = [m for w in store.query("/a") for m in w.messages()]
-    assert 0 < len(kept) < 100  # the prefix the crash left: one part of several
+
+
+@pytest.mark.parametrize("at_seq", [2, 3])
+def test_a_crash_between_the_parts_of_a_split_window_is_not_silent(tmp_path, capsys, at_seq):
+    # Before the PART flag the parts written before the kill read as a whole window: `cat`
+    # printed that prefix with exit 0 and fsck found the store clean. (sync_every_bytes=1:
+    # the group commit after the first part, which the old writer ran, made it durable.)
+    from cclogfs.cli import main
     from cclogfs.store import check_store
 
+    path = tmp_path / "s"
+    _killed_between_parts(path, at_seq)
+    with cclogfs.open_store(path, readonly=True) as store:  # a reader never shows a prefix of the window
+        assert [w.name for w in store.query()] == ["/b"]
+    assert main(["cat", str(path)]) == 0 and capsys.readouterr().out.count("\n") == 1
     report = check_store(str(path), deep=True)
-    assert report.findings, "fsck finds the store clean: the window's end is lost without a word"
+    assert report.errors == [] and len(report.findings) == 1, report.findings
+    assert f"seqs 1..{at_seq - 1} are parts of a split window whose last part is missing" in report.findings[0].what
+    assert "a put never acknowledged; the writer will cut" in report.findings[0].what
+    with cclogfs.open_store(path) as store:  # the writer cuts it like a torn tail, keeping no side file
+        (problem,) = store.recovery.problems
+        assert (problem.reason, problem.intact_after, problem.kept_in) == ("unfinished put", 0, "")
+        assert store.put_window("/c", [(5, "2")]).seq == 1
+    with cclogfs.open_store(path, readonly=True) as store:
+        assert store.recovery.clean and [w.name for w in store.query()] == ["/b", "/c"]
+    assert sorted(os.listdir(path)) == ["00000000000000000000.idx", "00000000000000000000.seg", "LOCK", "MANIFEST",
+                                        "RESERVE"]  # fmt: skip
 
 
-@pytest.mark.xfail(strict=True, reason="`cat` breaks ties between equal stamps of different streams "
-                   "by window order (start_ns, seq), and a split window's later parts start later than "
-                   "the window did: another stream's message at a stamp the window's later part also "
-                   "holds comes out before it, where the whole window put it after. FORMAT.md "
-                   "('Splitting') says cat prints the same lines as for the window whole")  # fmt: skip
+# `cat` breaks ties between equal stamps of different streams by window order, and a split
+# window's later parts start later than the window: the parts keep their first part's place.
 def test_cat_orders_equal_stamps_of_a_split_window_as_of_the_whole(tmp_path, monkeypatch, capsys):
     from cclogfs.store import encode
 
@@ -265,3 +282,31 @@ def test_cat_orders_equal_stamps_of_a_split_window_as_of_the_whole(tmp_path, mon
     with cclogfs.open_store(tmp_path / "split", readonly=True) as store:
         assert any(w.start_ns == 48 for w in store.query("/a"))
     assert _cat(tmp_path / "split", capsys) == _cat(tmp_path / "whole", capsys)
+
+
+def test_records_an_older_version_wrote_over_the_limit_read_with_max_record_mib(tmp_path, capsys, monkeypatch):
+    # Older versions wrote records of up to 256 MiB: the commands read them when told to.
+    from cclogfs.cli import main
+    from cclogfs.store import format
+
+    monkeypatch.setattr(format, "DECODE_RAW_LIMIT", format.DECODE_RAW_LIMIT)  # main() sets it for its process
+    path = tmp_path / "s"
+    with cclogfs.open_store(path, create=True):
+        pass
+    texts = [json.dumps("x" * (1 << 20)) for _ in range(17)]  # 17 MiB of window in one record
+    raw = frame(list(range(17)), texts)
+    record = pack_record(seq=0, start_ns=0, end_ns=16, count=17, codec=1, name=b"/a", config=b'{"id":"none"}',
+                         meta=b"{}", raw_len=len(raw), payload=raw, synced=SEGMENT_HEADER_SIZE)  # fmt: skip
+    with open(path / "00000000000000000000.seg", "ab") as f:
+        f.write(record)
+    assert main(["cat", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert "record at offset 32 (seq 0) holds a" in err and "pass --max-record-mib N (N at most 256) to cat" in err
+    assert main(["fsck", "--deep", str(path)]) == 1 and "--max-record-mib" in capsys.readouterr().out
+    assert main(["cat", str(path), "--max-record-mib", "18"]) == 0
+    assert capsys.readouterr().out.count("\n") == 17
+    assert main(["fsck", "--deep", "--max-record-mib", "18", str(path)]) == 0
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        main(["cat", str(path), "--max-record-mib", "300"])
+    assert "'300' is not a whole number of MiB from 16 to 256" in capsys.readouterr().err
