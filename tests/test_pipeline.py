@@ -9,6 +9,8 @@ import time
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import cclogfs
 from cclogfs.classifier.features import parse_odometry
@@ -28,6 +30,18 @@ def test_keep_all_chunks_per_topic():
     out += policy.flush()
     assert [(c.topic, [t for t, _ in c.messages]) for c in out] == [
         ("/b", [0, 2, 4]), ("/a", [1, 3, 5]), ("/b", [6])]  # fmt: skip
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.sampled_from("abc"), max_size=40), st.integers(1, 5), st.integers(1, 9))
+def test_keep_all_push_many_is_push_of_each(topics, chunk, size):
+    """The same windows in the same order, and the same open windows left (flush order)."""
+    messages = [(t, i, str(i)) for i, t in enumerate(topics)]
+    one, many = KeepAll(chunk=chunk), KeepAll(chunk=chunk)
+    want = [w for m in messages for w in one.push(*m)]
+    got = [w for i in range(0, len(messages), size) for w in many.push_many(messages[i : i + size])]
+    assert got == want and list(many.open.items()) == list(one.open.items())
+    assert many.flush() == one.flush()
 
 
 def test_monotonic_runs_keep_every_message_in_order():

@@ -48,15 +48,17 @@ def split_lines(lines: list[bytes]) -> list[SourceMessage | None]:
     return _split_python(lines)
 
 
-def _stdin_lines(timeout_s: float = 0.2) -> Iterator[bytes]:
-    """Lines of standard input, waiting with select() so the main thread wakes up at least
+def _stdin_batches(timeout_s: float = 0.2) -> Iterator[list[bytes]]:
+    """Lines of standard input, a list per read (whatever has arrived, so a live stream
+    does not wait for more), waiting with select() so the main thread wakes up at least
     every `timeout_s`: a signal the kernel hands to another thread (numpy's BLAS threads
     do not block signals) would otherwise not interrupt a blocked read, and Ctrl-C or
     SIGTERM would not stop an idle live stream."""
     try:
         fd = sys.stdin.fileno()
     except (AttributeError, OSError, ValueError):  # stdin replaced by an in-memory stream
-        yield from sys.stdin.buffer
+        for line in sys.stdin.buffer:
+            yield [line]
         return
     tail = b""
     while True:
@@ -67,10 +69,10 @@ def _stdin_lines(timeout_s: float = 0.2) -> Iterator[bytes]:
             break
         lines = (tail + chunk).split(b"\n")
         tail = lines.pop()
-        for line in lines:
-            yield line + b"\n"
+        if lines:
+            yield [line + b"\n" for line in lines]
     if tail:
-        yield tail
+        yield [tail]
 
 
 class JsonlSource:
@@ -95,17 +97,18 @@ class JsonlSource:
         self._report = report
         self.skipped = 0
         self._owned = str(path) != "-"
+        self._file: BinaryIO | Iterator[list[bytes]]
         if self._owned:
             self.name = str(path)
             try:
                 # 64 KiB reads: with the default 8 KiB, reading lines cost twice as much
                 # (a read call every few ~1 KB messages; issue 14).
-                self._file: BinaryIO = open(path, "rb", buffering=1 << 16)
+                self._file = open(path, "rb", buffering=1 << 16)
             except OSError as err:
                 raise SourceError(f"Cannot open {self.name}: {err.strerror or err}.") from err
         else:
             self.name = "<stdin>"
-            self._file = _stdin_lines()
+            self._file = _stdin_batches()
 
     def __enter__(self) -> JsonlSource:
         return self
@@ -161,13 +164,12 @@ class JsonlSource:
         return out, None
 
     def _line_batches(self) -> Iterator[list[bytes]]:
-        if self._owned:
-            read = self._file.readlines
-            while lines := read(_BATCH_BYTES):
-                yield lines
-        else:  # standard input: each line as it comes, a live stream must not wait for 64 KiB
-            for line in self._file:
-                yield [line]
+        if not self._owned:  # standard input: already a list per read
+            yield from self._file
+            return
+        read = self._file.readlines
+        while lines := read(_BATCH_BYTES):
+            yield lines
 
     def _slow_line(self, lineno: int, raw: bytes) -> SourceMessage | None:
         """The message of a line the fast path did not settle: another layout, JSON that
