@@ -14,9 +14,9 @@ import threading
 import time
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
 from itertools import groupby
 from operator import itemgetter
-from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from ._signals import signals_deferred as _signals_deferred
@@ -270,9 +270,10 @@ def _record_batches(batches: Iterable[Sequence[Any]], store: Store, policy: Keep
                     check_json: bool, progress: Callable[[RecordStats], None] | None, stats: RecordStats,
                     upkeep: Upkeep | None, types: StreamTypes | None) -> None:  # fmt: skip
     """`record`'s loop for KeepAll and a source that hands over lists of messages, each
-    a (topic, stamp_ns, text, msgtype) tuple (`JsonlSource.batches`): the checks, counts and pushes of a list at once, the same
-    windows stored in the same order, the same error for the first bad message after the
-    messages before it (per message, these cost 1.3-2 us; issue 14)."""
+    a (topic, stamp_ns, text, msgtype) tuple (`JsonlSource.batches`): the checks, counts
+    and pushes of a list at once, the same windows stored in the same order, the same
+    error for the first bad message after the messages before it (per message, these
+    cost 1.3-2 us; issue 14)."""
     for batch in batches:
         texts = list(map(itemgetter(2), batch))
         bad = first_bad_text(texts, check_json=check_json)

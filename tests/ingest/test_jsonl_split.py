@@ -96,30 +96,48 @@ def test_a_line_taken_is_the_message_json_reads(lines):
     jsonl_split(b"".join(line.rstrip(b"\n") + b"\n" for line in lines))
 
 
-def test_on_the_edges():
-    deep = "[" * 511 + "]" * 511
-    cases = {  # the line's msg -> taken by the splitter (else left to the Python path)
-        "{}": True, '{"a": 1e400}': True, '{"a": NaN}': False, '{"a": -Infinity}': False,
-        '{"a": "\\ud800"}': True, '{"a": "\x7f"}': True, '{"a": "\x01"}': False, '{"a": 01}': False,
-        '{"a": -0}': True, '{"a": 1.}': False, '{"a": 1 }': True, '{"a": [1,]}': False, '{"a":1,"a":2}': True,
-        '{"a": ' + deep + "}": True, '{"a": [' + deep + "]}": False,  # 512 levels, 513
-    }  # fmt: skip
-    for msg, taken in cases.items():
-        line = f'{{"topic": "/t", "stamp_ns": 1, "msg": {msg}}}\n'.encode()
-        got = COMPILED([line], SourceMessage)[0]
-        assert (got is not None) == taken, msg
-        if taken:
-            assert got == python_message(line) == ("/t", 1, msg, "")
-    for raw, taken in {b"\xc3\xa9": True, b"\xed\xa0\x80": False, b"\xc0\xaf": False, b"\xf4\x90\x80\x80": False,
-                       b"\xe0\x9f\xbf": False, b"\xf0\x8f\xbf\xbf": False, b"\xf4\x8f\xbf\xbf": True}.items():  # fmt: skip
-        for line in (b'{"topic": "/t' + raw + b'", "stamp_ns": 1, "msg": {}}', b'{"topic": "/t", "stamp_ns": 1, "msg": {"' + raw + b'": 0}}'):  # fmt: skip
-            assert (COMPILED([line], SourceMessage)[0] is not None) == taken, line
-    for stamp, taken in {"-9223372036854775807": True, "-9223372036854775808": False, "9223372036854775807": True,
-                         "9223372036854775808": False, "00": False, "-0": False, "1.0": False}.items():  # fmt: skip
-        assert (COMPILED([f'{{"topic": "/t", "stamp_ns": {stamp}, "msg": {{}}}}'.encode()], SourceMessage)[0] is not None) == taken  # fmt: skip
-    endings = [b"", b"\n", b"\r\n", b"\r", b" \n", b"\n\n"]
-    assert [COMPILED([b'{"topic": "/t", "stamp_ns": 1, "msg": {}}' + e], SourceMessage)[0] is not None for e in endings] == [
-        True, True, True, False, False, False]  # fmt: skip
+def taken(line: bytes) -> bool:
+    return COMPILED([line], SourceMessage)[0] is not None
+
+
+DEEP = "[" * 511 + "]" * 511
+
+
+@pytest.mark.parametrize("msg, want", [
+    ("{}", True), ('{"a": 1e400}', True), ('{"a": NaN}', False), ('{"a": -Infinity}', False),
+    ('{"a": "\\ud800"}', True), ('{"a": "\x7f"}', True), ('{"a": "\x01"}', False), ('{"a": 01}', False),
+    ('{"a": -0}', True), ('{"a": 1.}', False), ('{"a": 1 }', True), ('{"a": [1,]}', False),
+    ('{"a":1,"a":2}', True), ('{"a": ' + DEEP + "}", True), ('{"a": [' + DEEP + "]}", False),  # 512 levels, 513
+])  # fmt: skip
+def test_which_messages_it_takes(msg, want):
+    """Taken: exactly the Python path's message; else left to the Python path."""
+    line = f'{{"topic": "/t", "stamp_ns": 1, "msg": {msg}}}\n'.encode()
+    assert taken(line) == want
+    if want:
+        assert COMPILED([line], SourceMessage)[0] == python_message(line) == ("/t", 1, msg, "")
+
+
+@pytest.mark.parametrize("raw, want", [
+    (b"\xc3\xa9", True), (b"\xf4\x8f\xbf\xbf", True), (b"\xed\xa0\x80", False), (b"\xc0\xaf", False),
+    (b"\xf4\x90\x80\x80", False), (b"\xe0\x9f\xbf", False), (b"\xf0\x8f\xbf\xbf", False),
+])  # fmt: skip
+def test_utf8_as_pythons_strict_decoder(raw, want):
+    assert taken(b'{"topic": "/t' + raw + b'", "stamp_ns": 1, "msg": {}}') == want
+    assert taken(b'{"topic": "/t", "stamp_ns": 1, "msg": {"' + raw + b'": 0}}') == want
+
+
+@pytest.mark.parametrize("stamp, want", [
+    ("-9223372036854775807", True), ("9223372036854775807", True), ("-9223372036854775808", False),
+    ("9223372036854775808", False), ("00", False), ("-0", False), ("1.0", False),
+])  # fmt: skip
+def test_stamps(stamp, want):
+    assert taken(f'{{"topic": "/t", "stamp_ns": {stamp}, "msg": {{}}}}'.encode()) == want
+
+
+@pytest.mark.parametrize("ending, want", [(b"", True), (b"\n", True), (b"\r\n", True), (b"\r", False),
+                                          (b" \n", False), (b"\n\n", False)])  # fmt: skip
+def test_line_endings(ending, want):
+    assert taken(b'{"topic": "/t", "stamp_ns": 1, "msg": {}}' + ending) == want
 
 
 def test_it_refuses_what_is_not_a_list_of_bytes():
