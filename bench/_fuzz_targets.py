@@ -164,6 +164,41 @@ def jsonl_line(data: bytes) -> None:
     parse_line(line)
 
 
+def jsonl_split(data: bytes) -> None:
+    """The compiled JSONL splitter (cclogfs/ingest/_jsonl_split.c) against the Python path
+    on each line of `data`: a line it takes must give the Python path's message, and json
+    must read the line as exactly that object; a line it declines (None) is read by the
+    Python path alone. A difference is an AssertionError, a crash."""
+    from cclogfs.ingest import jsonl
+
+    if jsonl._split_lines_c is None:
+        return
+    lines = [line + b"\n" for line in data.split(b"\n")]
+    lines[-1] = lines[-1][:-1]  # as readlines gives them: the last without its ending
+    for line, got in zip(lines, jsonl._split_lines_c(lines, jsonl.SourceMessage)):
+        if got is not None:
+            assert got == python_message(line), line
+
+
+def python_message(line: bytes):
+    """The message JsonlSource's Python path reads from one line, checked against json;
+    AssertionError when there is none (the line is not a message)."""
+    from cclogfs.ingest.base import SourceMessage
+    from cclogfs.ingest.jsonl import _split_python
+
+    message = _split_python([line])[0]
+    if message is None:
+        text = line.decode("utf-8").removesuffix("\n").removesuffix("\r")  # UnicodeDecodeError: a crash
+        try:
+            message = SourceMessage(*parse_line(text))
+        except JsonlLineError as err:
+            raise AssertionError(f"the Python path refuses the line: {err}") from None
+    whole = json.loads(line)
+    assert list(whole) == ["topic", "stamp_ns", "msg"] and whole["topic"] == message.topic
+    assert whole["stamp_ns"] == message.stamp_ns and json.loads(message.text) == whole["msg"]
+    return message
+
+
 def aging_policy(data: bytes) -> None:
     """Policy.round_text on any text (aging rounds the numbers of stored messages)."""
     from cclogfs.upkeep.policy import Policy, parse_rule
@@ -213,6 +248,7 @@ TARGETS: dict[str, Callable[[bytes], None]] = {
     "codec_payload": codec_payload,
     "record_config_meta": record_config_meta,
     "jsonl_line": jsonl_line,
+    "jsonl_split": jsonl_split,
     "aging_policy": aging_policy,
     "model_files": model_files,
     "rosbag1": rosbag1,
@@ -272,6 +308,8 @@ _SEEDS: dict[str, Callable[[], list[bytes]]] = {
     "codec_payload": _codec_seed,
     "record_config_meta": lambda: [b'{"id":"zstd","level":3}\0{"i":1}', b'{"id":"columnar","version":1}\0{}'],
     "jsonl_line": lambda: [b'{"topic":"/odom","stamp_ns":5,"msg":{"a":1}}', b'{"t":1.5,"topic":"/a","msg":[]}'],
+    "jsonl_split": lambda: [b'{"topic": "/odom", "stamp_ns": 5, "msg": {"a": [1.5, -2e-3, true, null], "s": "\xc3\xa9\\n"}}\n'
+                            b'{"topic": "/tf", "stamp_ns": -7, "msg": {"b": {"c": "\\u00e9"}, "d": []}}\r\n'],
     "aging_policy": lambda: [b'{"pose":{"x":1.23456,"y":[1e-3,2]}}'],
     "model_files": lambda: [b'{"format":"x"}\0'],
     "rosbag1": lambda: [b""],

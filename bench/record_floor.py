@@ -9,8 +9,10 @@ the steadiest figure on a shared machine. Stages:
 
 - `orjson.loads` per line: the issue's floor (the target is 0.4x its rate);
 - the source's parts: reading lines, simdjson over each line (the validation alone),
-  the whole JsonlSource (read, match, validate, decode, one message object each);
-- the pipeline's per-message loop (checks, counts, the KeepAll window policy);
+  the whole JsonlSource (read, match, validate, decode, one message object each), with
+  the compiled splitter (cclogfs/ingest/_jsonl_split.c) when built and without it;
+- the pipeline's loop (checks, counts, the KeepAll window policy), a message at a time
+  and a list at a time (what `record` does with a JSONL source);
 - the store's per-message checks of a window (`encode_messages`);
 - the columnar encoder per window, whole and its value-row step alone, with the
   compiled row finder (cclogfs/codecs/_rows.c) when built and with the re module;
@@ -39,6 +41,7 @@ def _stages(path: Path, lines: list[bytes]) -> tuple[dict, Path]:
     from cclogfs.cli import main as cclog
     from cclogfs.codecs import shapes
     from cclogfs.codecs.columnar_encode import encode_window
+    from cclogfs.ingest import jsonl
     from cclogfs.ingest.jsonl import JsonlSource
     from cclogfs.pipeline import KeepAll, RecordStats, check_message
     from cclogfs.store.check import encode_messages
@@ -64,10 +67,18 @@ def _stages(path: Path, lines: list[bytes]) -> tuple[dict, Path]:
             for _ in f:
                 pass
 
-    def source():
-        with JsonlSource(part) as s:
-            for _ in s:
-                pass
+    splitter = getattr(jsonl, "_split_lines_c", None)  # None before the compiled splitter existed
+
+    def source(split_lines):
+        def run():
+            jsonl._split_lines_c = split_lines
+            try:
+                with JsonlSource(part) as s:
+                    for _ in s:
+                        pass
+            finally:
+                jsonl._split_lines_c = splitter
+        return run
 
     def pipeline_loop():
         stats, keep = RecordStats(), KeepAll()
@@ -75,6 +86,18 @@ def _stages(path: Path, lines: list[bytes]) -> tuple[dict, Path]:
             check_message(m.topic, m.stamp_ns, m.text, check_json=False)
             stats.saw(m.topic, m.text)
             keep.push(m.topic, m.stamp_ns, m.text)
+
+    batches = [msgs[i : i + 64] for i in range(0, len(msgs), 64)]  # about what a 64 KiB read holds
+
+    def pipeline_lists():  # pipeline._record_batches without the store
+        from cclogfs.pipeline import first_bad_text
+
+        stats, keep = RecordStats(), KeepAll()
+        for batch in batches:
+            texts = [m.text for m in batch]
+            first_bad_text(texts, check_json=False)
+            stats.saw_many([m.topic for m in batch], texts)
+            keep.push_many(batch)
 
     def encode(row_finder):
         def run():
@@ -111,8 +134,10 @@ def _stages(path: Path, lines: list[bytes]) -> tuple[dict, Path]:
         "orjson.loads per line (the floor)": each_line(orjson.loads),
         "read lines": read_lines,
         "simdjson parse of each line": each_line(parser.parse),
-        "JsonlSource, whole": source,
+        "JsonlSource, whole": source(splitter),
+        "JsonlSource, Python splitter": source(None) if splitter else None,
         "pipeline loop per message (KeepAll)": pipeline_loop,
+        "pipeline loop, a list at a time (KeepAll)": pipeline_lists if hasattr(KeepAll, "push_many") else None,
         "store checks per message (encode_messages)": lambda: [encode_messages(w.messages, check_json=False) for w in windows],
         "columnar encode, compiled row finder": encode(compiled) if compiled else None,
         "columnar encode, re module": encode(None),

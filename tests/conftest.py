@@ -45,3 +45,21 @@ def row_path(request):
     shapes._match_rows_c = compiled if request.param == "compiled" else None
     yield request.param
     shapes._match_rows_c = compiled
+
+
+# The JSONL source's two ways to split lines: the compiled splitter
+# (cclogfs/ingest/_jsonl_split.c, built by setup.py where a C compiler is) and Python.
+# Modules that use this fixture (pytest.mark.usefixtures) run once per way.
+@pytest.fixture(scope="module", params=["compiled", "python"])
+def split_path(request):
+    from cclogfs.ingest import jsonl
+
+    try:
+        from cclogfs.ingest._jsonl_split import split_lines as compiled
+    except ImportError:
+        compiled = None
+    if request.param == "compiled" and compiled is None:
+        pytest.skip("the compiled splitter cclogfs.ingest._jsonl_split is not built (no C compiler at install)")
+    jsonl._split_lines_c = compiled if request.param == "compiled" else None
+    yield request.param
+    jsonl._split_lines_c = compiled

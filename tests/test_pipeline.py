@@ -9,6 +9,8 @@ import time
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import cclogfs
 from cclogfs.classifier.features import parse_odometry
@@ -28,6 +30,18 @@ def test_keep_all_chunks_per_topic():
     out += policy.flush()
     assert [(c.topic, [t for t, _ in c.messages]) for c in out] == [
         ("/b", [0, 2, 4]), ("/a", [1, 3, 5]), ("/b", [6])]  # fmt: skip
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.sampled_from("abc"), max_size=40), st.integers(1, 5), st.integers(1, 9))
+def test_keep_all_push_many_is_push_of_each(topics, chunk, size):
+    """The same windows in the same order, and the same open windows left (flush order)."""
+    messages = [(t, i, str(i)) for i, t in enumerate(topics)]
+    one, many = KeepAll(chunk=chunk), KeepAll(chunk=chunk)
+    want = [w for m in messages for w in one.push(*m)]
+    got = [w for i in range(0, len(messages), size) for w in many.push_many(messages[i : i + size])]
+    assert got == want and list(many.open.items()) == list(one.open.items())
+    assert many.flush() == one.flush()
 
 
 def test_monotonic_runs_keep_every_message_in_order():
@@ -275,3 +289,52 @@ def test_smart_logging_without_the_models_odometry_says_so(tmp_path, shared_data
     assert main(["record", str(shared_data("tf_example.bag")), "--store", p("store"), "--model", p("model")]) == 1
     err = capsys.readouterr().err
     assert "/odom" in err and "--odom-topic" in err, err  # refused before anything is stored (issue 12)
+
+
+class _Lists:
+    """A source that also hands over its messages a list at a time, as JsonlSource does."""
+
+    def __init__(self, messages, size):
+        self.messages, self.size = messages, size
+
+    def batches(self):
+        for i in range(0, len(self.messages), self.size):
+            yield self.messages[i : i + self.size]
+
+
+def _record_both(tmp_path, messages, size, check_json, **keep):
+    """What `record` stores and counts, and the error it stops with, from a message
+    at a time (a plain list) and from lists (`batches`)."""
+    out = []
+    for name, source in (("each", list(messages)), ("lists", _Lists(list(messages), size))):
+        with cclogfs.open_store(tmp_path / name, create=True) as store:
+            try:
+                stats, error = record(source, store, KeepAll(**keep), check_json=check_json), None
+            except cclogfs.InvalidInputError as err:
+                stats, error = None, str(err)
+            windows = [(w.name, w.meta, list(w.messages())) for w in sorted(store.query(), key=lambda w: w.seq)]
+        out.append((windows, stats and {**vars(stats), "seconds": 0}, error))
+    return out
+
+
+@pytest.mark.parametrize("size", [1, 7, 64, 1000])
+@pytest.mark.parametrize("keep", [{"chunk": 5}, {"chunk": 200, "chunk_s": 0.000_000_02}])
+def test_a_list_at_a_time_stores_and_counts_the_same(tmp_path, size, keep):
+    from cclogfs.ingest.base import SourceMessage as M
+
+    topics = ["/a", "/b", "/a", "/c", "/a"]
+    messages = [M(topics[i % 5], i * 7 - (i % 11 == 3) * 20, json.dumps({"i": i, "s": "é" * (i % 3)}), "")
+                for i in range(300)]  # fmt: skip
+    each, lists = _record_both(tmp_path, messages, size, False, **keep)
+    assert each == lists and each[1]["messages_kept"] == 300 and len(each[0]) > 60
+
+
+@pytest.mark.parametrize("check_json, bad", [(False, '"\ud800"'), (True, '{"v": 1'), (False, b"{}")])
+def test_a_list_at_a_time_stops_at_the_same_message(tmp_path, check_json, bad):
+    """The bad message's error, after the messages before it in its list were stored."""
+    from cclogfs.ingest.base import SourceMessage as M
+
+    messages = [M("/a", i, bad if i == 23 else f'{{"v": {i}}}', "") for i in range(40)]
+    each, lists = _record_both(tmp_path, messages, 10, check_json, chunk=4)
+    assert each == lists and "at 23" in each[2]
+    assert [t for _, _, ms in each[0] for t, _ in ms] == list(range(23))

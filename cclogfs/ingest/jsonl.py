@@ -17,17 +17,48 @@ from ..errors import InvalidInputError, SourceError
 from ..jsontext.lines import JsonlLineError, parse_line, split_canonical, split_canonical_bytes
 from .base import SourceMessage, topic_filter
 
-OnError = Literal["stop", "skip"]
+# The compiled splitter (cclogfs/ingest/_jsonl_split.c; setup.py builds it where a C
+# compiler is): the messages of a list of lines in the canonical layout, None for each
+# other line, in a third of the Python path's time (issue 14). Without it, `_split_python`.
+try:
+    from ._jsonl_split import split_lines as _split_lines_c
+except ImportError:  # no C compiler at install: the Python path gives the same messages
+    _split_lines_c = None
 
-def _stdin_lines(timeout_s: float = 0.2) -> Iterator[bytes]:
-    """Lines of standard input, waiting with select() so the main thread wakes up at least
+OnError = Literal["stop", "skip"]
+# Lines read at a time: one read call and one call of the splitter per 64 KiB.
+_BATCH_BYTES = 1 << 16
+
+
+def _split_python(lines: list[bytes], message_type: type = SourceMessage) -> list[SourceMessage | None]:
+    """What the compiled splitter gives, in Python: the message of each line in the
+    canonical layout (the whole line checked as JSON), None for any other line."""
+    out: list[SourceMessage | None] = []
+    for raw in lines:
+        parts = split_canonical_bytes(raw)
+        out.append(None if parts is None else message_type(*parts, ""))
+    return out
+
+
+def split_lines(lines: list[bytes]) -> list[SourceMessage | None]:
+    """The message of each line in the canonical layout, None for each line the caller
+    must read with `parse_line` (another layout, NaN, a bad line...): compiled when built."""
+    if _split_lines_c is not None:
+        return _split_lines_c(lines, SourceMessage)
+    return _split_python(lines)
+
+
+def _stdin_batches(timeout_s: float = 0.2) -> Iterator[list[bytes]]:
+    """Lines of standard input, a list per read (whatever has arrived, so a live stream
+    does not wait for more), waiting with select() so the main thread wakes up at least
     every `timeout_s`: a signal the kernel hands to another thread (numpy's BLAS threads
     do not block signals) would otherwise not interrupt a blocked read, and Ctrl-C or
     SIGTERM would not stop an idle live stream."""
     try:
         fd = sys.stdin.fileno()
     except (AttributeError, OSError, ValueError):  # stdin replaced by an in-memory stream
-        yield from sys.stdin.buffer
+        for line in sys.stdin.buffer:
+            yield [line]
         return
     tail = b""
     while True:
@@ -38,10 +69,10 @@ def _stdin_lines(timeout_s: float = 0.2) -> Iterator[bytes]:
             break
         lines = (tail + chunk).split(b"\n")
         tail = lines.pop()
-        for line in lines:
-            yield line + b"\n"
+        if lines:
+            yield [line + b"\n" for line in lines]
     if tail:
-        yield tail
+        yield [tail]
 
 
 class JsonlSource:
@@ -66,17 +97,18 @@ class JsonlSource:
         self._report = report
         self.skipped = 0
         self._owned = str(path) != "-"
+        self._file: BinaryIO | Iterator[list[bytes]]
         if self._owned:
             self.name = str(path)
             try:
                 # 64 KiB reads: with the default 8 KiB, reading lines cost twice as much
                 # (a read call every few ~1 KB messages; issue 14).
-                self._file: BinaryIO = open(path, "rb", buffering=1 << 16)
+                self._file = open(path, "rb", buffering=1 << 16)
             except OSError as err:
                 raise SourceError(f"Cannot open {self.name}: {err.strerror or err}.") from err
         else:
             self.name = "<stdin>"
-            self._file = _stdin_lines()
+            self._file = _stdin_batches()
 
     def __enter__(self) -> JsonlSource:
         return self
@@ -93,18 +125,51 @@ class JsonlSource:
         return dict.fromkeys(sorted(self._wanted or ()), "")
 
     def __iter__(self) -> Iterator[SourceMessage]:
+        for batch in self.batches():
+            yield from batch
+
+    def batches(self) -> Iterator[list[SourceMessage]]:
+        """The messages, a list per 64 KiB of lines read (never empty): for a caller that
+        handles many messages at once (pipeline.record). The same messages, errors and
+        skips as iterating, in the same order."""
         wanted = self._wanted
-        split = split_canonical_bytes
-        for lineno, raw in enumerate(self._file, 1):
+        lineno = 0
+        for lines in self._line_batches():
             # Most lines are in the canonical layout, checked whole as JSON on their bytes.
-            parts = split(raw)
-            if parts is not None:
-                if wanted is None or parts[0] in wanted:
-                    yield SourceMessage(*parts, "")
-                continue
-            message = self._slow_line(lineno, raw)
-            if message is not None and (wanted is None or message.topic in wanted):
-                yield message
+            messages = split_lines(lines)
+            error = None
+            if None in messages:
+                messages, error = self._settle(messages, lines, lineno)
+            lineno += len(lines)
+            if wanted is not None:
+                messages = [m for m in messages if m.topic in wanted]
+            if messages:
+                yield messages
+            if error is not None:  # after the messages before it, as line by line
+                raise error
+
+    def _settle(self, messages: list[SourceMessage | None], lines: list[bytes],
+                lineno: int) -> tuple[list[SourceMessage], SourceError | None]:  # fmt: skip
+        """The batch's messages with the lines the splitter left (None) read in Python, up
+        to the first bad line when bad lines stop the read: (messages, its error)."""
+        out = []
+        for i, message in enumerate(messages):
+            if message is None:
+                try:
+                    message = self._slow_line(lineno + i + 1, lines[i])
+                except SourceError as err:
+                    return out, err
+            if message is not None:
+                out.append(message)
+        return out, None
+
+    def _line_batches(self) -> Iterator[list[bytes]]:
+        if not self._owned:  # standard input: already a list per read
+            yield from self._file
+            return
+        read = self._file.readlines
+        while lines := read(_BATCH_BYTES):
+            yield lines
 
     def _slow_line(self, lineno: int, raw: bytes) -> SourceMessage | None:
         """The message of a line the fast path did not settle: another layout, JSON that

@@ -1,4 +1,5 @@
-"""JSON Lines source: byte-exact message text, both parse paths, malformed lines."""
+"""JSON Lines source: byte-exact message text, both parse paths, malformed lines; every
+test once with the compiled splitter and once without (the split_path fixture)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,8 @@ import pytest
 
 from cclogfs.errors import InvalidInputError, SourceError
 from cclogfs.ingest import JsonlSource, detect_format, format_line, open_source, parse_line
+
+pytestmark = pytest.mark.usefixtures("split_path")
 
 ODOM = '{"header": {"stamp": {"sec": 1, "nanosec": 5}, "frame_id": "odom"}, "v": [1.0, -0.0, NaN]}'
 
