@@ -1,11 +1,15 @@
-"""The optional compiled helpers (issue 14): the columnar encoder's row finder and the
-classifier's odometry reader; everything else is in pyproject.toml. `optional=True`:
-without a C compiler the install still succeeds, and cclogfs takes the pure-Python paths,
-which give the same bytes (cclogfs/codecs/shapes.py) and values (classifier/features.py)."""
+"""The optional compiled helpers (issue 14): the columnar encoder's row finder, the
+classifier's odometry reader and its live feature stream; everything else is in
+pyproject.toml. `optional=True`: without a C compiler the install still succeeds, and
+cclogfs takes the pure-Python paths, which give the same bytes (cclogfs/codecs/shapes.py)
+and values (cclogfs/classifier/features.py)."""
 
 from setuptools import Extension, setup
 
 setup(ext_modules=[
     Extension("cclogfs.codecs._rows", ["cclogfs/codecs/_rows.c"], optional=True),
     Extension("cclogfs.classifier._odomtext", ["cclogfs/classifier/_odomtext.c"], optional=True),
+    # The same doubles as the Python stream: no fused multiply-adds (aarch64 would fuse).
+    Extension("cclogfs.classifier._stream", ["cclogfs/classifier/_stream.c"], optional=True,
+              extra_compile_args=["-ffp-contract=off"]),
 ])

@@ -166,6 +166,8 @@ class Detector:
 
     def reset(self) -> None:
         self._stream = self.features.stream()
+        # (vector as any sequence of floats, valid): the compiled stream's tuples, no array each
+        self._push_values = getattr(self._stream, "values", self._stream.push)
         self._twist = TwistFromPoses()
 
     def lookback_ns(self, X: np.ndarray) -> np.ndarray:
@@ -196,9 +198,10 @@ class Detector:
         """(scores, anomalous) per message; NaN score and False where no vector exists."""
         return self.score_windows(odom)[:2]
 
-    def vector(self, stamp_ns: int, row) -> np.ndarray | None:
-        """The newest message's feature vector (None while there is none or it is not valid)."""
-        got = self._stream.push(stamp_ns, row)
+    def vector(self, stamp_ns: int, row) -> np.ndarray | tuple | None:
+        """The newest message's feature vector, an array or a tuple of floats (None while
+        there is none or it is not valid)."""
+        got = self._push_values(stamp_ns, row)
         return got[0] if got is not None and got[1] else None
 
     def update_row(self, stamp_ns: int, row) -> tuple[float, bool]:
@@ -244,7 +247,7 @@ class SmartLogger:
             raise InvalidInputError(f"batch must be at least 1, not {batch!r}.")
         self.batch = batch
         self._pending: list[tuple] = []  # messages held until their odometry is scored
-        self._vectors: list[np.ndarray] = []
+        self._vectors: list = []  # their feature vectors (Detector.vector)
         self.detector = detector
         self.odom_topic = odom_topic
         window_args.setdefault("lookback_max_s", detector.lookback_max_s)

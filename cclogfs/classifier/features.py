@@ -457,8 +457,8 @@ class DefaultFeatures:
         valid[has] = va[owner[has]]
         return X, valid
 
-    def stream(self) -> _DefaultStream:
-        return _DefaultStream(self)
+    def stream(self) -> _DefaultStream | _CompiledDefaultStream:
+        return _DefaultStream(self) if _Stream is None else _CompiledDefaultStream(self)
 
     def _segment(self, t: np.ndarray, raw: np.ndarray, seg_start: int):
         """Vectors of one gap-free run with strictly increasing stamps `t` (int64 ns).
@@ -742,6 +742,36 @@ class _DefaultStream:
             q.popleft()
         vec.append(len(q) if gate is None or (q and t - q[-1] <= gate) else 0)
         self.last = (np.array(vec, dtype=np.float64), t - self.seg_start >= self.warmup_ns)
+        return self.last
+
+
+# The compiled live stream (classifier/_stream.c, built by setup.py where a C compiler
+# is): `_DefaultStream.push` step for step, the same doubles, 0.6 instead of 5 us a message.
+try:
+    from ._stream import Stream as _Stream
+except ImportError:  # pragma: no cover - no C compiler at install
+    _Stream = None
+
+
+class _CompiledDefaultStream:
+    """`_DefaultStream` by the compiled helper: `push` gives the same (vector, valid).
+    `values` gives the vector as a tuple of floats, for callers that stack many vectors
+    into one array anyway (SmartLogger), sparing an array per message."""
+
+    def __init__(self, feature_set: DefaultFeatures):
+        f = feature_set
+        ns = (f._deriv, f._match, f._short, f._long, f._flip, f._gap, f._warmup,
+              -1 if f._gate is None else f._gate, -1 if f._despike is None else f._despike)  # fmt: skip
+        self._c = _Stream(ns, (f.creep, f.yaw_flip, f.dir_flip), (f.speedup, f.any_scheme), hypot)
+        self.values = self._c.push
+        self._got = None
+        self.last: tuple[np.ndarray, bool] | None = None
+
+    def push(self, stamp_ns: int, row: Any) -> tuple[np.ndarray, bool] | None:
+        got = self._c.push(stamp_ns, row)
+        if got is not self._got:  # a skipped message gives the last vector again, the same object
+            self._got = got
+            self.last = None if got is None else (np.array(got[0], dtype=np.float64), got[1])
         return self.last
 
 
