@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from itertools import chain
 from pathlib import Path
 from typing import Iterable, Iterator
 
@@ -284,18 +285,28 @@ class SmartLogger:
 
     def _drain(self) -> list[PendingWindow]:
         """Score the held odometry vectors at once, then run the windows over the held messages."""
-        V = np.array(self._vectors)
+        vectors = self._vectors
+        if vectors and type(vectors[0]) is tuple:  # the compiled stream's: 2x faster than np.array
+            V = np.fromiter(chain.from_iterable(vectors), np.float64, len(vectors) * len(vectors[0]))
+            V = V.reshape(len(vectors), -1)
+        else:
+            V = np.array(vectors)
         s = self._scores(V)
+        flagged = s > 0
         back = np.zeros(len(s), dtype=np.int64)
-        back[s > 0] = self.detector.lookback_ns(V[s > 0]) if (s > 0).any() else 0
+        if flagged.any():
+            back[flagged] = self.detector.lookback_ns(V[flagged])
         found = iter(zip(s.tolist(), back.tolist()))
         out: list[PendingWindow] = []
+        push_other, odom = self.windows.push, self._odom
         for topic, stamp_ns, text, row, scored in self._pending:
             if row is None:
-                out += self.windows.push(topic, stamp_ns, text)
+                got = push_other(topic, stamp_ns, text)
             else:
                 score, lb = next(found) if scored else (math.nan, 0)
-                out += self._odom(stamp_ns, text, row, score, score > 0, lb)
+                got = odom(stamp_ns, text, row, score, score > 0, lb)
+            if got:
+                out += got
         self._pending.clear()
         self._vectors.clear()
         return out
@@ -326,7 +337,8 @@ class SmartLogger:
                                 lookback_ns=lookback_ns)  # fmt: skip
         if self.summary is not None:
             recs = self.summary.update(stamp_ns, row[0], row[1], math.hypot(row[7], row[8]), flag)
-            out += [self._summary_window(r) for r in recs]
+            if recs:  # once a minute
+                out += [self._summary_window(r) for r in recs]
         return out
 
     def cut(self) -> list[PendingWindow]:
