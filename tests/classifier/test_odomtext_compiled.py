@@ -10,7 +10,7 @@ import struct
 from decimal import Decimal
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from cclogfs.classifier import features
@@ -65,7 +65,7 @@ decimals = st.builds(
 INSERTS = st.sampled_from(["", '"', "\\", "\\\\", "\n", "x", "-", " ", ",", "]", "}", "0", ".", "e", "1e5", "\xe9", "\u20ac"])
 
 
-@settings(max_examples=400)
+@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(doubles, min_size=13, max_size=13), st.tuples(st.integers(0, 2**40), st.integers(0, 2**70)),
        st.none() | st.integers(0, 2**33), st.booleans(), st.text(max_size=5),
        st.lists(st.tuples(st.integers(0, 2000), st.integers(0, 3), INSERTS), max_size=4))  # fmt: skip
@@ -80,7 +80,7 @@ def test_the_same_rows_as_the_python_path(values, stamp, seq, ros1, frame, edits
         check_same(text[:at] + insert + text[at + cut :])
 
 
-@settings(max_examples=300)
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(decimals, min_size=13, max_size=13))
 def test_decimal_strings_convert_as_float_does(numbers):
     assert check_same(with_numbers(numbers)) is not None
