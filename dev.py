@@ -29,7 +29,8 @@ def setup(extras: str = "test") -> None:
         venv.EnvBuilder(with_pip=True).create(VENV)
     stamp = VENV / f".cclogfs-installed-{extras}"
     # Also the compiled helper's source and build: an edit rebuilds it (setup.py).
-    built_from = ("pyproject.toml", "setup.py", "cclogfs/codecs/_rows.c", "cclogfs/ingest/_jsonl_split.c")
+    built_from = ("pyproject.toml", "setup.py", "cclogfs/codecs/_rows.c", "cclogfs/ingest/_jsonl_split.c",
+                  "cclogfs/classifier/_odomtext.c", "cclogfs/classifier/_stream.c")
     want = hashlib.sha256(b"".join((ROOT / name).read_bytes() for name in built_from)).hexdigest()
     if stamp.exists() and stamp.read_text() == want:
         return

@@ -4,6 +4,7 @@ import pytest
 from cclogfs.classifier import (Detector, OneClassModel, SmartLogger, collect, event_table,
                                 format_event_table, format_message_table, load_dataset,
                                 message_table, parse_odometry, train, window_spans)
+from cclogfs.classifier.api import HOLD_SCORE
 from cclogfs.classifier.features import NS
 from cclogfs.classifier.testing import inject, odom_texts, read_odometry
 from cclogfs.errors import InvalidInputError, ModelError
@@ -74,6 +75,34 @@ def test_smart_logger_live_equals_replay_and_windows_cover_event(model, quiet):
     assert 0 < table["kept_fraction"] < 0.7  # a 27 s run: 4 s spin, 4 s context each side
     assert {w.topic for w in live} == {"/odom", "/tf_static", "/cclog/summary"}
     assert "Events recalled" in format_event_table(table)
+
+
+def test_quiet_batches_skip_the_svm_with_the_same_windows(model, quiet):
+    """A held batch whose limits bound every score below the hold level is not scored by
+    the SVM (SmartLogger._scores); the windows are the same as with every batch scored."""
+    run, event = inject(quiet, "spin", int(quiet.stamp_ns[300]), 4.0)
+    stream = [("/odom", int(s), x) for s, x in zip(run.stamp_ns, odom_texts(run))]
+    stream[7:7] = [("/imu", int(run.stamp_ns[i]), f'{{"i": {i}}}') for i in range(7, 400)]
+    skipping = SmartLogger(Detector(model), before_s=2, after_s=1, batch=64)
+    scoring = SmartLogger(Detector(model), before_s=2, after_s=1, batch=64)
+    scoring._quiet_below = -np.inf  # every batch through the SVM, as before
+    svm_calls = []
+    model_score = model.score
+    model.score = lambda X: svm_calls.append(len(X)) or model_score(X)
+    try:
+        got = list(skipping.run(stream))
+        skipped = len(svm_calls)
+        want = list(scoring.run(stream))
+    finally:
+        del model.score
+    assert [(w.topic, w.messages, w.meta) for w in got] == [(w.topic, w.messages, w.meta) for w in want]
+    assert any(w.meta.get("n_triggers") for w in got)  # the spin opened a window
+    assert 0 < skipped < len(svm_calls) - skipped  # some batches scored, fewer than all
+    X, valid = Detector(model).features.batch(run)
+    X = X[valid]
+    for at in range(0, len(X), 64):  # a batch: its exact scores, or none could matter
+        full, got = model.score(X[at : at + 64]), skipping._scores(X[at : at + 64])
+        assert got.tobytes() == full.tobytes() or (got.max() <= HOLD_SCORE and full.max() <= HOLD_SCORE)
 
 
 def test_paper_table_layout():
