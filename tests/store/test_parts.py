@@ -10,7 +10,7 @@ import pytest
 import cclogfs
 from cclogfs.cli import main
 from cclogfs.errors import DamagedError, InvalidInputError, StoreFailedError
-from cclogfs.store import Replacement, check_store, encode, repair_store, segment
+from cclogfs.store import Replacement, check_store, encode, segment
 from cclogfs.store.format import RecordFlag
 from cclogfs.store.fs import RecordingFileSystem
 from cclogfs.store.store import Store
