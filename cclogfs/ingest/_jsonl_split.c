@@ -112,7 +112,13 @@ static P number(P p, P e)
         p++;
     if (p >= e || *p < '0' || *p > '9')
         return NULL;
+    P whole = p;
     p = *p == '0' ? p + 1 : digits(p, e);
+    /* json reads an integer by int(), which refuses more than sys.get_int_max_str_digits()
+     * digits (4300 by default, at least 640 when set): longer ones go to the Python path,
+     * which asks json itself. */
+    if (p - whole > 640)
+        return NULL;
     if (p < e && *p == '.') {
         P start = ++p;
         if ((p = digits(p, e)) == start)

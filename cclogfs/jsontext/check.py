@@ -41,7 +41,7 @@ def json_error(text: str) -> str | None:
             pass
     try:
         _decoder.decode(text)
-    except json.JSONDecodeError as err:
+    except ValueError as err:  # JSONDecodeError, or int()'s refusal of a number too long
         return str(err)
     except RecursionError:
         return "nested too deeply"

@@ -108,6 +108,7 @@ DEEP = "[" * 511 + "]" * 511
     ('{"a": "\\ud800"}', True), ('{"a": "\x7f"}', True), ('{"a": "\x01"}', False), ('{"a": 01}', False),
     ('{"a": -0}', True), ('{"a": 1.}', False), ('{"a": 1 }', True), ('{"a": [1,]}', False),
     ('{"a":1,"a":2}', True), ('{"a": ' + DEEP + "}", True), ('{"a": [' + DEEP + "]}", False),  # 512 levels, 513
+    ('{"a": ' + "9" * 640 + "}", True), ('{"a": -' + "9" * 641 + "}", False),  # int() refuses past its digit limit
 ])  # fmt: skip
 def test_which_messages_it_takes(msg, want):
     """Taken: exactly the Python path's message; else left to the Python path."""
@@ -166,3 +167,15 @@ def test_every_line_of_real_logs(shared_data, tmp_path, name):
     assert read(path, True) == read(path, False)
     untyped = [m._replace(msgtype="") for m in messages]
     assert read(path, True)[0][0] == [*untyped, *messages] and len(messages) > 500
+
+
+def test_an_integer_json_refuses_for_its_length_is_refused_either_way(tmp_path):
+    """json reads an integer by int(), which refuses more than 4300 digits: the compiled
+    splitter took such a line (stored, exit 0), the Python path raised a bare ValueError."""
+    path = tmp_path / "log.jsonl"
+    good = canonical("/t", 1, '{"a": 1}')
+    path.write_bytes(good + canonical("/t", 2, '{"a": ' + "9" * 5000 + "}") + good)
+    for compiled in (True, False):
+        (messages, errors, skipped), (_, stop) = read(path, compiled)
+        assert len(messages) == 2 and skipped == 1 and len(errors) == 1
+        assert "line 2" in stop and "4300 digits" in stop

@@ -36,6 +36,7 @@ def test_messages_are_encoded_in_order():
     ([(1 << 63, "1")], "does not fit in 64 bits"),
     ([(1, b"1")], "must be a str"),
     ([(1, "{")], "not well-formed JSON"),
+    ([(1, "9" * 5000)], "not well-formed JSON: Exceeds the limit"),  # int() refuses it: a bare ValueError before
     ([(1, '"\ud800"')], "not valid UTF-8"),
     ([(1,)], "not a \\(stamp_ns, json_text\\) pair"),
 ])  # fmt: skip
