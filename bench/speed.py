@@ -231,8 +231,9 @@ def main() -> int:
     sys.path.insert(0, str(ROOT))
     # The inputs take minutes to make (a 1M-message store): kept in out/ between runs.
     # Everything timed writes into a fresh temporary directory.
-    # v2: the stores are closed by a version that writes the checkpoint index (issue 14).
-    data = OUT / f"speed-data-{args.messages}-{args.big}-{args.bag_minutes:g}-v2"
+    # v2: the stores are closed by a version that writes the checkpoint index (issue 14);
+    # v3: and its digest (checkpoint.xxh3), which the writer's open checks instead of a scan.
+    data = OUT / f"speed-data-{args.messages}-{args.big}-{args.bag_minutes:g}-v3"
     if not (data / "done").exists():
         shutil.rmtree(data, ignore_errors=True)
         data.mkdir(parents=True)
