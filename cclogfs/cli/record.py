@@ -227,14 +227,30 @@ def run(args: argparse.Namespace) -> int:
 def _remove_if_empty(path: str) -> None:
     from ..runs import hidden_by_default
     from ..store import open_store
+    from ..store.format import LOCK
+    from ..store.fs import FileSystem
 
+    if not os.path.isdir(path):
+        return
+    # Under the writer lock: a store another process created meanwhile, and is writing to,
+    # is that process's, not this failed run's (two runs creating one store at once).
+    fs = FileSystem()
     try:
-        with open_store(path, readonly=True) as store:
-            if any(not hidden_by_default(name) for name in store.streams()):
-                return  # messages were stored (the run's own start record does not count)
-    except CclogError:
-        return  # not a store we can read: leave it for the user to look at
-    shutil.rmtree(path, ignore_errors=True)
+        lock = fs.lock(os.path.join(path, LOCK))
+    except OSError:
+        return
+    if lock is None:
+        return
+    try:
+        try:
+            with open_store(path, readonly=True) as store:
+                if any(not hidden_by_default(name) for name in store.streams()):
+                    return  # messages were stored (the run's own start record does not count)
+        except CclogError:
+            return  # not a store we can read: leave it for the user to look at
+        shutil.rmtree(path, ignore_errors=True)
+    finally:
+        fs.unlock(lock)
 
 
 def _options(args: argparse.Namespace) -> dict:

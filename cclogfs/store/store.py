@@ -198,10 +198,15 @@ class Store:
         try:
             manifest.commit(self.fs, os.path.join(tmp, MANIFEST))
             self.fs.rename(tmp, self.path)  # the commit point; onto an empty directory too
-        except BaseException:
+        except BaseException as err:
             import shutil
 
             shutil.rmtree(tmp, ignore_errors=True)
+            # Another process created the store first: open what it made (a writer of it
+            # holding the lock makes this one fail as locked, as with any second writer).
+            raced = isinstance(err, OSError) and err.errno in (errno.ENOTEMPTY, errno.EEXIST)
+            if raced and self.fs.exists(self.file_path(MANIFEST)):
+                return
             raise
         self.fs.fsync_dir(parent)
 

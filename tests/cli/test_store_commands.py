@@ -94,3 +94,22 @@ def test_fsck_of_no_store_is_an_operational_error_not_damage(tmp_path, capsys):
         assert main(["fsck", str(tmp_path / name)]) == 8
         out, err = capsys.readouterr()
         assert "DAMAGED" not in out and why in err and "\n" not in err.strip(), (out, err)
+
+
+def test_a_failed_record_leaves_a_store_another_writer_holds(tmp_path):
+    """`record` removes a store it created when it fails before storing anything; a store
+    another writer created meanwhile, and holds, is not its to remove (two runs creating one
+    store at once: the loser deleted the store the winner was writing)."""
+    from cclogfs.cli.record import _remove_if_empty
+
+    path = tmp_path / "s"
+    with cclogfs.open_store(path, create=True) as held:  # nothing stored yet
+        _remove_if_empty(str(path))
+        assert (path / "MANIFEST").exists()
+        held.put_window("/a", [(1, "{}")])
+    _remove_if_empty(str(path))  # not held, but it holds messages
+    assert (path / "MANIFEST").exists()
+    empty = tmp_path / "e"
+    cclogfs.open_store(empty, create=True).close()
+    _remove_if_empty(str(empty))  # neither held nor holding messages: a failed run's own
+    assert not empty.exists()

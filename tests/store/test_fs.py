@@ -148,3 +148,31 @@ def test_store_files_are_owner_only(tmp_path, monkeypatch):
     assert any(n.endswith(".idx") for n in names)
     for name in names:
         assert os.stat(path / name).st_mode & 0o777 == 0o600, name
+
+
+def test_two_creating_one_store_at_once_one_wins(tmp_path, monkeypatch):
+    """Two writers creating the same new store: the one whose rename comes second found the
+    store there (ENOTEMPTY), failed with a raw 'Directory not empty' and left the CLI to
+    remove the store the first was writing. Now it opens what the first made, as a second
+    writer: locked. (Found by an attack: 3 of 6 concurrent `cclog record` left no store.)"""
+    from cclogfs.errors import StoreLockedError
+
+    path = str(tmp_path / "s")
+    real_rename, first = FileSystem.rename, []
+
+    def rename(self, src, dst):
+        if dst == path and not first:  # the other process gets there just before this one
+            first.append(None)
+            with monkeypatch.context() as other:  # another pid: its own hidden sibling
+                other.setattr(os, "getpid", os.getppid)
+                first[0] = cclogfs.open_store(path, create=True, sync_every_ms=None)
+        return real_rename(self, src, dst)
+
+    monkeypatch.setattr(FileSystem, "rename", rename)
+    with pytest.raises(StoreLockedError, match="locked by another writer"):
+        cclogfs.open_store(path, create=True)
+    first[0].put_window("/a", [(1, "{}")])
+    first[0].close()
+    assert not [n for n in os.listdir(tmp_path) if ".creating-" in n]
+    with cclogfs.open_store(path, readonly=True) as store:
+        assert [[tuple(m) for m in w.messages()] for w in store.query()] == [[(1, "{}")]]
