@@ -222,10 +222,12 @@ def check_topics_exist(src, path: str, topics: list[str] | None) -> None:
         raise InvalidInputError(f"{path} has no topic {' or '.join(topics)}; {source_topics(path)}.")
 
 
-def no_source_message(path: str, topics: list[str] | None) -> InvalidInputError:
-    """The error for a source that yielded no message of the selection."""
+def no_source_message(path: str, topics: list[str] | None, source=None) -> InvalidInputError:
+    """The error for a source that yielded no message of the selection. A damaged file's
+    reader (ingest/salvage.py) says why it read nothing: that reason, not "no messages"."""
     what = f"topic {' or '.join(topics)}" if topics else "message"
-    return InvalidInputError(f"{path} yielded no {what}; {source_topics(path)}.")
+    lost = getattr(source, "lost", None)
+    return InvalidInputError(f"{path} yielded no {what}; " + (lost.rstrip(".") if isinstance(lost, str) else source_topics(path)) + ".")
 
 
 def model_fits(model, model_path: str, source: str, topic: str, *, force: bool, texts: list | None = None) -> None:

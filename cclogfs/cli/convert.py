@@ -71,4 +71,4 @@ def _write(src, out, args: argparse.Namespace) -> None:
             out.write(format_line(m.topic, m.stamp_ns, m.text))
             progress()
     if progress.count == 0:  # raised inside the output's block: no empty output is left
-        raise no_source_message(args.source, args.topic)
+        raise no_source_message(args.source, args.topic, src)

@@ -390,7 +390,7 @@ def _exit_status(args: argparse.Namespace, source, stats: RecordStats, policy, r
     """An error for a run that stored nothing useful; else 128 + the signal that stopped it,
     LOST when a live recording knows it lost messages, or the damaged-input code."""
     if stats.messages_in == 0 and not stats.interrupted:
-        raise no_source_message(args.source, read_topics)
+        raise no_source_message(args.source, read_topics, source)
     if args.model and policy.scored == 0:  # a live source or stdin, checked only now
         raise InvalidInputError(f"{args.source} sent no message on {args.odom_topic}, the odometry the model scores, "
                                 "so nothing was kept; name the odometry topic with --odom-topic T.")  # fmt: skip

@@ -90,6 +90,18 @@ def test_a_failed_run_leaves_no_empty_store(tmp_path, capsys):
     assert pre.exists()  # not ours to remove
 
 
+def test_a_bag_read_to_nothing_says_why(shared_data, tmp_path, capsys):
+    """A bag whose definition names an unknown type: rosbags' reason, not "it holds no
+    messages" (the salvage reader's report was dropped; found by an attack)."""
+    data = shared_data("tf_example.bag").read_bytes()
+    bad = tmp_path / "bad_def.bag"
+    bad.write_bytes(data.replace(b"TransformStamped[] transforms", b"TransformStampex[] transforms"))
+    for args in (["record", str(bad), "--store", str(tmp_path / "s")], ["convert", str(bad), "-o", str(tmp_path / "o.jsonl")]):
+        assert main(args) == 1
+        err = capsys.readouterr().err
+        assert "TransformStampex' is unknown" in err and "holds no messages" not in err, err
+
+
 def ros2_bag_copy(shared_data, tmp_path, name):
     """A copy of the real ROS 2 bag tf_example/ (shared data is read-only)."""
     src = shared_data("tf_example")
