@@ -113,6 +113,9 @@ MAX_ENC = MAX_RAW + ENC_SLACK
 # record` cuts from the real runs of ../shared/data. A deployment that must read records an
 # older version wrote above it raises DECODE_RAW_LIMIT (at most MAX_RAW), and its bound with it.
 MAX_RECORD_RAW = 16 << 20
+# The longest message text a record holds: the message alone, after the window's count (4
+# bytes) and its stamp and length (12). A source told this names the line of a longer one.
+MAX_MESSAGE_TEXT = MAX_RECORD_RAW - 16
 DECODE_RAW_LIMIT = MAX_RECORD_RAW
 MAX_MANIFEST = 64 << 20
 # The smallest record: the fixed header, an empty name (a skipped record of another kind may
