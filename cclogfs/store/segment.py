@@ -32,6 +32,12 @@ WRITE_BUFFER = 1 << 20
 HASH_CHUNK = 256 << 10
 
 
+def lost_seqs(first: int, end: int) -> str:
+    """The seqs [first, end) a damaged stretch lost, in words (a damaged segment header,
+    say, loses none: the records after it are whole, though no reader trusts them)."""
+    return "no record lost" if end <= first else f"seq {first}" if end == first + 1 else f"seqs {first}..{end - 1}"
+
+
 @dataclass
 class Problem:
     """Something a scan found: where, why, and how many bytes it cost."""
@@ -54,7 +60,7 @@ class Problem:
         intact = f", {self.intact_after} intact records among them" if self.intact_after else ""
         kept = f", kept in {self.kept_in}" if self.kept_in else ""
         if self.seqs is not None:
-            lost = f"seq {self.seqs[0]}" if self.seqs[1] == self.seqs[0] + 1 else f"seqs {self.seqs[0]}..{self.seqs[1] - 1}"
+            lost = lost_seqs(*self.seqs)
             return (f"{self.path} at offset {self.offset}: {self.reason}{detail}: {self.dropped_bytes} bytes "
                     f"below the synced point damaged ({lost})")  # fmt: skip
         return f"{self.path} at offset {self.offset}: {self.reason}{detail}{dropped}{intact}{kept}"

@@ -52,7 +52,7 @@ from .fs import FileSystem
 from .index import SEQ, START, SegmentIndex, SegmentSpans, merge_stream_stats
 from .manifest import Manifest, SealedSegment
 from .recovery import Recovery, SegmentOpener
-from .segment import WRITE_BUFFER, Segment, hash_file
+from .segment import WRITE_BUFFER, Segment, hash_file, lost_seqs
 from .window import Receipt, Window
 
 if TYPE_CHECKING:
@@ -793,9 +793,7 @@ def _remove_stale_creations(parent: str, base: str) -> None:
 
 def describe_damage(d: Mapping[str, Any]) -> str:
     """One damaged stretch as reports print it."""
-    first, end = d["first_seq"], d["end_seq"]
-    seqs = "no seq" if end <= first else f"seq {first}" if end == first + 1 else f"seqs {first}..{end - 1}"
-    return f"{d['segment']} at offset {d['offset']}, {d['length']} bytes, {seqs}: {d['reason']}"
+    return f"{d['segment']} at offset {d['offset']}, {d['length']} bytes, {lost_seqs(d['first_seq'], d['end_seq'])}: {d['reason']}"
 
 
 def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: bool = False,
