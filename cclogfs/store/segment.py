@@ -11,12 +11,15 @@ import xxhash
 from ..errors import CorruptionError
 from . import planted
 from .format import (
+    RECORD_FIXED_SIZE,
     SEGMENT_HEADER_SIZE,
     Reason,
     RecordError,
     RecordFlag,
     RecordHeader,
     check_fields,
+    check_fixed,
+    parse_header,
     unpack_segment_header,
 )
 from .fs import FileSystem
@@ -209,6 +212,15 @@ class Segment:
             if write_back:
                 self.fs.write_file_atomic(index_path, self._index.encode(self.first_seq, self.size))
         return self._index
+
+    def read_header(self, offset: int) -> RecordHeader | None:
+        """The header of the record at `offset` (its CRC checked, the payload not read), or
+        None when it does not frame or check."""
+        try:
+            header_len = check_fixed(self.read(offset, RECORD_FIXED_SIZE), self.size - offset)
+            return parse_header(self.read(offset, header_len))
+        except RecordError:
+            return None
 
     def read_record(self, offset: int, length: int) -> tuple[RecordHeader, bytes]:
         """Header and payload of the record at `offset` that the index says is `length`

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from cclogfs.cli import main
 from cclogfs.ingest import format_line
 from cclogfs.store.format import MAX_RECORD_RAW
@@ -39,3 +41,24 @@ def test_a_17_mib_message_is_named_by_its_line(tmp_path, capsys, shared_data):
 
     assert main(["record", str(source), "--store", str(store), "--append", "--on-error", "skip"]) == 0
     assert "skipped: " in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("segment_records", [16384, 2])  # the split window in the active or a sealed segment
+def test_info_counts_a_split_window_once(tmp_path, capsys, segment_records):
+    # A window over the 16 MiB record limit is stored as several records (flag PART on each
+    # but the last, FORMAT.md); `info` counted each record as a window (issue 16).
+    import cclogfs
+
+    big = [(10 + i, json.dumps({"i": i, "data": "x" * (7 << 20)})) for i in range(3)]  # 21 MiB: 2 records
+    with cclogfs.open_store(tmp_path / "s", create=True, segment_records=segment_records) as store:
+        store.put_window("/a", [(1, "{}")])
+        assert store.put_window("/a", big).records == 2
+        store.put_window("/a", [(99, "{}")])
+        store.put_window("/b", [(5, "{}")])
+    assert main(["info", "--json", str(tmp_path / "s")]) == 0
+    streams = json.loads(capsys.readouterr().out)["streams"]
+    assert (streams["/a"]["windows"], streams["/a"]["records"], streams["/a"]["messages"]) == (3, 4, 5)
+    assert (streams["/b"]["windows"], streams["/b"]["records"]) == (1, 1)
+    assert main(["info", str(tmp_path / "s")]) == 0
+    out = capsys.readouterr().out
+    assert "/a: its 3 windows are stored as 4 records" in out and "/b: its" not in out
