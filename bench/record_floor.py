@@ -54,7 +54,7 @@ def _stages(path: Path, lines: list[bytes]) -> tuple[dict, Path]:
     for m in msgs:
         windows += policy.push(m.topic, m.stamp_ns, m.text)
     windows += policy.flush()
-    compiled = getattr(shapes, "_match_rows_c", None)  # None before the helper existed
+    compiled = getattr(shapes, "_compiled", None)  # None before the helper existed
 
     def each_line(fn):
         def run():
@@ -101,24 +101,24 @@ def _stages(path: Path, lines: list[bytes]) -> tuple[dict, Path]:
 
     def encode(row_finder):
         def run():
-            shapes._match_rows_c = row_finder
+            shapes._compiled = row_finder
             try:
                 matcher, z = shapes.ShapeMatcher(), zstandard.ZstdCompressor(level=3)
                 for w in windows:
                     encode_window(z, matcher, 4, [s for s, _ in w.messages], [t for _, t in w.messages])
             finally:
-                shapes._match_rows_c = compiled
+                shapes._compiled = compiled
         return run
 
     def rows(row_finder):
         def run():
-            shapes._match_rows_c = row_finder
+            shapes._compiled = row_finder
             try:
                 matcher = shapes.ShapeMatcher()
                 for w in windows:
                     matcher.group_window([t for _, t in w.messages])
             finally:
-                shapes._match_rows_c = compiled
+                shapes._compiled = compiled
         return run
 
     def record():

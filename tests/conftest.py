@@ -37,14 +37,14 @@ def row_path(request):
     from cclogfs.codecs import shapes
 
     try:
-        from cclogfs.codecs._rows import match_rows as compiled
+        from cclogfs.codecs import _rows as compiled
     except ImportError:
         compiled = None
     if request.param == "compiled" and compiled is None:
         pytest.skip("the compiled helper cclogfs.codecs._rows is not built (no C compiler at install)")
-    shapes._match_rows_c = compiled if request.param == "compiled" else None
+    shapes._compiled = compiled if request.param == "compiled" else None
     yield request.param
-    shapes._match_rows_c = compiled
+    shapes._compiled = compiled
 
 
 # The JSONL source's two ways to split lines: the compiled splitter

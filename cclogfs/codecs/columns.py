@@ -10,6 +10,7 @@ import base64
 import math
 import re
 import threading
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -96,7 +97,7 @@ def _parse_floats(joined: str, n: int) -> np.ndarray | None:
     return values if len(values) == n else None
 
 
-def _as_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
+def _as_floats(tokens: Sequence[str]) -> np.ndarray | None:
     """The tokens as float64, or None unless rendering them gives every token back."""
     joined = ",".join(tokens)
     parsed = _parse_floats(joined, len(tokens))
@@ -114,7 +115,7 @@ def _as_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
     return parsed if render_floats_joined(parsed) == joined else None
 
 
-def classify(tokens: tuple[str, ...], decimal: bool = False) -> tuple[ColumnKind, Any]:
+def classify(tokens: Sequence[str], decimal: bool = False) -> tuple[ColumnKind, Any]:
     """The most compact kind that reproduces every token, and the values to store.
 
     `decimal` allows DECIMAL (format version 4), whose values are (digits, i64 array).
@@ -148,7 +149,7 @@ def classify(tokens: tuple[str, ...], decimal: bool = False) -> tuple[ColumnKind
     return kind, values[rows]
 
 
-def _numbers(tokens: tuple[str, ...], decimal: bool = False) -> tuple[ColumnKind, Any]:
+def _numbers(tokens: Sequence[str], decimal: bool = False) -> tuple[ColumnKind, Any]:
     """INT, DECIMAL or FLOAT with the values, if rendering gives every token back; else TEXT."""
     # Only a column of canonical ints is INT, so one whose first token is not digits
     # (a float) skips int(), which would raise on it: the outcome is the same.
@@ -176,7 +177,7 @@ def _numbers(tokens: tuple[str, ...], decimal: bool = False) -> tuple[ColumnKind
     return ColumnKind.TEXT, tokens
 
 
-def _as_decimals(tokens: tuple[str, ...]) -> tuple[int, np.ndarray] | None:
+def _as_decimals(tokens: Sequence[str]) -> tuple[int, np.ndarray] | None:
     """(d, the values m) if every token is fixed-point with d digits that renders back.
 
     m is the token without its point, |m| < 10^15 (see _DECIMAL_LIMIT). The rendering

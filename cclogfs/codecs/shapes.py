@@ -11,16 +11,18 @@ from __future__ import annotations
 
 import re
 from collections import OrderedDict
+from collections.abc import Sequence
 from itertools import chain
 
 __all__ = ["ShapeMatcher", "split_text"]
 
 # The compiled row finder (cclogfs/codecs/_rows.c; setup.py builds it where a C compiler is):
 # the same rows as `_rows_python`, in half the time per window (bench/record_floor.py).
+# Tests and benchmarks set this to None to take the re module's path.
 try:
-    from ._rows import match_rows as _match_rows_c
+    from . import _rows as _compiled
 except ImportError:
-    _match_rows_c = None
+    _compiled = None
 
 _STRING = r'"[^"\\]*(?:\\.[^"\\]*)*"'
 _NUMBER = r"[-+.0-9A-Za-z]++"  # numbers, true/false/null, NaN, Infinity
@@ -121,11 +123,28 @@ def _rows(shape: tuple, texts: list[str]) -> list[tuple | None]:
     """Value rows of texts in a (literals, regex, skipper, kinds) shape; None where one
     misses: `pattern.fullmatch(text).groups()` of each text. From the compiled helper
     when it is installed and the texts are one byte per character, else `_rows_python`."""
-    if _match_rows_c is not None:
-        rows = _match_rows_c(shape[0], shape[3], texts)
+    if _compiled is not None:
+        rows = _compiled.match_rows(shape[0], shape[3], texts)
         if rows is not NotImplemented:
             return rows
     return _rows_python(shape, texts)
+
+
+def _columns(shape: tuple, texts: list[str]) -> list[Sequence[str]] | None:
+    """The value tokens of texts in a shape by slot (one sequence per slot, one token per
+    text), or None if any text misses: `_rows` transposed. The encoder works a column at
+    a time; the compiled helper gives the columns without building rows in between."""
+    if _compiled is not None:
+        columns = _compiled.match_columns(shape[0], shape[3], texts)
+        if columns is not NotImplemented:
+            return columns
+    rows = _rows_python(shape, texts)
+    return None if None in rows else transpose(rows, len(shape[3]))
+
+
+def transpose(rows: list[tuple[str, ...]], k: int) -> list[Sequence[str]]:
+    """Value rows of k tokens each as k columns."""
+    return list(zip(*rows)) if rows else [() for _ in range(k)]
 
 
 def _rows_python(shape: tuple, texts: list[str]) -> list[tuple | None]:
@@ -177,7 +196,7 @@ class ShapeMatcher:
         return pattern
 
     def group_window(self, texts: list[str | None]) -> tuple[list[tuple[tuple, list[int], list]], list[int]]:
-        """Groups [(literals, indices, value rows)] of a window, and indices without shape.
+        """Groups [(literals, indices, value columns)] of a window, and indices without shape.
 
         Most values of a robot message never change within a window (covariances, frame
         ids, zero axes). The first pending text and a few probes spread over the window
@@ -205,12 +224,14 @@ class ShapeMatcher:
                 if not found:
                     break
                 shape = found
-            rows = _rows(shape, [texts[i] for i in pending])
-            if None not in rows:  # the usual case: the whole window has one shape
-                out.append((shape[0], pending, rows))
+            sub = [texts[i] for i in pending]
+            columns = _columns(shape, sub)
+            if columns is not None:  # the usual case: the whole window has one shape
+                out.append((shape[0], pending, columns))
                 self._last = shape
                 pending = []
                 continue
+            rows = _rows(shape, sub)
             indices, kept, rest = [], [], []
             for i, row in zip(pending, rows):
                 if row is None:
@@ -218,12 +239,13 @@ class ShapeMatcher:
                 else:
                     indices.append(i)
                     kept.append(row)
-            out.append((shape[0], indices, kept))
+            out.append((shape[0], indices, transpose(kept, len(shape[3]))))
             pending = rest
         if pending:
             sub = [texts[i] for i in pending]
             groups, rest = self.group(sub)
-            out.extend((lits, [pending[j] for j in idx], rows) for lits, (idx, rows) in groups.items())
+            for lits, (idx, rows) in groups.items():
+                out.append((lits, [pending[j] for j in idx], transpose(rows, len(lits) - 1)))
             unshaped.extend(pending[j] for j in rest)
         return out, sorted(unshaped)
 
