@@ -22,7 +22,7 @@ except ImportError:  # the fast float parser is optional: float() gives the same
 
 from ..errors import CodecError
 from .columns_read import Reader, b64_token as _b64_token, read_blob as _read_blob, read_column, read_decimal, read_packed  # noqa: F401 (tests reach _read_blob here)
-from .columns_read import orjson_text, render_decimals as _render_decimals, render_floats, render_floats_joined
+from .columns_read import orjson_differs, orjson_text, render_decimals as _render_decimals, render_floats, respell
 from .columnar_format import (
     DECIMAL_DIGITS,
     DECIMAL_ORDERS,
@@ -72,6 +72,14 @@ def _render_floats(values: np.ndarray) -> list[str]:
     return render_floats(np.ascontiguousarray(values, dtype=np.float64))
 
 
+def _render_joined(values: np.ndarray) -> str:
+    """`render_floats(values)` joined by ",": the encoder compares it with a column's
+    tokens joined, one string compare per column (orjson's text as it is, in the usual
+    column)."""
+    text = orjson_text(values)
+    return ",".join(respell(text, values)) if orjson_differs(text) else text
+
+
 def _simdjson_parser():
     parser = getattr(_local, "parser", None)
     if parser is None:
@@ -113,7 +121,7 @@ def _as_floats(tokens: Sequence[str]) -> np.ndarray | None:
     # repr writes, are refused), and compare all the tokens at once: parsed tokens hold
     # no comma (float() and simdjson refuse one, or the count differs), so equal joined
     # texts are equal tokens.
-    return parsed if render_floats_joined(parsed) == joined else None
+    return parsed if _render_joined(parsed) == joined else None
 
 
 def classify(tokens: Sequence[str], decimal: bool = False) -> tuple[ColumnKind, Any]:

@@ -205,8 +205,11 @@ class ShapeMatcher:
         exact: the literals are cut from a real text and a match rebuilds its text.
         """
         out: list[tuple[tuple, list[int], list]] = []
-        unshaped = [i for i, t in enumerate(texts) if t is None]
-        pending = [i for i, t in enumerate(texts) if t is not None]
+        if None in texts:
+            unshaped = [i for i, t in enumerate(texts) if t is None]
+            pending = [i for i, t in enumerate(texts) if t is not None]
+        else:  # the usual window: every text may have a shape
+            unshaped, pending = [], list(range(len(texts)))
         for _ in range(_MAX_ROUNDS):
             if not pending:
                 return out, unshaped
@@ -224,7 +227,7 @@ class ShapeMatcher:
                 if not found:
                     break
                 shape = found
-            sub = [texts[i] for i in pending]
+            sub = list(texts) if len(pending) == len(texts) else [texts[i] for i in pending]
             columns = _columns(shape, sub)
             if columns is not None:  # the usual case: the whole window has one shape
                 out.append((shape[0], pending, columns))
