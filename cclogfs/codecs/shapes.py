@@ -17,8 +17,9 @@ from itertools import chain
 __all__ = ["ShapeMatcher", "split_text"]
 
 # The compiled row finder (cclogfs/codecs/_rows.c; setup.py builds it where a C compiler is):
-# the same rows as `_rows_python`, in half the time per window (bench/record_floor.py).
-# Tests and benchmarks set this to None to take the re module's path.
+# the same rows as `_rows_python`, or the same tokens by column (`_columns`), in half the
+# time per window (bench/record_floor.py). Tests and benchmarks set this to None to take
+# the re module's path.
 try:
     from . import _rows as _compiled
 except ImportError:
