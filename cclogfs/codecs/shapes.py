@@ -18,12 +18,12 @@ __all__ = ["ShapeMatcher", "split_text"]
 
 # The compiled row finder (cclogfs/codecs/_rows.c; setup.py builds it where a C compiler is):
 # the same rows as `_rows_python`, or the same tokens by column (`_columns`), in half the
-# time per window (bench/record_floor.py). Tests and benchmarks set this to None to take
+# time per window (bench/record_floor.py). Tests and benchmarks set both to None to take
 # the re module's path.
 try:
-    from . import _rows as _compiled
+    from ._rows import match_columns as _match_columns_c, match_rows as _match_rows_c
 except ImportError:
-    _compiled = None
+    _match_rows_c = _match_columns_c = None
 
 _STRING = r'"[^"\\]*(?:\\.[^"\\]*)*"'
 _NUMBER = r"[-+.0-9A-Za-z]++"  # numbers, true/false/null, NaN, Infinity
@@ -124,8 +124,8 @@ def _rows(shape: tuple, texts: list[str]) -> list[tuple | None]:
     """Value rows of texts in a (literals, regex, skipper, kinds) shape; None where one
     misses: `pattern.fullmatch(text).groups()` of each text. From the compiled helper
     when it is installed and the texts are one byte per character, else `_rows_python`."""
-    if _compiled is not None:
-        rows = _compiled.match_rows(shape[0], shape[3], texts)
+    if _match_rows_c is not None:
+        rows = _match_rows_c(shape[0], shape[3], texts)
         if rows is not NotImplemented:
             return rows
     return _rows_python(shape, texts)
@@ -135,8 +135,8 @@ def _columns(shape: tuple, texts: list[str]) -> list[Sequence[str]] | None:
     """The value tokens of texts in a shape by slot (one sequence per slot, one token per
     text), or None if any text misses: `_rows` transposed. The encoder works a column at
     a time; the compiled helper gives the columns without building rows in between."""
-    if _compiled is not None:
-        columns = _compiled.match_columns(shape[0], shape[3], texts)
+    if _match_columns_c is not None:
+        columns = _match_columns_c(shape[0], shape[3], texts)
         if columns is not NotImplemented:
             return columns
     rows = _rows_python(shape, texts)
