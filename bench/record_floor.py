@@ -55,6 +55,7 @@ def _stages(path: Path, lines: list[bytes]) -> tuple[dict, Path]:
         windows += policy.push(m.topic, m.stamp_ns, m.text)
     windows += policy.flush()
     compiled = getattr(shapes, "_match_rows_c", None)  # None before the helper existed
+    compiled_columns = getattr(shapes, "_match_columns_c", None)  # None before it gave columns
 
     def each_line(fn):
         def run():
@@ -102,23 +103,25 @@ def _stages(path: Path, lines: list[bytes]) -> tuple[dict, Path]:
     def encode(row_finder):
         def run():
             shapes._match_rows_c = row_finder
+            shapes._match_columns_c = row_finder and compiled_columns
             try:
                 matcher, z = shapes.ShapeMatcher(), zstandard.ZstdCompressor(level=3)
                 for w in windows:
                     encode_window(z, matcher, 4, [s for s, _ in w.messages], [t for _, t in w.messages])
             finally:
-                shapes._match_rows_c = compiled
+                shapes._match_rows_c, shapes._match_columns_c = compiled, compiled_columns
         return run
 
     def rows(row_finder):
         def run():
             shapes._match_rows_c = row_finder
+            shapes._match_columns_c = row_finder and compiled_columns
             try:
                 matcher = shapes.ShapeMatcher()
                 for w in windows:
                     matcher.group_window([t for _, t in w.messages])
             finally:
-                shapes._match_rows_c = compiled
+                shapes._match_rows_c, shapes._match_columns_c = compiled, compiled_columns
         return run
 
     def record():

@@ -36,15 +36,13 @@ def shared_data():
 def row_path(request):
     from cclogfs.codecs import shapes
 
-    try:
-        from cclogfs.codecs._rows import match_rows as compiled
-    except ImportError:
-        compiled = None
-    if request.param == "compiled" and compiled is None:
+    compiled = shapes._match_rows_c, shapes._match_columns_c
+    if request.param == "compiled" and None in compiled:
         pytest.skip("the compiled helper cclogfs.codecs._rows is not built (no C compiler at install)")
-    shapes._match_rows_c = compiled if request.param == "compiled" else None
+    if request.param == "python":
+        shapes._match_rows_c = shapes._match_columns_c = None
     yield request.param
-    shapes._match_rows_c = compiled
+    shapes._match_rows_c, shapes._match_columns_c = compiled
 
 
 # The JSONL source's two ways to split lines: the compiled splitter

@@ -1,4 +1,4 @@
-/* The value rows of a window's texts in one shape: shapes._rows_python in C (issue 14).
+/* The value tokens of a window's texts in one shape: shapes._rows_python in C (issue 14).
  *
  * match_rows(literals, kinds, texts) -> [tuple of value tokens, or None] per text, exactly
  * what shapes._matcher's regex gives (fullmatch(text).groups(), None where it does not
@@ -8,8 +8,12 @@
  * Both tokens are found by one forward scan: a string ends at its first unescaped quote
  * (the regex cannot end it elsewhere), a number takes every character of its class.
  *
+ * match_columns(literals, kinds, texts) -> the same tokens by slot: k lists of one token
+ * per text (the rows transposed), or None if any text does not match. The encoder works
+ * a column at a time; building the rows and transposing them cost more than the matching.
+ *
  * Only texts and literals of one byte per character (ASCII and Latin-1, as robot JSON
- * is) are handled; for any other the function returns NotImplemented and the caller
+ * is) are handled; for any other both functions return NotImplemented and the caller
  * takes the regex path. Optional: cclogfs works without it (shapes.py says how).
  */
 #define PY_SSIZE_T_CLEAN
@@ -42,31 +46,99 @@ static Py_ssize_t token_end(const unsigned char *s, Py_ssize_t i, Py_ssize_t n, 
     return i > start ? i : -1;
 }
 
-/* One text's row (a new tuple), Py_None (new reference) when it does not match, NULL on error. */
-static PyObject *match_one(PyObject *text, Py_ssize_t k, const unsigned char **lit, const Py_ssize_t *lit_len,
-                           const int *kinds, Py_ssize_t *starts, Py_ssize_t *ends)
+/* A shape's literals and value kinds in C arrays, and room for one text's value spans. */
+struct shape {
+    Py_ssize_t k;  /* value slots */
+    const unsigned char **lit;
+    Py_ssize_t *lit_len;
+    int *kinds;
+    Py_ssize_t *starts, *ends;
+};
+
+/* Whether the text matches the shape; if so, its values' spans are in sh->starts, sh->ends. */
+static int find_values(PyObject *text, const struct shape *sh)
 {
     const unsigned char *s = PyUnicode_1BYTE_DATA(text);
     Py_ssize_t n = PyUnicode_GET_LENGTH(text), pos = 0;
-    for (Py_ssize_t j = 0; j <= k; j++) {
-        if (n - pos < lit_len[j] || memcmp(s + pos, lit[j], lit_len[j]) != 0)
-            Py_RETURN_NONE;
-        pos += lit_len[j];
-        if (j == k)
+    for (Py_ssize_t j = 0; j <= sh->k; j++) {
+        if (n - pos < sh->lit_len[j] || memcmp(s + pos, sh->lit[j], sh->lit_len[j]) != 0)
+            return 0;
+        pos += sh->lit_len[j];
+        if (j == sh->k)
             break;
-        Py_ssize_t end = token_end(s, pos, n, kinds[j]);
+        Py_ssize_t end = token_end(s, pos, n, sh->kinds[j]);
         if (end < 0)
-            Py_RETURN_NONE;
-        starts[j] = pos;
-        ends[j] = pos = end;
+            return 0;
+        sh->starts[j] = pos;
+        sh->ends[j] = pos = end;
     }
-    if (pos != n)
-        Py_RETURN_NONE;
-    PyObject *row = PyTuple_New(k);
+    return pos == n;
+}
+
+static int one_byte(PyObject *s)
+{
+    return PyUnicode_Check(s) && PyUnicode_READY(s) == 0 && PyUnicode_KIND(s) == PyUnicode_1BYTE_KIND;
+}
+
+static void shape_free(struct shape *sh)
+{
+    PyMem_Free(sh->lit);
+    PyMem_Free(sh->lit_len);
+    PyMem_Free(sh->kinds);
+    PyMem_Free(sh->starts);
+}
+
+/* Parse (literals, kinds, texts) into sh and *texts: 1 done, 0 a string of wider
+ * characters (the caller returns NotImplemented), -1 an error (set). */
+static int shape_init(PyObject *args, const char *name, struct shape *sh, PyObject **texts)
+{
+    PyObject *literals, *kinds_obj;
+    char format[64];
+    memset(sh, 0, sizeof *sh);
+    PyOS_snprintf(format, sizeof format, "O!O!O!:%s", name);
+    if (!PyArg_ParseTuple(args, format, &PyTuple_Type, &literals, &PyTuple_Type, &kinds_obj, &PyList_Type, texts))
+        return -1;
+    Py_ssize_t k = sh->k = PyTuple_GET_SIZE(kinds_obj), count = PyList_GET_SIZE(*texts);
+    if (PyTuple_GET_SIZE(literals) != k + 1) {
+        PyErr_Format(PyExc_ValueError, "%s needs one literal more than kinds", name);
+        return -1;
+    }
+    for (Py_ssize_t j = 0; j <= k; j++)
+        if (!one_byte(PyTuple_GET_ITEM(literals, j)))
+            return 0;
+    for (Py_ssize_t i = 0; i < count; i++)
+        if (!one_byte(PyList_GET_ITEM(*texts, i)))
+            return 0;
+    sh->lit = PyMem_Malloc((k + 1) * sizeof *sh->lit);
+    sh->lit_len = PyMem_Malloc((k + 1) * sizeof *sh->lit_len);
+    sh->kinds = PyMem_Malloc((k + 1) * sizeof *sh->kinds);
+    sh->starts = PyMem_Malloc(2 * (k + 1) * sizeof *sh->starts);  /* each value's start, then end */
+    if (sh->lit == NULL || sh->lit_len == NULL || sh->kinds == NULL || sh->starts == NULL) {
+        shape_free(sh);
+        PyErr_NoMemory();
+        return -1;
+    }
+    sh->ends = sh->starts + k + 1;
+    for (Py_ssize_t j = 0; j <= k; j++) {
+        PyObject *l = PyTuple_GET_ITEM(literals, j);
+        sh->lit[j] = PyUnicode_1BYTE_DATA(l);
+        sh->lit_len[j] = PyUnicode_GET_LENGTH(l);
+        if (j < k && (sh->kinds[j] = PyObject_IsTrue(PyTuple_GET_ITEM(kinds_obj, j))) < 0) {
+            shape_free(sh);
+            return -1;
+        }
+    }
+    return 1;
+}
+
+/* The row of a text that find_values matched: a new tuple of its value tokens. */
+static PyObject *row_of(PyObject *text, const struct shape *sh)
+{
+    PyObject *row = PyTuple_New(sh->k);
     if (row == NULL)
         return NULL;
-    for (Py_ssize_t j = 0; j < k; j++) {
-        PyObject *token = PyUnicode_Substring(text, starts[j], ends[j]);
+    for (Py_ssize_t j = 0; j < sh->k; j++) {
+        PyObject *token = PyUnicode_Substring(text, sh->starts[j], sh->ends[j]);
         if (token == NULL) {
             Py_DECREF(row);
             return NULL;
@@ -76,66 +148,67 @@ static PyObject *match_one(PyObject *text, Py_ssize_t k, const unsigned char **l
     return row;
 }
 
-static int one_byte(PyObject *s)
-{
-    return PyUnicode_Check(s) && PyUnicode_READY(s) == 0 && PyUnicode_KIND(s) == PyUnicode_1BYTE_KIND;
-}
-
 static PyObject *match_rows(PyObject *Py_UNUSED(self), PyObject *args)
 {
-    PyObject *literals, *kinds_obj, *texts;
-    if (!PyArg_ParseTuple(args, "O!O!O!:match_rows", &PyTuple_Type, &literals, &PyTuple_Type, &kinds_obj,
-                          &PyList_Type, &texts))
-        return NULL;
-    Py_ssize_t k = PyTuple_GET_SIZE(kinds_obj), count = PyList_GET_SIZE(texts);
-    if (PyTuple_GET_SIZE(literals) != k + 1) {
-        PyErr_SetString(PyExc_ValueError, "match_rows needs one literal more than kinds");
-        return NULL;
-    }
-    for (Py_ssize_t j = 0; j <= k; j++)
-        if (!one_byte(PyTuple_GET_ITEM(literals, j)))
-            Py_RETURN_NOTIMPLEMENTED;
-    for (Py_ssize_t i = 0; i < count; i++)
-        if (!one_byte(PyList_GET_ITEM(texts, i)))
-            Py_RETURN_NOTIMPLEMENTED;
-    const unsigned char **lit = PyMem_Malloc((k + 1) * sizeof *lit);
-    Py_ssize_t *lit_len = PyMem_Malloc((k + 1) * sizeof *lit_len);
-    int *kinds = PyMem_Malloc((k + 1) * sizeof *kinds);
-    Py_ssize_t *spans = PyMem_Malloc(2 * (k + 1) * sizeof *spans);  /* each value's start, then end */
-    PyObject *out = NULL;
-    if (lit == NULL || lit_len == NULL || kinds == NULL || spans == NULL) {
-        PyErr_NoMemory();
-        goto done;
-    }
-    for (Py_ssize_t j = 0; j <= k; j++) {
-        PyObject *l = PyTuple_GET_ITEM(literals, j);
-        lit[j] = PyUnicode_1BYTE_DATA(l);
-        lit_len[j] = PyUnicode_GET_LENGTH(l);
-        if (j < k && (kinds[j] = PyObject_IsTrue(PyTuple_GET_ITEM(kinds_obj, j))) < 0)
-            goto done;
-    }
-    out = PyList_New(count);
-    if (out == NULL)
-        goto done;
-    for (Py_ssize_t i = 0; i < count; i++) {
-        PyObject *row = match_one(PyList_GET_ITEM(texts, i), k, lit, lit_len, kinds, spans, spans + k + 1);
-        if (row == NULL) {
+    struct shape sh;
+    PyObject *texts;
+    int ready = shape_init(args, "match_rows", &sh, &texts);
+    if (ready <= 0)
+        return ready < 0 ? NULL : Py_NewRef(Py_NotImplemented);
+    Py_ssize_t count = PyList_GET_SIZE(texts);
+    PyObject *out = PyList_New(count);
+    for (Py_ssize_t i = 0; out != NULL && i < count; i++) {
+        PyObject *text = PyList_GET_ITEM(texts, i);
+        PyObject *row = find_values(text, &sh) ? row_of(text, &sh) : Py_NewRef(Py_None);
+        if (row == NULL)
             Py_CLEAR(out);
-            goto done;
-        }
-        PyList_SET_ITEM(out, i, row);
+        else
+            PyList_SET_ITEM(out, i, row);
     }
-done:
-    PyMem_Free(lit);
-    PyMem_Free(lit_len);
-    PyMem_Free(kinds);
-    PyMem_Free(spans);
+    shape_free(&sh);
+    return out;
+}
+
+static PyObject *match_columns(PyObject *Py_UNUSED(self), PyObject *args)
+{
+    struct shape sh;
+    PyObject *texts;
+    int ready = shape_init(args, "match_columns", &sh, &texts);
+    if (ready <= 0)
+        return ready < 0 ? NULL : Py_NewRef(Py_NotImplemented);
+    Py_ssize_t count = PyList_GET_SIZE(texts);
+    PyObject *out = PyList_New(sh.k);
+    for (Py_ssize_t j = 0; out != NULL && j < sh.k; j++) {
+        PyObject *column = PyList_New(count);
+        if (column == NULL)
+            Py_CLEAR(out);
+        else
+            PyList_SET_ITEM(out, j, column);
+    }
+    for (Py_ssize_t i = 0; out != NULL && i < count; i++) {
+        PyObject *text = PyList_GET_ITEM(texts, i);
+        if (!find_values(text, &sh)) {
+            Py_SETREF(out, Py_NewRef(Py_None));
+            break;
+        }
+        for (Py_ssize_t j = 0; j < sh.k; j++) {
+            PyObject *token = PyUnicode_Substring(text, sh.starts[j], sh.ends[j]);
+            if (token == NULL) {
+                Py_CLEAR(out);
+                break;
+            }
+            PyList_SET_ITEM(PyList_GET_ITEM(out, j), i, token);
+        }
+    }
+    shape_free(&sh);
     return out;
 }
 
 static PyMethodDef methods[] = {
     {"match_rows", match_rows, METH_VARARGS,
      "match_rows(literals, kinds, texts): each text's value tokens in the shape, or None."},
+    {"match_columns", match_columns, METH_VARARGS,
+     "match_columns(literals, kinds, texts): each slot's value tokens, one per text; None if a text misses."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -38,27 +38,26 @@ _MAX_LABELS = 8
 
 
 def _split_by_label(
-    literals: tuple[str, ...], indices: list[int], rows: list[tuple[str, ...]]
-) -> list[tuple[tuple[str, ...], list[int], list[tuple[str, ...]]]]:
+    literals: tuple[str, ...], indices: list[int], columns: list[Sequence[str]]
+) -> list[tuple[tuple[str, ...], list[int], list[Sequence[str]]]]:
     """Split a group by its first string slot with a few values (a frame id, say).
 
     /tf interleaves transforms of different frames; apart, each frame's values form a
     smooth series that delta coding shrinks, together they alternate and do not.
     """
-    if len(rows) < 2 * _MAX_LABELS:
-        return [(literals, indices, rows)]
-    for j, token in enumerate(rows[0]):
-        if token[:1] != '"':
+    if len(indices) < 2 * _MAX_LABELS:
+        return [(literals, indices, columns)]
+    for column in columns:
+        if column[0][:1] != '"':
             continue
-        labels = {row[j] for row in rows}
+        labels = dict.fromkeys(column)  # in order of first appearance: the parts' order
         if 1 < len(labels) <= _MAX_LABELS:
-            parts: dict[str, tuple[list[int], list]] = {}
-            for i, row in zip(indices, rows):
-                part = parts.setdefault(row[j], ([], []))
-                part[0].append(i)
-                part[1].append(row)
-            return [(literals, idx, part_rows) for idx, part_rows in parts.values()]
-    return [(literals, indices, rows)]
+            parts = []
+            for label in labels:
+                rows = [r for r, token in enumerate(column) if token == label]
+                parts.append((literals, [indices[r] for r in rows], [[c[r] for r in rows] for c in columns]))
+            return parts
+    return [(literals, indices, columns)]
 
 
 def _maybe_unit(xyz: list, w: np.ndarray) -> bool:
@@ -78,12 +77,11 @@ def _maybe_unit(xyz: list, w: np.ndarray) -> bool:
     return False
 
 
-def _encode_group(literals: tuple[str, ...], rows: list[tuple[str, ...]], version: int) -> bytes:
-    """One group: header, literals, kinds, then each column's data."""
-    n = len(rows)
+def _encode_group(literals: tuple[str, ...], columns: list[Sequence[str]], n: int, version: int) -> bytes:
+    """One group of n texts: header, literals, kinds, then each column's data."""
     kinds, values = [], []
     floats: list[np.ndarray | str | None] = []  # what slot_floats takes, per slot
-    for tokens in zip(*rows):
+    for tokens in columns:
         kind, vals = classify(tokens, decimal=version >= 4)
         fl = vals if kind in (ColumnKind.FLOAT, ColumnKind.CONST) else None
         if kind is ColumnKind.FLOAT and len(floats) >= 3 and _maybe_unit(floats[-3:], vals):
@@ -139,15 +137,15 @@ def encode_window(compressor: zstandard.ZstdCompressor, matcher: ShapeMatcher, v
     groups, _ = matcher.group_window(_shapeable(texts))
     ids = np.full(count, RAW_GROUP, dtype="<u2")
     bodies = []
-    parts = [part for literals, indices, rows in groups for part in _split_by_label(literals, indices, rows)]
+    parts = [part for group in groups for part in _split_by_label(*group)]
     # No trial decode: a match rebuilds its text from the literals by construction,
     # and classify() keeps a column kind only if rendering it gives every token back.
-    for literals, indices, rows in parts[:MAX_GROUPS]:
+    for literals, indices, columns in parts[:MAX_GROUPS]:
         if len(indices) == count:  # the usual window: one group holds every message
             ids.fill(len(bodies))
         else:
             ids[indices] = len(bodies)
-        bodies.append(_encode_group(literals, rows, version))
+        bodies.append(_encode_group(literals, columns, len(indices), version))
     raw_indices = np.flatnonzero(ids == RAW_GROUP).tolist()
     body = bytearray(U32.pack(len(bodies)))
     body += ids.tobytes()

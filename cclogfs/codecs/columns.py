@@ -10,6 +10,7 @@ import base64
 import math
 import re
 import threading
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -21,7 +22,7 @@ except ImportError:  # the fast float parser is optional: float() gives the same
 
 from ..errors import CodecError
 from .columns_read import Reader, b64_token as _b64_token, read_blob as _read_blob, read_column, read_decimal, read_packed  # noqa: F401 (tests reach _read_blob here)
-from .columns_read import render_decimals as _render_decimals, render_floats, render_floats_joined
+from .columns_read import orjson_differs, orjson_text, render_decimals as _render_decimals, render_floats, respell
 from .columnar_format import (
     DECIMAL_DIGITS,
     DECIMAL_ORDERS,
@@ -54,7 +55,7 @@ _DEDUP_SAMPLE = 16
 # Deltas per column that float_deltas ranks the orders on.
 _ORDER_SAMPLES = 64
 _local = threading.local()  # a simdjson parser is not thread-safe
-# Columns shorter than this are parsed by float() (see _parse_floats).
+# Columns shorter than this are parsed by float() or int() (see _parse_joined).
 _SIMDJSON_MIN = 16
 _NONFINITE = {"NaN": math.nan, "Infinity": math.inf, "-Infinity": -math.inf}
 # The encoder writes DECIMAL only for values m of at most 15 digits (the format allows
@@ -71,6 +72,14 @@ def _render_floats(values: np.ndarray) -> list[str]:
     return render_floats(np.ascontiguousarray(values, dtype=np.float64))
 
 
+def _render_joined(values: np.ndarray) -> str:
+    """`render_floats(values)` joined by ",": the encoder compares it with a column's
+    tokens joined, one string compare per column (orjson's text as it is, in the usual
+    column)."""
+    text = orjson_text(values)
+    return ",".join(respell(text, values)) if orjson_differs(text) else text
+
+
 def _simdjson_parser():
     parser = getattr(_local, "parser", None)
     if parser is None:
@@ -78,28 +87,29 @@ def _simdjson_parser():
     return parser
 
 
-def _parse_floats(joined: str, n: int) -> np.ndarray | None:
-    """n tokens joined by "," as float64 parsed by simdjson in one call, or None if it
-    refuses them or finds another count.
+def _parse_joined(joined: str, n: int, of_type: str = "d") -> np.ndarray | None:
+    """n tokens joined by "," parsed by simdjson in one call, as float64 (of_type "d") or
+    int64 ("i"), or None if it refuses them or finds another count.
 
     Four times faster than float() per token, but a call costs a few microseconds:
     short columns (a constant's one token) go to float(). Nothing rests on simdjson
-    parsing right: the caller keeps a value only if its repr is the token.
+    parsing right: the caller keeps a value only if its rendering is the token.
     """
     if simdjson is None or n < _SIMDJSON_MIN:
         return None
     try:
         doc = _simdjson_parser().parse(("[" + joined + "]").encode())
-        values = np.frombuffer(doc.as_buffer(of_type="d"), dtype=np.float64).copy()
-    except Exception:  # noqa: BLE001 - NaN, huge exponents, non-numbers: float() decides
+        values = np.frombuffer(doc.as_buffer(of_type=of_type), dtype=np.float64 if of_type == "d" else np.int64)
+        values = values.copy()
+    except Exception:  # noqa: BLE001 - NaN, huge exponents, non-numbers: float() or int() decides
         return None
     return values if len(values) == n else None
 
 
-def _as_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
+def _as_floats(tokens: Sequence[str]) -> np.ndarray | None:
     """The tokens as float64, or None unless rendering them gives every token back."""
     joined = ",".join(tokens)
-    parsed = _parse_floats(joined, len(tokens))
+    parsed = _parse_joined(joined, len(tokens))
     if parsed is None:
         try:
             # float() also reads "NaN", "nan", "inf", "1_0", ...: the rendering check
@@ -111,10 +121,10 @@ def _as_floats(tokens: tuple[str, ...]) -> np.ndarray | None:
     # repr writes, are refused), and compare all the tokens at once: parsed tokens hold
     # no comma (float() and simdjson refuse one, or the count differs), so equal joined
     # texts are equal tokens.
-    return parsed if render_floats_joined(parsed) == joined else None
+    return parsed if _render_joined(parsed) == joined else None
 
 
-def classify(tokens: tuple[str, ...], decimal: bool = False) -> tuple[ColumnKind, Any]:
+def classify(tokens: Sequence[str], decimal: bool = False) -> tuple[ColumnKind, Any]:
     """The most compact kind that reproduces every token, and the values to store.
 
     `decimal` allows DECIMAL (format version 4), whose values are (digits, i64 array).
@@ -148,23 +158,15 @@ def classify(tokens: tuple[str, ...], decimal: bool = False) -> tuple[ColumnKind
     return kind, values[rows]
 
 
-def _numbers(tokens: tuple[str, ...], decimal: bool = False) -> tuple[ColumnKind, Any]:
+def _numbers(tokens: Sequence[str], decimal: bool = False) -> tuple[ColumnKind, Any]:
     """INT, DECIMAL or FLOAT with the values, if rendering gives every token back; else TEXT."""
     # Only a column of canonical ints is INT, so one whose first token is not digits
     # (a float) skips int(), which would raise on it: the outcome is the same.
     first = tokens[0]
-    ints = None
     if first.isdigit() or (first[:1] == "-" and first[1:].isdigit()):
-        try:
-            ints = list(map(int, tokens))
-        except ValueError:
-            pass
-    if ints is not None:
-        # As for floats below: an int's repr has no comma, so one list repr compares all.
-        exact = repr(ints) == "[" + ", ".join(tokens) + "]"
-        if exact and _I64_MIN <= min(ints) and max(ints) <= _I64_MAX:
-            return ColumnKind.INT, np.array(ints, dtype=np.int64)
-        return ColumnKind.TEXT, tokens
+        found = _ints(tokens)
+        if found is not None:
+            return found
     # Before FLOAT: "0.125" is both, and an integer of 3 digits packs far tighter than
     # its float64 bits. A column of repr floats fails at its first token of other length.
     decimals = _as_decimals(tokens) if decimal else None
@@ -176,7 +178,28 @@ def _numbers(tokens: tuple[str, ...], decimal: bool = False) -> tuple[ColumnKind
     return ColumnKind.TEXT, tokens
 
 
-def _as_decimals(tokens: tuple[str, ...]) -> tuple[int, np.ndarray] | None:
+def _ints(tokens: Sequence[str]) -> tuple[ColumnKind, Any] | None:
+    """INT with the values if every token is an i64 as str(int) writes it; TEXT if every
+    token reads as an int but one is written otherwise ("+1", "007") or does not fit;
+    None if one does not read as an int (then it may be a float)."""
+    joined = ",".join(tokens)
+    # The usual column, in two calls: simdjson reads it, and orjson writes an i64 as
+    # str(int) does; a column they refuse is decided by int() below, as before.
+    parsed = _parse_joined(joined, len(tokens), "i")
+    if parsed is not None and orjson_text(parsed) == joined:
+        return ColumnKind.INT, parsed
+    try:
+        ints = list(map(int, tokens))
+    except ValueError:
+        return None
+    # As for floats: an int's repr has no comma, so one list repr compares all.
+    exact = repr(ints) == "[" + ", ".join(tokens) + "]"
+    if exact and _I64_MIN <= min(ints) and max(ints) <= _I64_MAX:
+        return ColumnKind.INT, np.array(ints, dtype=np.int64)
+    return ColumnKind.TEXT, tokens
+
+
+def _as_decimals(tokens: Sequence[str]) -> tuple[int, np.ndarray] | None:
     """(d, the values m) if every token is fixed-point with d digits that renders back.
 
     m is the token without its point, |m| < 10^15 (see _DECIMAL_LIMIT). The rendering

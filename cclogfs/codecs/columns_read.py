@@ -120,7 +120,7 @@ def _doubles(words) -> list[float]:
     return list(struct.unpack(f"<{n}d", struct.pack(f"<{n}{code}", *words)))
 
 
-def _float_text(value: float) -> str:
+def float_text(value: float) -> str:
     """A float the way json.dumps writes it."""
     if value != value:
         return "NaN"
@@ -137,32 +137,32 @@ def render_floats(values) -> list[str]:
     but spells two ranges differently: exponents ("1e-7" for repr's "1e-07") and the
     decade below 1e-4, which it writes in full ("0.00001" for "1e-05"); NaN and
     infinities it writes as null. Those items, rare in robot data, are rendered by
-    _float_text. tests/codecs/test_float_text.py holds this to json.dumps.
+    float_text. tests/codecs/test_float_text.py holds this to json.dumps.
     """
     if len(values) == 0:
         return []
-    text = _orjson_text(values)
+    return respell(orjson_text(values), values)
+
+
+def respell(text: str, values) -> list[str]:
+    """`orjson_text(values)` cut into items, each that orjson may spell otherwise than
+    json.dumps spelled by float_text (see render_floats)."""
     texts = text.split(",")
-    if _orjson_differs(text):  # one scan of the whole column first
-        for i, t in enumerate(texts):
-            if _orjson_differs(t):  # a few more than needed: repr is right for all
-                texts[i] = _float_text(float(values[i]))
+    if orjson_differs(text):  # one scan of the whole column first
+        # A few more items than needed (repr is right for all); the test of
+        # orjson_differs written out, as a call per item took half the column's time.
+        for i in [i for i, t in enumerate(texts) if "e" in t or "n" in t or "0.0000" in t]:
+            texts[i] = float_text(float(values[i]))
     return texts
 
 
-def render_floats_joined(values) -> str:
-    """`render_floats` joined by ",", without a list of texts in the usual case: the
-    encoder compares it with its tokens joined, one string compare per column."""
-    text = _orjson_text(values)
-    return ",".join(render_floats(values)) if _orjson_differs(text) else text
-
-
-def _orjson_text(values) -> str:
-    """The values as orjson writes them, comma-separated, without the brackets."""
+def orjson_text(values) -> str:
+    """The values (floats, or numpy floats or ints) as orjson writes them, comma-separated,
+    without the brackets."""
     return orjson.dumps(values, option=orjson.OPT_SERIALIZE_NUMPY)[1:-1].decode()
 
 
-def _orjson_differs(text: str) -> bool:
+def orjson_differs(text: str) -> bool:
     """Whether orjson's text may not be json.dumps' (an exponent, null, the decade below 1e-4)."""
     return "e" in text or "n" in text or "0.0000" in text
 

@@ -11,16 +11,19 @@ from __future__ import annotations
 
 import re
 from collections import OrderedDict
+from collections.abc import Sequence
 from itertools import chain
 
 __all__ = ["ShapeMatcher", "split_text"]
 
 # The compiled row finder (cclogfs/codecs/_rows.c; setup.py builds it where a C compiler is):
-# the same rows as `_rows_python`, in half the time per window (bench/record_floor.py).
+# the same rows as `_rows_python`, or the same tokens by column (`_columns`), in half the
+# time per window (bench/record_floor.py). Tests and benchmarks set both to None to take
+# the re module's path.
 try:
-    from ._rows import match_rows as _match_rows_c
+    from ._rows import match_columns as _match_columns_c, match_rows as _match_rows_c
 except ImportError:
-    _match_rows_c = None
+    _match_rows_c = _match_columns_c = None
 
 _STRING = r'"[^"\\]*(?:\\.[^"\\]*)*"'
 _NUMBER = r"[-+.0-9A-Za-z]++"  # numbers, true/false/null, NaN, Infinity
@@ -161,6 +164,23 @@ def _rows(shape: tuple, texts: list[str]) -> list[tuple | None]:
     return _rows_python(shape, texts)
 
 
+def _columns(shape: tuple, texts: list[str]) -> list[Sequence[str]] | None:
+    """The value tokens of texts in a shape by slot (one sequence per slot, one token per
+    text), or None if any text misses: `_rows` transposed. The encoder works a column at
+    a time; the compiled helper gives the columns without building rows in between."""
+    if _match_columns_c is not None:
+        columns = _match_columns_c(shape[0], shape[3], texts)
+        if columns is not NotImplemented:
+            return columns
+    rows = _rows_python(shape, texts)
+    return None if None in rows else transpose(rows, len(shape[3]))
+
+
+def transpose(rows: list[tuple[str, ...]], k: int) -> list[Sequence[str]]:
+    """Value rows of k tokens each as k columns."""
+    return list(zip(*rows)) if rows else [() for _ in range(k)]
+
+
 def _rows_python(shape: tuple, texts: list[str]) -> list[tuple | None]:
     """`_rows` with the re module.
 
@@ -212,7 +232,7 @@ class ShapeMatcher:
         return pattern
 
     def group_window(self, texts: list[str | None]) -> tuple[list[tuple[tuple, list[int], list]], list[int]]:
-        """Groups [(literals, indices, value rows)] of a window, and indices without shape.
+        """Groups [(literals, indices, value columns)] of a window, and indices without shape.
 
         Most values of a robot message never change within a window (covariances, frame
         ids, zero axes). The first pending text and a few probes spread over the window
@@ -221,8 +241,11 @@ class ShapeMatcher:
         exact: the literals are cut from a real text and a match rebuilds its text.
         """
         out: list[tuple[tuple, list[int], list]] = []
-        unshaped = [i for i, t in enumerate(texts) if t is None]
-        pending = [i for i, t in enumerate(texts) if t is not None]
+        if None in texts:
+            unshaped = [i for i, t in enumerate(texts) if t is None]
+            pending = [i for i, t in enumerate(texts) if t is not None]
+        else:  # the usual window: every text may have a shape
+            unshaped, pending = [], list(range(len(texts)))
         for _ in range(_MAX_ROUNDS):
             if not pending:
                 return out, unshaped
@@ -240,12 +263,14 @@ class ShapeMatcher:
                 if not found:
                     break
                 shape = found
-            rows = _rows(shape, [texts[i] for i in pending])
-            if None not in rows:  # the usual case: the whole window has one shape
-                out.append((shape[0], pending, rows))
+            sub = list(texts) if len(pending) == len(texts) else [texts[i] for i in pending]
+            columns = _columns(shape, sub)
+            if columns is not None:  # the usual case: the whole window has one shape
+                out.append((shape[0], pending, columns))
                 self._last = shape
                 pending = []
                 continue
+            rows = _rows(shape, sub)
             indices, kept, rest = [], [], []
             for i, row in zip(pending, rows):
                 if row is None:
@@ -253,12 +278,13 @@ class ShapeMatcher:
                 else:
                     indices.append(i)
                     kept.append(row)
-            out.append((shape[0], indices, kept))
+            out.append((shape[0], indices, transpose(kept, len(shape[3]))))
             pending = rest
         if pending:
             sub = [texts[i] for i in pending]
             groups, rest = self.group(sub)
-            out.extend((lits, [pending[j] for j in idx], rows) for lits, (idx, rows) in groups.items())
+            for lits, (idx, rows) in groups.items():
+                out.append((lits, [pending[j] for j in idx], transpose(rows, len(lits) - 1)))
             unshaped.extend(pending[j] for j in rest)
         return out, sorted(unshaped)
 

@@ -4,7 +4,10 @@ import base64
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+from cclogfs.codecs import columns
 from cclogfs.codecs.columnar_format import OFFSET_HEADER, PACKED_HEADER, ColumnKind
 from cclogfs.codecs.columns import Reader, classify, read_column, read_packed, write_column, write_packed
 from cclogfs.errors import CodecError
@@ -103,3 +106,38 @@ def test_text_lengths_that_do_not_add_up_are_refused():
     out[0] += 1  # the first token claims one char more
     with pytest.raises(CodecError, match="lengths do not add up"):
         read_column(ColumnKind.TEXT, Reader(bytes(out)), 2, [])
+
+
+def classify_without_simdjson(tokens):
+    saved, columns.simdjson = columns.simdjson, None
+    try:
+        return classify(tokens)
+    finally:
+        columns.simdjson = saved
+
+
+# Spellings that read as an int (or as a number) but are not what str(int) writes.
+ODD_INTS = st.sampled_from(["-0", "+5", "007", "1.5", "1e3", "12x", "0x10", "9223372036854775808", "-9223372036854775809",
+                            "18446744073709551616", "1" * 30, "-"])  # fmt: skip
+
+
+@given(st.lists(st.integers(-(2**63), 2**63 - 1), min_size=16, max_size=40), st.lists(st.tuples(st.integers(0, 39), ODD_INTS), max_size=2))
+@settings(max_examples=400, deadline=None)
+def test_int_columns_read_at_once_get_int_s_verdict(ints, edits):
+    """Int columns of 16 tokens or more are read by simdjson and checked by orjson in one
+    call each; the kind and values are those of int() token by token (simdjson off)."""
+    tokens = [str(i) for i in ints]
+    for at, odd in edits:
+        tokens[at % len(tokens)] = odd
+    tokens = tuple(tokens)
+    kind, values = classify(tokens)
+    want_kind, want = classify_without_simdjson(tokens)
+    assert kind is want_kind
+    if kind is ColumnKind.INT:
+        assert values.dtype == want.dtype and values.tolist() == want.tolist()
+    elif kind is ColumnKind.FLOAT:
+        assert values.tobytes() == want.tobytes()
+    else:
+        assert values == want
+    if not edits:
+        assert kind in (ColumnKind.INT, ColumnKind.CONST)

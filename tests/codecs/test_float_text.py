@@ -14,7 +14,7 @@ import numpy as np
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from cclogfs.codecs.columns import _as_floats, _render_floats, classify
+from cclogfs.codecs.columns import _as_floats, _render_floats, _render_joined, classify
 from cclogfs.codecs.columnar_format import ColumnKind
 
 
@@ -76,3 +76,12 @@ def test_long_columns_take_the_same_path(values):
     assert kind in (ColumnKind.FLOAT, ColumnKind.CONST, ColumnKind.DECIMAL, ColumnKind.INT)
     for broken in (tokens[:-1] + (np.format_float_positional(values[-1]),),):
         assert (_as_floats(broken) is not None) == reference_as_floats(broken)
+
+
+
+@given(st.lists(floats, min_size=1, max_size=50))
+@settings(max_examples=1000, deadline=None)
+@example(_EDGES)
+@example([1e-5, 10.00001, 0.0, 1e-300, math.nan])
+def test_the_encoder_s_joined_rendering_is_json_dumps(values):
+    assert _render_joined(np.array(values, dtype=np.float64)) == ",".join(reference_texts(values))

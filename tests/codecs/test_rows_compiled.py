@@ -1,5 +1,5 @@
-"""The compiled row finder (cclogfs/codecs/_rows.c) gives exactly the re module's rows,
-and so the columnar encoder writes the same bytes with it as without it."""
+"""The compiled row finder (cclogfs/codecs/_rows.c) gives exactly the re module's rows
+and columns, and so the columnar encoder writes the same bytes with it as without it."""
 
 from __future__ import annotations
 
@@ -13,7 +13,10 @@ from cclogfs.codecs import shapes
 from cclogfs.codecs.columnar import ColumnarCodec
 from cclogfs.codecs.shapes import _matcher, split_text
 
-COMPILED = shapes._match_rows_c  # as imported, whatever the row_path fixture sets later
+try:  # as built, whatever the row_path fixture sets in shapes later
+    from cclogfs.codecs import _rows as COMPILED
+except ImportError:
+    COMPILED = None
 pytestmark = pytest.mark.skipif(COMPILED is None, reason="cclogfs.codecs._rows is not built")
 
 leaves = st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=6)
@@ -40,11 +43,19 @@ def test_the_same_rows_as_the_regex(text, edits, others):
     for at, cut, insert in edits:  # the text damaged: characters replaced, removed, added
         at %= len(text) + 1
         candidates.append(text[:at] + insert + text[at + cut :])
-    got = COMPILED(literals, kinds, candidates)
+    got = COMPILED.match_rows(literals, kinds, candidates)
     if got is NotImplemented:  # a text or literal of more than one byte per character
         assert not all(t.isascii() or max(map(ord, t)) < 256 for t in [*candidates, *literals])
+        assert COMPILED.match_columns(literals, kinds, candidates) is NotImplemented
         return
-    assert got == regex_rows(literals, values, candidates)
+    want = regex_rows(literals, values, candidates)
+    assert got == want
+    # By column: the rows transposed when every candidate matches, else None.
+    columns = COMPILED.match_columns(literals, kinds, candidates)
+    if None in want:
+        assert columns is None
+    else:
+        assert columns == [list(c) for c in shapes.transpose(want, len(kinds))]
 
 
 def test_edges_of_string_and_number_tokens():
@@ -52,28 +63,33 @@ def test_edges_of_string_and_number_tokens():
     candidates = ['{"s": "a\\"b", "n": -1.5e+3}', '{"s": "a\\", "n": 1}', '{"s": "a\\\\", "n": 1}', '{"s": "x", "n": }',
                   '{"s": "x", "n": 1 }', '{"s": "\xe9", "n": nan}', '{"s": "x\n", "n": 1}', '{"s": "x", "n": 1}}']  # fmt: skip
     want = regex_rows(literals, ['"s"', "0"], candidates)
-    assert COMPILED(literals, kinds, candidates) == want
+    assert COMPILED.match_rows(literals, kinds, candidates) == want
+    assert COMPILED.match_columns(literals, kinds, candidates) is None
+    assert COMPILED.match_columns(literals, kinds, [candidates[0], candidates[2]]) == [['"a\\"b"', '"a\\\\"'], ["-1.5e+3", "1"]]
+    assert COMPILED.match_columns(("[]",), (), ["[]", "[]"]) == []  # no value slots: no columns
     assert want[0] == ('"a\\"b"', "-1.5e+3") and want[1] is None and want[2] == ('"a\\\\"', "1")
 
 
 def test_wider_characters_are_left_to_the_regex():
-    assert COMPILED(("[", "]"), (True,), ['["\u20ac"]']) is NotImplemented
-    assert COMPILED(("[\u20ac", "]"), (False,), ["[1]"]) is NotImplemented
+    for match in (COMPILED.match_rows, COMPILED.match_columns):
+        assert match(("[", "]"), (True,), ['["\u20ac"]']) is NotImplemented
+        assert match(("[\u20ac", "]"), (False,), ["[1]"]) is NotImplemented
 
 
 def _encode_both(windows):
     out = {}
     for path in ("compiled", "python"):
-        shapes._match_rows_c = COMPILED if path == "compiled" else None
+        if path == "python":
+            shapes._match_rows_c = shapes._match_columns_c = None
         try:
             codec = ColumnarCodec()
             out[path] = [codec.encode(list(range(len(w))), w) for w in windows]
         finally:
-            shapes._match_rows_c = COMPILED
+            shapes._match_rows_c, shapes._match_columns_c = COMPILED.match_rows, COMPILED.match_columns
     return out["compiled"], out["python"]
 
 
-@settings(max_examples=100)
+@settings(max_examples=100, deadline=None)  # the first example imports the encoder's numpy
 @given(st.lists(st.lists(texts, min_size=1, max_size=40), min_size=1, max_size=3))
 def test_the_encoder_writes_the_same_bytes_either_way(windows):
     compiled, python = _encode_both(windows)

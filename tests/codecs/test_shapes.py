@@ -55,6 +55,8 @@ def test_grouping_covers_every_text_once_and_rebuilds_it(how):
     groups, unshaped = getattr(ShapeMatcher(), how)(texts)
     if how == "group":
         groups = [(literals, indices, rows) for literals, (indices, rows) in groups.items()]
+    else:  # group_window gives value columns: one per slot, one token per text
+        groups = [(literals, indices, list(zip(*columns))) for literals, indices, columns in groups]
     seen = list(unshaped)
     for literals, indices, rows in groups:
         assert len(indices) == len(rows)
@@ -69,9 +71,9 @@ def test_grouping_covers_every_text_once_and_rebuilds_it(how):
 def test_group_window_folds_constant_values_into_the_literals():
     groups, _ = ShapeMatcher().group_window(window())
     main = max(groups, key=lambda g: len(g[1]))
-    literals, indices, rows = main
+    literals, indices, columns = main
     assert '"map"' in "".join(literals)  # constant in the window: no column spent on it
-    assert len(rows[0]) < len(split_text(window()[0])[1])
+    assert len(columns) < len(split_text(window()[0])[1])
 
 
 def test_compiled_shapes_are_bounded():
