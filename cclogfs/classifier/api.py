@@ -6,12 +6,12 @@ import json
 import math
 from itertools import chain
 from pathlib import Path
-from typing import Iterable, Iterator
+from typing import Iterable, Iterator, Sequence
 
 import numpy as np
 
 from ..errors import InvalidInputError, ModelError
-from .features import OdomArrays, TwistFromPoses, make_features, odom_row, parse_odometry
+from .features import OdomArrays, TwistFromPoses, make_features, odom_row, odom_rows_compiled, parse_odometry
 from .fit import robot_stats
 from .model import OneClassModel
 from .summary import SUMMARY_TOPIC, SummaryBuilder
@@ -258,6 +258,7 @@ class SmartLogger:
             raise InvalidInputError(f"batch must be at least 1, not {batch!r}.")
         self.batch = batch
         self._pending: list[tuple] = []  # messages held until their odometry is scored
+        self._held_other = False  # whether _pending holds a message of another topic
         self._vectors: list = []  # their feature vectors (Detector.vector)
         self.detector = detector
         self.odom_topic = odom_topic
@@ -280,6 +281,7 @@ class SmartLogger:
         if topic != self.odom_topic:
             if self._pending:
                 self._pending.append((topic, stamp_ns, text, None, False))
+                self._held_other = True
                 return []
             return self.windows.push(topic, stamp_ns, text)
         head, row = self.detector.parse(text)
@@ -292,6 +294,38 @@ class SmartLogger:
             self._vectors.append(vec)
         self._pending.append((topic, stamp_ns, text, row, vec is not None))
         return self._drain() if len(self._pending) >= self.batch else []
+
+    def push_many(self, messages: Sequence) -> list[PendingWindow]:
+        """`push` of each (topic, stamp_ns, text, ...) in turn: the same windows in the same
+        order, the SVM scoring the same groups of `batch` held messages. For a source that
+        hands over many messages at once (issue 14): the compiled reader reads the list's
+        odometry in one call, and the windows and summaries take the held odometry a
+        stretch at a time (`_drain`)."""
+        if self.batch == 1:
+            return [w for m in messages for w in self.push(m[0], m[1], m[2])]
+        odom_topic, pending, vectors, batch = self.odom_topic, self._pending, self._vectors, self.batch
+        parse, vector = self.detector.parse, self.detector.vector
+        read = iter(odom_rows_compiled([m[2] for m in messages if m[0] == odom_topic]))
+        out: list[PendingWindow] = []
+        for m in messages:
+            topic, stamp_ns, text = m[0], m[1], m[2]
+            if topic != odom_topic:
+                if pending:
+                    pending.append((topic, stamp_ns, text, None, False))
+                    self._held_other = True
+                else:
+                    out += self.windows.push(topic, stamp_ns, text)
+                continue
+            # A row of the compiled reader has a twist (`parse` would pass it unchanged);
+            # `parse` reads the others, and raises at the message a bad one is.
+            head, row = next(read) or parse(text)
+            vec = vector(head, row)
+            if vec is not None:
+                vectors.append(vec)
+            pending.append((topic, stamp_ns, text, row, vec is not None))
+            if len(pending) >= batch:
+                out += self._drain()
+        return out
 
     def _drain(self) -> list[PendingWindow]:
         """Score the held odometry vectors at once, then run the windows over the held messages."""
@@ -306,19 +340,53 @@ class SmartLogger:
         back = np.zeros(len(s), dtype=np.int64)
         if flagged.any():
             back[flagged] = self.detector.lookback_ns(V[flagged])
-        found = iter(zip(s.tolist(), back.tolist()))
+        held, scores, backs = self._pending, s.tolist(), back.tolist()
+        if len(scores) < len(held) or self._held_other:  # some without a score, or of another topic
+            found = iter(zip(scores, backs))
+            scores, backs = zip(*[next(found) if m[4] else (math.nan, 0) for m in held]) if held else ((), ())
         out: list[PendingWindow] = []
-        push_other, odom = self.windows.push, self._odom
-        for topic, stamp_ns, text, row, scored in self._pending:
-            if row is None:
-                got = push_other(topic, stamp_ns, text)
+        i = 0
+        while i < len(held):  # each stretch of odometry at once, the other messages one by one
+            if held[i][3] is None:
+                out += self.windows.push(*held[i][:3])
+                i += 1
+                continue
+            j = i + 1
+            if self._held_other:
+                while j < len(held) and held[j][3] is not None:
+                    j += 1
             else:
-                score, lb = next(found) if scored else (math.nan, 0)
-                got = odom(stamp_ns, text, row, score, score > 0, lb)
-            if got:
-                out += got
+                j = len(held)
+            out += self._odom_run(held[i:j], scores[i:j], backs[i:j])
+            i = j
         self._pending.clear()
         self._vectors.clear()
+        self._held_other = False
+        return out
+
+    def _odom_run(self, held: list[tuple], scores: Sequence[float], backs: Sequence[int]) -> list[PendingWindow]:
+        """`_odom` of each held odometry message (topic, stamp_ns, text, row, scored) in
+        turn, the windows a stretch at a time (`WindowBuilder.push_run`): split after each
+        message that starts a summary period, so that its summary follows the windows that
+        message closed, as in `_odom`."""
+        stamps = [m[1] for m in held]
+        texts = [m[2] for m in held]
+        scores = list(scores)
+        flags = [s > 0 for s in scores]
+        backs = list(backs)
+        self.scored += len(held)
+        self.anomalies += sum(flags)
+        if self.summary is None:
+            return self.windows.push_run(stamps, texts, flags, scores, backs)
+        rows = [m[3] for m in held]
+        speeds = list(map(math.hypot, [r[7] for r in rows], [r[8] for r in rows]))
+        out: list[PendingWindow] = []
+        a = 0
+        for b in self.summary.period_starts(stamps):
+            out += self.windows.push_run(stamps[a:b], texts[a:b], flags[a:b], scores[a:b], backs[a:b])
+            recs = self.summary.update_many(stamps[a:b], rows[a:b], speeds[a:b], flags[a:b])
+            out += [self._summary_window(r) for r in recs]
+            a = b
         return out
 
     def _scores(self, V: np.ndarray) -> np.ndarray:

@@ -9,6 +9,8 @@ from __future__ import annotations
 import json
 import math
 from collections import deque
+from itertools import repeat
+from operator import floordiv, ne
 
 __all__ = ["SUMMARY_TOPIC", "SummaryBuilder"]
 
@@ -81,6 +83,22 @@ class SummaryBuilder:
             accel = abs(speed - v0) / ((stamp_ns - t0) / NS)
             if math.isfinite(accel) and accel > s["peak_accel"]:
                 s["peak_accel"] = accel
+        return out
+
+    def period_starts(self, stamps: list[int]) -> list[int]:
+        """Where to cut a list of samples' stamps, in order, so that only a piece's last
+        sample can start a new period (end the one before): just after each such sample,
+        and at the end."""
+        buckets = list(map(floordiv, stamps, repeat(self.period, len(stamps))))
+        changed = list(map(ne, buckets, [self.bucket, *buckets[:-1]]))
+        cuts = [k + 1 for k, c in enumerate(changed) if c] if True in changed else []
+        return cuts if cuts and cuts[-1] == len(stamps) else [*cuts, len(stamps)]
+
+    def update_many(self, stamps: list[int], rows: list, speeds: list[float], anomalous: list[bool]) -> list:
+        """`update` of each sample in turn, its x and y the first two values of its row."""
+        out = []
+        for t, row, speed, flag in zip(stamps, rows, speeds, anomalous):
+            out += self.update(t, row[0], row[1], speed, flag)
         return out
 
     def flush(self) -> list:
