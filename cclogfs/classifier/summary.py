@@ -9,8 +9,11 @@ from __future__ import annotations
 import json
 import math
 from collections import deque
-from itertools import repeat
-from operator import floordiv, ne
+from functools import reduce
+from itertools import compress, repeat
+from operator import add, floordiv, gt, ne, sub, truediv
+
+import numpy as np
 
 __all__ = ["SUMMARY_TOPIC", "SummaryBuilder"]
 
@@ -95,11 +98,61 @@ class SummaryBuilder:
         return cuts if cuts and cuts[-1] == len(stamps) else [*cuts, len(stamps)]
 
     def update_many(self, stamps: list[int], rows: list, speeds: list[float], anomalous: list[bool]) -> list:
-        """`update` of each sample in turn, its x and y the first two values of its row."""
-        out = []
-        for t, row, speed, flag in zip(stamps, rows, speeds, anomalous):
-            out += self.update(t, row[0], row[1], speed, flag)
+        """`update` of each sample in turn, its x and y the first two values of its row:
+        the same records. The samples before the last are taken at once when they are of
+        the current period, each within `gap` after the one before (`_update_steady`)."""
+        out: list = []
+        m = len(stamps) - 1
+        if m > 1 and self._steady(stamps[:m]):
+            self._update_steady(stamps[:m], rows[:m], speeds[:m], anomalous[:m])
+        else:
+            m = 0
+        for k in range(m, len(stamps)):
+            out += self.update(stamps[k], rows[k][0], rows[k][1], speeds[k], anomalous[k])
         return out
+
+    def _steady(self, stamps: list[int]) -> bool:
+        """Whether samples at these stamps would all stay in the current period, each
+        after the one before by at most `gap`: then `update` does the same with each."""
+        if self.prev is None or self.bucket is None or stamps[-1] // self.period != self.bucket:
+            return False
+        steps = list(map(sub, stamps, [self.prev[0], *stamps[:-1]]))
+        return min(steps) > 0 and max(steps) <= self.gap
+
+    def _update_steady(self, stamps: list[int], rows: list, speeds: list[float], anomalous: list[bool]) -> None:
+        """`update` of each sample of a steady list (`_steady`) at once: the same sums,
+        added in the same order (`reduce`), and the same maxima."""
+        s, (t0, x0, y0, _) = self.stats, self.prev
+        s["messages"] += len(stamps)
+        s["anomalies"] += sum(anomalous)
+        fast = list(map(abs, speeds))
+        s["peak_speed"] = max(s["peak_speed"], max(filter(math.isfinite, fast), default=0.0))
+        if self.first_ns is None:
+            self.first_ns = stamps[0]
+        self.last_ns = stamps[-1]
+        xs, ys = [r[0] for r in rows], [r[1] for r in rows]
+        steps = map(math.hypot, map(sub, xs, [x0, *xs[:-1]]), map(sub, ys, [y0, *ys[:-1]]))
+        s["distance_m"] = reduce(add, filter(math.isfinite, steps), s["distance_m"])
+        dts = map(sub, stamps, [t0, *stamps[:-1]])
+        moving = map(gt, fast, repeat(self.moving_speed))
+        s["moving_s"] = reduce(add, compress(map(truediv, dts, repeat(NS)), moving), s["moving_s"])
+        self._accelerations(stamps, speeds)
+        self.prev = (stamps[-1], xs[-1], ys[-1], speeds[-1])
+
+    def _accelerations(self, stamps: list[int], speeds: list[float]) -> None:
+        """`update`'s acceleration of each sample against the newest one at least
+        `baseline` older (`recent` and these samples, all in time order), at once."""
+        n = len(self.recent)
+        t = np.array([r[0] for r in self.recent] + stamps, dtype=np.int64)
+        v = np.array([r[1] for r in self.recent] + speeds, dtype=np.float64)
+        bound = t[n:] - self.baseline
+        base = np.maximum(np.searchsorted(t, bound, side="right") - 1, 0)
+        with np.errstate(invalid="ignore"):
+            accel = np.abs(v[n:] - v[base]) / ((t[n:] - t[base]) / NS)
+        seen = accel[(t[base] <= bound) & np.isfinite(accel)]
+        if len(seen):
+            self.stats["peak_accel"] = max(self.stats["peak_accel"], float(seen.max()))
+        self.recent = deque(zip(t[base[-1] :].tolist(), v[base[-1] :].tolist()))
 
     def flush(self) -> list:
         """End of input: the record of the unfinished period, if it saw any message."""
