@@ -366,9 +366,8 @@ class SmartLogger:
 
     def _odom_run(self, held: list[tuple], scores: Sequence[float], backs: Sequence[int]) -> list[PendingWindow]:
         """`_odom` of each held odometry message (topic, stamp_ns, text, row, scored) in
-        turn, the windows a stretch at a time (`WindowBuilder.push_run`): split after each
-        message that starts a summary period, so that its summary follows the windows that
-        message closed, as in `_odom`."""
+        turn: the windows a stretch at a time (`WindowBuilder.push_run`), each summary
+        after the windows of the messages up to the one that ended its period, as in `_odom`."""
         stamps = [m[1] for m in held]
         texts = [m[2] for m in held]
         scores = list(scores)
@@ -382,12 +381,12 @@ class SmartLogger:
         speeds = list(map(math.hypot, [r[7] for r in rows], [r[8] for r in rows]))
         out: list[PendingWindow] = []
         a = 0
-        for b in self.summary.period_starts(stamps):
-            out += self.windows.push_run(stamps[a:b], texts[a:b], flags[a:b], scores[a:b], backs[a:b])
-            recs = self.summary.update_many(stamps[a:b], rows[a:b], speeds[a:b], flags[a:b])
-            out += [self._summary_window(r) for r in recs]
-            a = b
-        return out
+        for k, rec in self.summary.update_many(stamps, rows, speeds, flags):
+            out += self.windows.push_run(stamps[a : k + 1], texts[a : k + 1], flags[a : k + 1], scores[a : k + 1],
+                                         backs[a : k + 1])  # fmt: skip
+            out.append(self._summary_window(rec))
+            a = k + 1
+        return out + self.windows.push_run(stamps[a:], texts[a:], flags[a:], scores[a:], backs[a:])
 
     def _scores(self, V: np.ndarray) -> np.ndarray:
         """The held vectors' scores, or where no score can matter, a bound on them.

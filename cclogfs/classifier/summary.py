@@ -19,6 +19,7 @@ __all__ = ["SUMMARY_TOPIC", "SummaryBuilder"]
 
 SUMMARY_TOPIC = "/cclog/summary"
 NS = 1_000_000_000
+MAX_HELD = 8192  # samples update_many holds at most (a period's, 82 s at 100 Hz)
 
 
 class SummaryBuilder:
@@ -33,6 +34,8 @@ class SummaryBuilder:
         self.bucket: int | None = None
         self.prev: tuple[int, float, float, float] | None = None
         self.recent: deque[tuple[int, float]] = deque()  # (stamp, speed) for acceleration
+        # Samples given to update_many not yet taken: stamps, rows, speeds, anomalous.
+        self._held: tuple[list, list, list, list] = ([], [], [], [])
         self._reset()
 
     def _reset(self) -> None:
@@ -42,6 +45,11 @@ class SummaryBuilder:
 
     def update(self, stamp_ns: int, x: float, y: float, speed: float, anomalous: bool) -> list:
         """One odometry sample; returns the records of periods that ended before it."""
+        if self._held[0]:  # samples given to update_many first
+            self._settle()
+        return self._update(stamp_ns, x, y, speed, anomalous)
+
+    def _update(self, stamp_ns: int, x: float, y: float, speed: float, anomalous: bool) -> list:
         # Once per odometry message: locals and plain comparisons, no helper calls.
         out = []
         bucket = stamp_ns // self.period
@@ -88,28 +96,46 @@ class SummaryBuilder:
                 s["peak_accel"] = accel
         return out
 
-    def period_starts(self, stamps: list[int]) -> list[int]:
-        """Where to cut a list of samples' stamps, in order, so that only a piece's last
-        sample can start a new period (end the one before): just after each such sample,
-        and at the end."""
-        buckets = list(map(floordiv, stamps, repeat(self.period, len(stamps))))
-        changed = list(map(ne, buckets, [self.bucket, *buckets[:-1]]))
-        cuts = [k + 1 for k, c in enumerate(changed) if c] if True in changed else []
-        return cuts if cuts and cuts[-1] == len(stamps) else [*cuts, len(stamps)]
-
-    def update_many(self, stamps: list[int], rows: list, speeds: list[float], anomalous: list[bool]) -> list:
+    def update_many(self, stamps: list[int], rows: list, speeds: list[float],
+                    anomalous: list[bool]) -> list[tuple[int, tuple[int, str]]]:  # fmt: skip
         """`update` of each sample in turn, its x and y the first two values of its row:
-        the same records. The samples before the last are taken at once when they are of
-        the current period, each within `gap` after the one before (`_update_steady`)."""
-        out: list = []
-        m = len(stamps) - 1
-        if m > 1 and self._steady(stamps[:m]):
-            self._update_steady(stamps[:m], rows[:m], speeds[:m], anomalous[:m])
-        else:
-            m = 0
-        for k in range(m, len(stamps)):
-            out += self.update(stamps[k], rows[k][0], rows[k][1], speeds[k], anomalous[k])
+        (index of the sample, record) of each record it gives, the same records.
+
+        Samples that cannot end a period (of the newest one's) are held, and taken at once
+        when one that can comes (or at `flush`, or past MAX_HELD): `_update_steady` of a
+        period's samples is 2x faster than `update` of each, of 64 no faster (issue 14)."""
+        buckets = list(map(floordiv, stamps, repeat(self.period, len(stamps))))
+        changed = list(map(ne, buckets, [self._newest_bucket(), *buckets[:-1]]))
+        out: list[tuple[int, tuple[int, str]]] = []
+        a = 0
+        for k in [k for k, c in enumerate(changed) if c] if True in changed else []:
+            self._hold(stamps[a:k], rows[a:k], speeds[a:k], anomalous[a:k])
+            self._settle()
+            out += [(k, r) for r in self.update(stamps[k], rows[k][0], rows[k][1], speeds[k], anomalous[k])]
+            a = k + 1
+        self._hold(stamps[a:], rows[a:], speeds[a:], anomalous[a:])
+        if len(self._held[0]) > MAX_HELD:
+            self._settle()
         return out
+
+    def _newest_bucket(self) -> int | None:
+        return self._held[0][-1] // self.period if self._held[0] else self.bucket
+
+    def _hold(self, stamps: list[int], rows: list, speeds: list[float], anomalous: list[bool]) -> None:
+        for held, new in zip(self._held, (stamps, rows, speeds, anomalous)):
+            held += new
+
+    def _settle(self) -> None:
+        """`update` of the held samples (of the current period, none ending it)."""
+        stamps, rows, speeds, anomalous = self._held
+        if not stamps:
+            return
+        self._held = ([], [], [], [])
+        if self._steady(stamps):
+            self._update_steady(stamps, rows, speeds, anomalous)
+            return
+        for k in range(len(stamps)):
+            self._update(stamps[k], rows[k][0], rows[k][1], speeds[k], anomalous[k])
 
     def _steady(self, stamps: list[int]) -> bool:
         """Whether samples at these stamps would all stay in the current period, each
@@ -156,6 +182,7 @@ class SummaryBuilder:
 
     def flush(self) -> list:
         """End of input: the record of the unfinished period, if it saw any message."""
+        self._settle()
         out = [self._record()] if self.stats["messages"] else []
         self._reset()
         return out

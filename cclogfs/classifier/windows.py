@@ -204,6 +204,8 @@ class WindowBuilder:
         stretch is taken at once, one extend of the ring and at most one trim instead of one
         per message (issue 14); every other message goes through `push`."""
         n = len(stamps)
+        if not n:
+            return []
         if self.trigger_topic in self.latched_topics:  # `push` keeps them apart from the ring
             return [w for k in range(n) for w in self.push(self.trigger_topic, stamps[k], texts[k])]
         out: list[PendingWindow] = []
