@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import json
 import math
-from itertools import chain
+from itertools import chain, repeat
+from operator import eq, is_not, itemgetter
 from pathlib import Path
 from typing import Iterable, Iterator, Sequence
 
@@ -301,11 +302,17 @@ class SmartLogger:
         hands over many messages at once (issue 14): the compiled reader reads the list's
         odometry in one call, and the windows and summaries take the held odometry a
         stretch at a time (`_drain`)."""
-        if self.batch == 1:
+        if self.batch == 1 or not messages:
             return [w for m in messages for w in self.push(m[0], m[1], m[2])]
         odom_topic, pending, vectors, batch = self.odom_topic, self._pending, self._vectors, self.batch
         parse, vector = self.detector.parse, self.detector.vector
-        read = iter(odom_rows_compiled([m[2] for m in messages if m[0] == odom_topic]))
+        if all(map(eq, map(itemgetter(0), messages), repeat(odom_topic))):  # a run of odometry alone
+            got = odom_rows_compiled(list(map(itemgetter(2), messages)))
+            if None not in got:
+                return self._push_odometry(messages, got)
+            read = iter(got)
+        else:
+            read = iter(odom_rows_compiled([m[2] for m in messages if m[0] == odom_topic]))
         out: list[PendingWindow] = []
         for m in messages:
             topic, stamp_ns, text = m[0], m[1], m[2]
@@ -325,6 +332,24 @@ class SmartLogger:
             pending.append((topic, stamp_ns, text, row, vec is not None))
             if len(pending) >= batch:
                 out += self._drain()
+        return out
+
+    def _push_odometry(self, messages: Sequence, got: list[tuple]) -> list[PendingWindow]:
+        """`push_many` of odometry messages all read by the compiled reader (`got`, the
+        (stamp, row) of each): the held messages added a drain's worth at a time."""
+        heads, rows = zip(*got)
+        vecs = list(map(self.detector.vector, heads, rows))
+        held = list(zip(map(itemgetter(0), messages), map(itemgetter(1), messages), map(itemgetter(2), messages),
+                        rows, map(is_not, vecs, repeat(None))))  # fmt: skip
+        out: list[PendingWindow] = []
+        i = 0
+        while i < len(held):
+            j = i + self.batch - len(self._pending)
+            self._vectors += [v for v in vecs[i:j] if v is not None]
+            self._pending += held[i:j]
+            if len(self._pending) >= self.batch:
+                out += self._drain()
+            i = j
         return out
 
     def _drain(self) -> list[PendingWindow]:

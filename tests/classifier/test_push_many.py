@@ -142,3 +142,8 @@ def test_push_many_stops_at_a_bad_odometry_message(odom):
         many.push_many(stream)
     assert len(many._pending) == len(one._pending) == 70 - 64
     assert as_tuples(many.flush()) == as_tuples(one.flush())
+
+
+def test_push_many_of_nothing(odom):
+    logger = SmartLogger(Detector(train([odom[0]])), before_s=2, after_s=1, batch=64)
+    assert logger.push_many([]) == [] and logger.flush() == []
