@@ -45,12 +45,9 @@ class SummaryBuilder:
 
     def update(self, stamp_ns: int, x: float, y: float, speed: float, anomalous: bool) -> list:
         """One odometry sample; returns the records of periods that ended before it."""
+        # Once per odometry message: locals and plain comparisons, no helper calls.
         if self._held[0]:  # samples given to update_many first
             self._settle()
-        return self._update(stamp_ns, x, y, speed, anomalous)
-
-    def _update(self, stamp_ns: int, x: float, y: float, speed: float, anomalous: bool) -> list:
-        # Once per odometry message: locals and plain comparisons, no helper calls.
         out = []
         bucket = stamp_ns // self.period
         s = self.stats
@@ -134,8 +131,8 @@ class SummaryBuilder:
         if self._steady(stamps):
             self._update_steady(stamps, rows, speeds, anomalous)
             return
-        for k in range(len(stamps)):
-            self._update(stamps[k], rows[k][0], rows[k][1], speeds[k], anomalous[k])
+        for k in range(len(stamps)):  # none held now: `update` takes each
+            self.update(stamps[k], rows[k][0], rows[k][1], speeds[k], anomalous[k])
 
     def _steady(self, stamps: list[int]) -> bool:
         """Whether samples at these stamps would all stay in the current period, each
