@@ -8,7 +8,7 @@ import numpy as np
 
 from .features import OdomArrays
 
-__all__ = ["FAR_FACTOR", "compare", "robot_stats"]
+__all__ = ["FAR_FACTOR", "NOISE_LAG_S", "compare", "robot_stats", "speed_noise"]
 
 # A statistic this many times larger or smaller than in training is "far outside": the
 # features are per-second quantities calibrated on the training robot, so a 4x faster robot
@@ -35,6 +35,33 @@ def robot_stats(runs: list[OdomArrays]) -> dict:
         "speed_p95": float(np.percentile(speed[ok], 95)) if ok.any() else 0.0,
         "turn_p95": float(np.percentile(turn[ok], 95)) if ok.any() else 0.0,
     }
+
+
+# The speed's noise is measured over this lag, not from one message to the next: the change
+# per message shrinks with the rate (an interpolated 100 Hz copy of a 12 Hz run changes
+# 9x less per message, with the same noise), the change over a fixed time does not.
+NOISE_LAG_S = 0.1
+
+
+def speed_noise(runs: list[OdomArrays]) -> float | None:
+    """Robust standard deviation (m/s) of the forward speed's change over NOISE_LAG_S,
+    pooled over `runs` (None without such pairs). Wheel odometry: 0.002-0.004 m/s on the
+    TUC robot; twist differenced from jittery poses (the slamfail robots): 0.05-0.14 m/s,
+    at 12 Hz and resampled to 30 or 100 Hz alike (bench/classifier_long.py)."""
+    lag = int(NOISE_LAG_S * 1e9)
+    steps = []
+    for r in runs:
+        t, v = r.stamp_ns, r.raw[:, 7]
+        k = np.searchsorted(t, t - lag, side="right") - 1
+        # The newest message at least the lag back, and not across a gap (3 lags or more).
+        ok = (k >= 0) & (t - t[np.maximum(k, 0)] < 3 * lag)
+        d = v[ok] - v[k[ok]]
+        steps.append(d[np.isfinite(d)])
+    d = np.concatenate(steps) if steps else np.empty(0)
+    if not len(d):
+        return None
+    # A difference of two samples: its spread is sqrt(2) times the speed's own.
+    return 1.4826 * float(np.median(np.abs(d))) / np.sqrt(2)
 
 
 def compare(trained: dict | None, seen: dict) -> list[str]:

@@ -37,7 +37,10 @@ def store_info(path: str) -> dict:
     with open_store(path, readonly=True) as store:
         # The runs' bookkeeping is listed as runs, not counted as messages
         streams = {name: st for name, st in store.streams().items() if not hidden_by_default(name)}
+        parts = store.split_parts()
         for name, st in streams.items():
+            # A window over the record limit is stored as several records; count it once.
+            st["records"], st["windows"] = st["windows"], st["windows"] - parts.get(name, 0)
             last = None
             for last in store.query(name, start_ns=st["end_ns"], end_ns=st["end_ns"], skip_damaged=True):
                 pass
@@ -130,6 +133,9 @@ def run(args: argparse.Namespace) -> int:
               f"{t['moving_s'] / 60:.1f} min moving, peak speed {t['peak_speed']:.2f} m/s, peak acceleration "
               f"{t['peak_accel']:.2f} m/s^2, {t['anomalies']:,} anomalous of {t['messages']:,} odometry messages")
     for name, st in info["streams"].items():
+        if st["records"] != st["windows"]:
+            print(f"{name}: its {st['windows']} windows are stored as {st['records']} records (a window over "
+                  "the 16 MiB record limit is split into several)")
         if st["aged"]:
             print(f"aged: {st['aged']} of {st['windows']} windows of {name} hold texts within stated error "
                   "bounds, not byte-exact (their meta key \"aged\" says how)")

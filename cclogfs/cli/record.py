@@ -172,10 +172,12 @@ def _open(args: argparse.Namespace, topics: list[str] | None):
 
         return Ros1LiveSource(args.source, topics=topics, exclude=args.exclude, clock=args.clock)
     from ..ingest import open_source
+    from ..store.format import MAX_MESSAGE_TEXT
 
     if args.exclude:
         raise InvalidInputError("--exclude goes with a live source (ros1://); name the topics to read with --topic")
-    return open_source(args.source, topics=topics, on_error=args.on_error, report=_skipped, clock=args.clock)
+    return open_source(args.source, topics=topics, on_error=args.on_error, report=_skipped, clock=args.clock,
+                       max_text_bytes=MAX_MESSAGE_TEXT)  # fmt: skip
 
 
 def _logging_policy(args: argparse.Namespace):

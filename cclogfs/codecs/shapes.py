@@ -30,6 +30,11 @@ _TOKEN = re.compile(
 )
 # Shapes with more value slots than this are not compiled into a matcher regex.
 _MAX_MATCHER_SLOTS = 4096
+# Shapes whose literals hold more characters than this are not compiled into a regex of
+# their text: the re module spends ~1.3 us and ~130 bytes a literal character compiling
+# one (a message with a 4 MiB string took 5.5 s and 541 MiB), so such a shape is matched
+# by _LongShape instead, which finds the same values at linear cost.
+_MAX_REGEX_LITERALS = 4096
 # Messages besides the first that decide which values of a shape are constant.
 _PROBES = 4
 # Rounds of specialized matching before the rest of a window is grouped text by text.
@@ -47,10 +52,12 @@ def split_text(text: str) -> tuple[tuple[str, ...], list[str]] | None:
     return literals, [b for _, b in pairs]
 
 
-def _matcher(literals: tuple[str, ...], values: list[str]) -> re.Pattern[str] | None:
+def _matcher(literals: tuple[str, ...], values: list[str]) -> re.Pattern[str] | _LongShape | None:
     """A regex that matches exactly the texts of this shape, one group per value."""
     if len(values) > _MAX_MATCHER_SLOTS:
         return None
+    if sum(map(len, literals)) > _MAX_REGEX_LITERALS:
+        return _LongShape(literals, tuple(v.startswith('"') for v in values))
     parts = []
     for lit, val in zip(literals, values):
         parts.append(re.escape(lit))
@@ -74,6 +81,29 @@ def _skipper(literals: tuple[str, ...], kinds: tuple[bool, ...]) -> re.Pattern[s
     return re.compile("".join(parts), re.S)
 
 
+class _LongShape:
+    """`_matcher`'s regex for a shape with long literals: the same matches, linear cost.
+
+    The skipper compiles each literal to one `.{n}` step whatever its length; a text it
+    matches is then checked literal by literal at the offsets it found. Those are the
+    regex's offsets: literals fix where each value starts, and each value token can end
+    in one place only (a string at its first unescaped quote, a number possessively).
+    """
+
+    def __init__(self, literals: tuple[str, ...], kinds: tuple[bool, ...]):
+        self._literals = literals
+        self._skipper = _skipper(literals, kinds)
+
+    def fullmatch(self, text: str) -> re.Match[str] | None:
+        match = self._skipper.fullmatch(text)  # type: ignore[union-attr] - slots are bounded first
+        if match is None:
+            return None
+        for j, lit in enumerate(self._literals):
+            if not text.startswith(lit, match.end(j) if j else 0):
+                return None
+        return match
+
+
 def _rebuilds(literals: tuple[str, ...], rows: list[tuple], texts: list[str]) -> bool:
     """Whether literals and value rows rebuild the texts, compared all at once.
 
@@ -94,14 +124,17 @@ def _rebuilds(literals: tuple[str, ...], rows: list[tuple], texts: list[str]) ->
 
 def bake(literals: tuple[str, ...], values: list[str], fixed: list[bool]) -> tuple[tuple[str, ...], list[str]]:
     """The shape with the fixed values folded into the literals around them."""
-    merged, kept = [literals[0]], []
+    # Pieces joined once: `merged[-1] += ...` copied the growing literal per fixed value,
+    # quadratic when a long string is followed by many constants.
+    merged: list[list[str]] = [[literals[0]]]
+    kept = []
     for lit, val, is_fixed in zip(literals[1:], values, fixed):
         if is_fixed:
-            merged[-1] += val + lit
+            merged[-1] += (val, lit)
         else:
             kept.append(val)
-            merged.append(lit)
-    return tuple(merged), kept
+            merged.append([lit])
+    return tuple(map("".join, merged)), kept
 
 
 def _keep_quaternions(values: list[str], fixed: list[bool]) -> None:
@@ -165,10 +198,12 @@ class ShapeMatcher:
         self._compiled: OrderedDict[tuple, re.Pattern[str] | None] = OrderedDict()
         self._last: tuple[tuple[str, ...], re.Pattern[str], re.Pattern[str] | None, tuple[bool, ...]] | None = None
 
-    def _pattern(self, key: tuple, literals, values) -> re.Pattern[str] | None:
+    def _pattern(self, key: tuple, literals, values) -> re.Pattern[str] | _LongShape | None:
         pattern = self._compiled.get(key, False)
         if pattern is False:
             pattern = _matcher(literals, values)
+            if isinstance(pattern, _LongShape):  # cheap to make; the cache would hold its text
+                return pattern
             self._compiled[key] = pattern
             if len(self._compiled) > self._capacity:
                 self._compiled.popitem(last=False)

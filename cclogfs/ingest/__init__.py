@@ -125,10 +125,12 @@ def open_source(
     on_error: OnError = "stop",
     report: Callable[[SourceError], None] | None = None,
     clock: str = "log",
+    max_text_bytes: int | None = None,
 ) -> Source:
     """Open a log for reading, choosing the reader by file type (or by `format`). `clock`:
     the time of a bag's messages, "log" or "header" (JSONL lines and JSON MCAP carry their
-    own times, so for them only "log" is accepted)."""
+    own times, so for them only "log" is accepted). `max_text_bytes`: a JSONL line whose
+    message is longer is a bad line (named, or skipped with on_error="skip")."""
     fmt = format or detect_format(path)
     if fmt not in _READERS:
         raise SourceError(
@@ -137,7 +139,7 @@ def open_source(
     check_clock(clock)
     if fmt == "jsonl":
         _log_clock_only(path, clock)
-        return JsonlSource(path, topics=topics, on_error=on_error, report=report)
+        return JsonlSource(path, topics=topics, on_error=on_error, report=report, max_text_bytes=max_text_bytes)
     if not Path(path).exists():
         raise SourceError(f"{path} does not exist.")
     cls = _reader(fmt)  # imported only now: rosbags and mcap are slow to import

@@ -79,7 +79,8 @@ class JsonlSource:
     """Messages of a JSONL file, or of standard input for the path "-".
 
     A malformed line is an error naming the file and line (`on_error="stop"`, the
-    default), or is skipped, counted in `skipped` and passed to `report`.
+    default), or is skipped, counted in `skipped` and passed to `report`. So is a message
+    whose text is over `max_text_bytes` (what a store can hold, when recording into one).
     """
 
     def __init__(
@@ -89,6 +90,7 @@ class JsonlSource:
         topics: Iterable[str] | None = None,
         on_error: OnError = "stop",
         report: Callable[[SourceError], None] | None = None,
+        max_text_bytes: int | None = None,
     ) -> None:
         if on_error not in ("stop", "skip"):
             raise InvalidInputError(f"on_error must be 'stop' or 'skip', not {on_error!r}.")
@@ -96,6 +98,7 @@ class JsonlSource:
         self._on_error = on_error
         self._report = report
         self.skipped = 0
+        self._max_text = max_text_bytes
         self._owned = str(path) != "-"
         self._file: BinaryIO | Iterator[list[bytes]]
         if self._owned:
@@ -137,6 +140,10 @@ class JsonlSource:
         for lines in self._line_batches():
             # Most lines are in the canonical layout, checked whole as JSON on their bytes.
             messages = split_lines(lines)
+            if self._max_text is not None and max(map(len, lines)) > self._max_text:
+                # A message's text is a slice of its line: only a longer line can hold one
+                # too long to store. Such lines go the slow way, which checks the size.
+                messages = [None if len(raw) > self._max_text else m for raw, m in zip(lines, messages)]
             error = None
             if None in messages:
                 messages, error = self._settle(messages, lines, lineno)
@@ -187,10 +194,18 @@ class JsonlSource:
         if parts is not None and self._wanted is not None and parts[0] not in self._wanted:
             return None  # in the canonical layout, a topic not wanted is skipped unchecked
         try:
-            return SourceMessage(*parse_line(line))
+            message = SourceMessage(*parse_line(line))
         except JsonlLineError as err:
             self._bad_line(lineno, str(err))
             return None
+        if self._max_text is not None and len(raw) > self._max_text:
+            size = len(message.text.encode())
+            wanted = self._wanted is None or message.topic in self._wanted
+            if size > self._max_text and wanted:
+                self._bad_line(lineno, f"the message is {size} bytes of JSON, over the {self._max_text} bytes "
+                               "one record of a store holds")  # fmt: skip
+                return None
+        return message
 
     def _bad_line(self, lineno: int, reason: str) -> None:
         err = SourceError(f"{self.name}, line {lineno}: {reason}.")

@@ -14,7 +14,7 @@ from typing import Any
 from ..codecs import Codec, codec_from_config, codec_numeric_id, raw_size, utf8_size
 from ..errors import InvalidInputError
 from .check import check_stream_name, encode_messages
-from .format import MAX_CONFIG, MAX_META, MAX_RECORD_RAW, pack_record
+from .format import MAX_CONFIG, MAX_MESSAGE_TEXT, MAX_META, MAX_RECORD_RAW, pack_record
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,7 +114,7 @@ def split_bounds(name: str, texts: Sequence[str]) -> list[tuple[int, int]]:
         cost = 12 + utf8_size([text])
         if 4 + cost > MAX_RECORD_RAW:
             raise InvalidInputError(f"message {i} for {name!r} is {cost - 12} bytes, over what one record "
-                                    f"holds ({MAX_RECORD_RAW - 16} bytes of text)")  # fmt: skip
+                                    f"holds ({MAX_MESSAGE_TEXT} bytes of text)")  # fmt: skip
         if size + cost > MAX_RECORD_RAW:
             bounds.append((lo, i))
             lo, size = i, 4

@@ -113,6 +113,9 @@ MAX_ENC = MAX_RAW + ENC_SLACK
 # record` cuts from the real runs of ../shared/data. A deployment that must read records an
 # older version wrote above it raises DECODE_RAW_LIMIT (at most MAX_RAW), and its bound with it.
 MAX_RECORD_RAW = 16 << 20
+# The longest message text a record holds: the message alone, after the window's count (4
+# bytes) and its stamp and length (12). A source told this names the line of a longer one.
+MAX_MESSAGE_TEXT = MAX_RECORD_RAW - 16
 DECODE_RAW_LIMIT = MAX_RECORD_RAW
 MAX_MANIFEST = 64 << 20
 # The smallest record: the fixed header, an empty name (a skipped record of another kind may
@@ -183,6 +186,30 @@ def segment_manifest_gen(data: bytes) -> int:
     if unpack_segment_header(data) is None:
         return 0
     return SEGMENT_HEADER.unpack_from(data)[5]
+
+
+def segment_header_fault(data: bytes, first_seq: int) -> str:
+    """What is wrong with a segment header, in plain words naming each field (offsets in
+    the file); "" when it is intact and states `first_seq` (the file name's)."""
+    if len(data) < SEGMENT_HEADER_SIZE:
+        return f"the {SEGMENT_HEADER_SIZE}-byte segment header is cut short to {len(data)} bytes"
+    magic, version, flags, stated, _created_ns, _gen = SEGMENT_HEADER.unpack_from(data)
+    faults = []
+    if magic != SEGMENT_MAGIC:
+        faults.append(f"magic (bytes 0-3) is {magic!r}, not {SEGMENT_MAGIC!r}")
+    if version != FILE_VERSION:
+        faults.append(f"version (bytes 4-5) is {version}, not {FILE_VERSION}")
+    if flags != 0:
+        faults.append(f"flags (bytes 6-7) is {flags}, not 0")
+    if stated != first_seq:
+        faults.append(f"first_seq (bytes 8-15) is {stated}, the file name says {first_seq}")
+    if struct.unpack_from("<I", data, SEGMENT_HEADER.size)[0] != crc32c(data[: SEGMENT_HEADER.size]):
+        # With the fields above as they should be, the changed bits are in one that has no
+        # expected value: created_ns (16-23), manifest_gen (24-27) or the CRC itself.
+        faults.append("its CRC (bytes 28-31) does not match bytes 0-27" if faults else
+                      "its CRC (bytes 28-31) does not match bytes 0-27: created_ns (16-23), "
+                      "manifest_gen (24-27) or the CRC changed")  # fmt: skip
+    return "; ".join(faults)
 
 
 def unpack_segment_header(data: bytes) -> tuple[int, int] | None:

@@ -18,6 +18,7 @@ from .format import (
     RecordError,
     index_name,
     parse_seq_name,
+    segment_header_fault,
     segment_name,
     unpack_segment_header,
 )
@@ -172,17 +173,29 @@ def _check_sealed(store: Store, fs: FileSystem, report: FsckReport) -> None:
         path = opened.path
         checked, header_ok = _as_found(fs, opened)
         if not header_ok or checked.first_seq != info.first_seq:
+            report.add("error", os.path.basename(path), _header_damage(fs, opened, info))
+            # The manifest and the file name agree on where its records start: they are
+            # checked as any other (the header holds nothing a record needs).
+            checked.first_seq = info.first_seq
+        if info.first_seq != expect_seq:
             report.add("error", os.path.basename(path),
-                       "segment header is damaged or names another first sequence number")  # fmt: skip
-        else:
-            if info.first_seq != expect_seq:
-                report.add("error", os.path.basename(path),
-                           f"starts at seq {info.first_seq}, expected {expect_seq}: a gap")  # fmt: skip
-            _check_segment(store, fs, info, checked, report)
+                       f"starts at seq {info.first_seq}, expected {expect_seq}: a gap")  # fmt: skip
+        _check_segment(store, fs, info, checked, report)
         expect_seq = info.end_seq
     tail = store.segment_first_seqs()[len(sealed):]
     if tail and tail[0] != expect_seq:
         report.add("error", segment_name(tail[0]), f"starts at seq {tail[0]}, expected {expect_seq}: a gap")
+
+
+def _header_damage(fs: FileSystem, opened: Segment, info: SealedSegment) -> str:
+    """A sealed segment's damaged header, and what the manifest says the segment holds."""
+    fault = segment_header_fault(fs.pread(opened.fd, SEGMENT_HEADER_SIZE, 0)[: opened.size], info.first_seq)
+    starts = [s["start_ns"] for s in info.streams.values() if s.get("windows")]
+    ends = [s["end_ns"] for s in info.streams.values() if s.get("windows")]
+    span = f", {min(starts)}..{max(ends)} ns" if starts and ends else ""
+    held = f"seqs {info.first_seq}..{info.end_seq - 1}" if info.end_seq > info.first_seq else "no record"
+    return (f"segment header (offset 0, {SEGMENT_HEADER_SIZE} bytes) is damaged: {fault}; the manifest says "
+            f"the segment holds {held}{span} ({info.size} bytes)")  # fmt: skip
 
 
 def _as_found(fs: FileSystem, opened: Segment) -> tuple[Segment, bool]:

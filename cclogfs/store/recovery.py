@@ -24,6 +24,7 @@ from .format import (
     RecordError,
     index_name,
     parse_seq_name,
+    segment_header_fault,
     segment_manifest_gen,
     segment_name,
     unpack_segment_header,
@@ -280,7 +281,8 @@ class SegmentOpener:
                 # The header is fsynced before any record is written: records after a damaged
                 # header mean damage to synced data, kept like any other (issue 11, item 6).
                 seg.first_seq, seg.next_seq = first_seq, first_seq
-                header_damage = Problem(path, 0, Reason.BAD_SEGMENT_HEADER, "", SEGMENT_HEADER_SIZE,
+                fault = segment_header_fault(self.fs.pread(seg.fd, SEGMENT_HEADER_SIZE, 0)[: seg.size], first_seq)
+                header_damage = Problem(path, 0, Reason.BAD_SEGMENT_HEADER, fault, SEGMENT_HEADER_SIZE,
                                         seqs=(first_seq, first_seq))  # fmt: skip
             if reason is not None:
                 self.recovery.problems.append(Problem(path, 0, reason, "", seg.size))

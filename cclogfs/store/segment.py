@@ -11,12 +11,15 @@ import xxhash
 from ..errors import CorruptionError
 from . import planted
 from .format import (
+    RECORD_FIXED_SIZE,
     SEGMENT_HEADER_SIZE,
     Reason,
     RecordError,
     RecordFlag,
     RecordHeader,
     check_fields,
+    check_fixed,
+    parse_header,
     unpack_segment_header,
 )
 from .fs import FileSystem
@@ -30,6 +33,12 @@ WRITE_BUFFER = 1 << 20
 # fresh process maps each 4 MiB buffer anew, and its page faults cost more than the hash:
 # 40.8 MB took 7.9 ms CPU in 4 MiB reads, 5.0 ms in 256 KiB reads, xxh3 itself 3 ms).
 HASH_CHUNK = 256 << 10
+
+
+def lost_seqs(first: int, end: int) -> str:
+    """The seqs [first, end) a damaged stretch lost, in words (a damaged segment header,
+    say, loses none: the records after it are whole, though no reader trusts them)."""
+    return "no record lost" if end <= first else f"seq {first}" if end == first + 1 else f"seqs {first}..{end - 1}"
 
 
 @dataclass
@@ -54,7 +63,7 @@ class Problem:
         intact = f", {self.intact_after} intact records among them" if self.intact_after else ""
         kept = f", kept in {self.kept_in}" if self.kept_in else ""
         if self.seqs is not None:
-            lost = f"seq {self.seqs[0]}" if self.seqs[1] == self.seqs[0] + 1 else f"seqs {self.seqs[0]}..{self.seqs[1] - 1}"
+            lost = lost_seqs(*self.seqs)
             return (f"{self.path} at offset {self.offset}: {self.reason}{detail}: {self.dropped_bytes} bytes "
                     f"below the synced point damaged ({lost})")  # fmt: skip
         return f"{self.path} at offset {self.offset}: {self.reason}{detail}{dropped}{intact}{kept}"
@@ -203,6 +212,15 @@ class Segment:
             if write_back:
                 self.fs.write_file_atomic(index_path, self._index.encode(self.first_seq, self.size))
         return self._index
+
+    def read_header(self, offset: int) -> RecordHeader | None:
+        """The header of the record at `offset` (its CRC checked, the payload not read), or
+        None when it does not frame or check."""
+        try:
+            header_len = check_fixed(self.read(offset, RECORD_FIXED_SIZE), self.size - offset)
+            return parse_header(self.read(offset, header_len))
+        except RecordError:
+            return None
 
     def read_record(self, offset: int, length: int) -> tuple[RecordHeader, bytes]:
         """Header and payload of the record at `offset` that the index says is `length`

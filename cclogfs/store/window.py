@@ -10,7 +10,8 @@ from typing import Any
 from ..codecs import codec_for_record, codec_numeric_id
 from ..errors import CodecError, CorruptionError, StoreError, UnknownCodecError
 from . import format, planted
-from .format import AGED_META_KEY, Reason, RecordFlag, RecordHeader
+from .format import AGED_META_KEY, Reason, RecordFlag, RecordHeader, check_fields
+from .records import not_continued
 from .segment import Segment
 
 
@@ -58,6 +59,8 @@ class Window:
                                      "replaced or dropped this segment; query again")  # fmt: skip
                 header, payload = self._segment.read_record(self._offset, self._length)
                 self._check_entry(header)
+                if header.flags & _PART and self._segment.sealed_size >= 0:
+                    self._check_continued(header)
                 self._record = header, payload
         return self._record
 
@@ -76,6 +79,31 @@ class Window:
                 f"{header.name!r}, but the time index says seq {self.seq} of {self.name!r}; the index "
                 "is rebuilt from the segment: query again",
                 path=self._segment.path, offset=self._offset, reason=Reason.INDEX_MISMATCH,
+            )  # fmt: skip
+
+    def _check_continued(self, header: RecordHeader) -> None:
+        """A part of a split window must be followed by its continuation. A sealed segment's
+        index is trusted, so no scan saw the record after this one: a PART flag whose header
+        CRC holds (forged, or a bug's) on a record nothing continues would hand out part of a
+        window as if whole, with exit 0. One more header read, for parts only."""
+        at, seg = self._offset + self._length, self._segment
+        after = seg.read_header(at) if at < seg.size else None
+        if at >= seg.size:
+            why = f"it is the last record of the segment (seqs {seg.first_seq}..{seg.next_seq - 1})"
+        elif after is None:
+            why = f"the record after it (offset {at}) does not frame or fails its header CRC"
+        elif after.seq != header.seq + 1:
+            why = f"the record after it is seq {after.seq}"
+        else:
+            try:
+                why = not_continued(header, after, check_fields(after))
+            except format.RecordError as err:
+                why = f"the record after it is damaged ({err})"
+        if why is not None:
+            raise CorruptionError(
+                f"{seg.path}: record at offset {self._offset} (seq {header.seq} of {header.name!r}) is flagged "
+                f"PART (its window goes on in the next record), but {why}: the window is incomplete",
+                path=seg.path, offset=self._offset, reason=Reason.UNFINISHED_PUT,
             )  # fmt: skip
 
     def check(self) -> None:

@@ -150,6 +150,51 @@ def test_flip_threshold_learnt_from_the_robots_noise():
     assert train([noisy.take(slice(0, 400))], features=V3).feature_config == V3  # explicit: kept
 
 
+def test_noise_scale_does_not_depend_on_the_rate_and_noisy_robots_despike_longer():
+    """Issue 15, fifth pass: the speed noise is measured over 0.1 s, so a run resampled to
+    100 Hz gets the flip threshold of its 10 Hz source (the change per message is ~10x
+    smaller there, 9x on the slamfail runs); a noisy robot's twist is despiked over 0.3 s, a quiet one's stays 0.1 s."""
+    from cclogfs.classifier.api import NOISY_DESPIKE_S, robot_thresholds
+    from cclogfs.classifier.fit import speed_noise
+    from cclogfs.classifier.testing import resample
+
+    clean = manoeuvres()
+    noisy = OdomArrays(clean.stamp_ns, clean.raw.copy())
+    noisy.raw[:, 7] += np.random.default_rng(3).normal(0, 0.05, len(clean))
+    fast = resample(noisy, 100.0)
+    per_message = [np.median(np.abs(np.diff(r.raw[:, 7]))) for r in (noisy, fast)]
+    assert per_message[1] < per_message[0] / 4  # what the flip threshold came from before
+    # (interpolating between the 10 Hz samples averages some of their noise away: 0.68x)
+    assert 0.6 < speed_noise([fast]) / speed_noise([noisy]) < 1.25
+    slow, quick = (robot_thresholds([r]) for r in (noisy, fast))
+    assert 0.6 < quick["dir_flip"] / slow["dir_flip"] < 1.25
+    assert slow["despike_s"] == quick["despike_s"] == NOISY_DESPIKE_S == 0.3
+    assert "despike_s" not in robot_thresholds([clean])  # 0.01 m/s of noise: the default 0.1 s
+    assert "despike_s" not in robot_thresholds([noisy], noisy_despike_s=0)
+    assert speed_noise([]) is None and robot_thresholds([]) == {}
+    params = train([noisy.take(slice(0, 400))]).feature_config["params"]
+    assert params["despike_s"] == 0.3 and train([clean.take(slice(0, 400))]).feature_config["params"]["despike_s"] == 0.1
+
+
+@pytest.mark.parametrize("rate", [10.0, 100.0])
+def test_longer_despike_removes_jitter_of_a_few_messages_but_not_lurches(rate):
+    """Despiked over 0.3 s, a speed that jitters by 0.3 m/s for two messages at 10 Hz no
+    longer shows as a jolt, while a 0.5 s lurch of 0.24 m/s (the mildest injected) does."""
+    odom = manoeuvres(rate)
+    s = (odom.stamp_ns - odom.stamp_ns[0]) * 1e-9
+    clean = OdomArrays(odom.stamp_ns, odom.raw.copy())
+    clean.raw[:, 7] = 0.4
+    jitter = OdomArrays(clean.stamp_ns, clean.raw.copy())
+    jitter.raw[(s >= 12) & (s < 12.2), 7] += 0.3  # two messages at 10 Hz
+    calm = (s > 11) & (s < 14)
+    short, long = make_features("default"), make_features({"id": "default", "params": {"despike_s": 0.3}})
+    assert short.batch(jitter)[0][calm, COL["accel_max"]].max() > 1  # 0.1 s passes a 0.2 s jitter
+    assert long.batch(jitter)[0][calm, COL["accel_max"]].max() < 1e-9
+    lurch, _ = inject(clean, "accel", int(10 * NS + odom.stamp_ns[0]), 0.5, strength=0.4)
+    around = (s >= 10) & (s < 11)
+    assert long.batch(lurch)[0][around, COL["accel_max"]].max() > 2
+
+
 def test_version_5_counts_speeding_up_only_and_version_4_configs_load():
     """Version 5's accel_max is speeding up (braking is brake_max's); a version 4 config
     (issue 15's first pass) still gives |dv/dt|."""

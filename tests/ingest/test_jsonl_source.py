@@ -145,3 +145,36 @@ def test_msg_values_survive_json_round_trip(tmp_path):
     for line, msg in zip(path.read_text().splitlines(), JsonlSource(path)):
         assert json.loads(msg.text) == json.loads(line)["msg"]
         assert msg.text == texts[msg.stamp_ns]
+
+
+def test_a_message_over_the_text_limit_is_a_line_error(tmp_path):
+    # A record holds at most MAX_MESSAGE_TEXT bytes of one message; recording a longer one
+    # used to fail in the store, naming "message 2 for '/a'" and no line (issue 16).
+    big = '{"data": "%s"}' % ("x" * 100)
+    fits = '{"data": "%s"}' % ("y" * 80)
+    path = write(tmp_path, format_line("/a", 0, "{}") + format_line("/a", 1, fits) + format_line("/a", 2, big))
+    with open_source(path) as src:
+        assert len(list(src)) == 3  # no limit unless asked: `convert` writes any size
+    with JsonlSource(path, max_text_bytes=len(fits)) as src:
+        got = []
+        with pytest.raises(SourceError, match=rf"log.jsonl, line 3: the message is {len(big)} bytes of JSON, "
+                           rf"over the {len(fits)} bytes one record of a store holds"):  # fmt: skip
+            for m in src:
+                got.append(m.text)
+    assert got == ["{}", fits]  # the messages before it, as for any bad line
+    seen = []
+    with open_source(path, on_error="skip", report=seen.append, max_text_bytes=len(fits)) as src:
+        assert [m.stamp_ns for m in src] == [0, 1]
+    assert len(seen) == 1 and "line 3" in str(seen[0])
+    with JsonlSource(path, topics=["/b"], max_text_bytes=len(fits)) as src:
+        assert list(src) == []  # a topic not read is no error, whatever its size
+
+
+def test_the_text_limit_counts_the_message_not_the_line(tmp_path):
+    msg = '{"s": "\\u00e9"}'  # far shorter than either line that holds it
+    other = '{"msg": %s,   "stamp_ns": 5,          "topic": "/a"         }\n' % msg
+    path = write(tmp_path, format_line("/a", 4, msg) + other)
+    with JsonlSource(path, max_text_bytes=len(msg)) as src:
+        assert [(m.stamp_ns, m.text) for m in src] == [(4, msg), (5, msg)]
+    with JsonlSource(path, max_text_bytes=len(msg) - 1) as src, pytest.raises(SourceError, match=f"line 1: the message is {len(msg)} bytes"):
+        list(src)
