@@ -43,6 +43,9 @@ WINDOW_AFTER = "1s"
 class WindowPolicy(Protocol):
     def push(self, topic: str, stamp_ns: int, text: str) -> list[PendingWindow]: ...
 
+    # Optional, for sources that hand over lists: `push` of each (topic, stamp_ns, text, ...).
+    # def push_many(self, messages: Sequence[Any]) -> list[PendingWindow]: ...
+
     def cut(self) -> list[PendingWindow]: ...
 
     def flush(self) -> list[PendingWindow]: ...
@@ -203,7 +206,7 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
     batches = getattr(messages, "batches", None)
     loop_args = {"check_json": check_json, "progress": progress, "stats": stats, "upkeep": upkeep, "types": types}
     try:
-        if batches is not None and isinstance(policy, KeepAll):  # JSONL: a list of messages at a time
+        if batches is not None and hasattr(policy, "push_many"):  # JSONL: a list of messages at a time
             _record_batches(batches(), store, policy, cut, **loop_args)
         else:
             _record_each(messages, store, policy, cut, **loop_args)
@@ -266,14 +269,14 @@ def _record_each(messages: Iterable[Any], store: Store, policy: WindowPolicy, cu
             progress(stats)
 
 
-def _record_batches(batches: Iterable[Sequence[Any]], store: Store, policy: KeepAll, cut: _Cutter, *,
+def _record_batches(batches: Iterable[Sequence[Any]], store: Store, policy: Any, cut: _Cutter, *,
                     check_json: bool, progress: Callable[[RecordStats], None] | None, stats: RecordStats,
                     upkeep: Upkeep | None, types: StreamTypes | None) -> None:  # fmt: skip
-    """`record`'s loop for KeepAll and a source that hands over lists of messages, each
-    a (topic, stamp_ns, text, msgtype) tuple (`JsonlSource.batches`): the checks, counts
-    and pushes of a list at once, the same windows stored in the same order, the same
-    error for the first bad message after the messages before it (per message, these
-    cost 1.3-2 us; issue 14)."""
+    """`record`'s loop for a policy with `push_many` (KeepAll, SmartLogger) and a source
+    that hands over lists of messages, each a (topic, stamp_ns, text, msgtype) tuple
+    (`JsonlSource.batches`): the checks, counts and pushes of a list at once, the same
+    windows stored in the same order, the same error for the first bad message after the
+    messages before it (per message, these cost 1.3-2 us; issue 14)."""
     for batch in batches:
         texts = list(map(itemgetter(2), batch))
         bad = first_bad_text(texts, check_json=check_json)

@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import json
 import math
-from itertools import chain
+from itertools import chain, repeat
+from operator import eq, is_not, itemgetter
 from pathlib import Path
-from typing import Iterable, Iterator
+from typing import Iterable, Iterator, Sequence
 
 import numpy as np
 
 from ..errors import InvalidInputError, ModelError
-from .features import OdomArrays, TwistFromPoses, make_features, odom_row, parse_odometry
+from .features import OdomArrays, TwistFromPoses, make_features, odom_row, odom_rows_compiled, parse_odometry
 from .fit import robot_stats, speed_noise
 from .model import OneClassModel
 from .summary import SUMMARY_TOPIC, SummaryBuilder
@@ -279,6 +280,7 @@ class SmartLogger:
             raise InvalidInputError(f"batch must be at least 1, not {batch!r}.")
         self.batch = batch
         self._pending: list[tuple] = []  # messages held until their odometry is scored
+        self._held_other = False  # whether _pending holds a message of another topic
         self._vectors: list = []  # their feature vectors (Detector.vector)
         self.detector = detector
         self.odom_topic = odom_topic
@@ -301,6 +303,7 @@ class SmartLogger:
         if topic != self.odom_topic:
             if self._pending:
                 self._pending.append((topic, stamp_ns, text, None, False))
+                self._held_other = True
                 return []
             return self.windows.push(topic, stamp_ns, text)
         head, row = self.detector.parse(text)
@@ -313,6 +316,62 @@ class SmartLogger:
             self._vectors.append(vec)
         self._pending.append((topic, stamp_ns, text, row, vec is not None))
         return self._drain() if len(self._pending) >= self.batch else []
+
+    def push_many(self, messages: Sequence) -> list[PendingWindow]:
+        """`push` of each (topic, stamp_ns, text, ...) in turn: the same windows in the same
+        order, the SVM scoring the same groups of `batch` held messages. For a source that
+        hands over many messages at once (issue 14): the compiled reader reads the list's
+        odometry in one call, and the windows and summaries take the held odometry a
+        stretch at a time (`_drain`)."""
+        if self.batch == 1 or not messages:
+            return [w for m in messages for w in self.push(m[0], m[1], m[2])]
+        odom_topic, pending, vectors, batch = self.odom_topic, self._pending, self._vectors, self.batch
+        parse, vector = self.detector.parse, self.detector.vector
+        if all(map(eq, map(itemgetter(0), messages), repeat(odom_topic))):  # a run of odometry alone
+            got = odom_rows_compiled(list(map(itemgetter(2), messages)))
+            if None not in got:
+                return self._push_odometry(messages, got)
+            read = iter(got)
+        else:
+            read = iter(odom_rows_compiled([m[2] for m in messages if m[0] == odom_topic]))
+        out: list[PendingWindow] = []
+        for m in messages:
+            topic, stamp_ns, text = m[0], m[1], m[2]
+            if topic != odom_topic:
+                if pending:
+                    pending.append((topic, stamp_ns, text, None, False))
+                    self._held_other = True
+                else:
+                    out += self.windows.push(topic, stamp_ns, text)
+                continue
+            # A row of the compiled reader has a twist (`parse` would pass it unchanged);
+            # `parse` reads the others, and raises at the message a bad one is.
+            head, row = next(read) or parse(text)
+            vec = vector(head, row)
+            if vec is not None:
+                vectors.append(vec)
+            pending.append((topic, stamp_ns, text, row, vec is not None))
+            if len(pending) >= batch:
+                out += self._drain()
+        return out
+
+    def _push_odometry(self, messages: Sequence, got: list[tuple]) -> list[PendingWindow]:
+        """`push_many` of odometry messages all read by the compiled reader (`got`, the
+        (stamp, row) of each): the held messages added a drain's worth at a time."""
+        heads, rows = zip(*got)
+        vecs = list(map(self.detector.vector, heads, rows))
+        held = list(zip(map(itemgetter(0), messages), map(itemgetter(1), messages), map(itemgetter(2), messages),
+                        rows, map(is_not, vecs, repeat(None))))  # fmt: skip
+        out: list[PendingWindow] = []
+        i = 0
+        while i < len(held):
+            j = i + self.batch - len(self._pending)
+            self._vectors += [v for v in vecs[i:j] if v is not None]
+            self._pending += held[i:j]
+            if len(self._pending) >= self.batch:
+                out += self._drain()
+            i = j
+        return out
 
     def _drain(self) -> list[PendingWindow]:
         """Score the held odometry vectors at once, then run the windows over the held messages."""
@@ -327,20 +386,53 @@ class SmartLogger:
         back = np.zeros(len(s), dtype=np.int64)
         if flagged.any():
             back[flagged] = self.detector.lookback_ns(V[flagged])
-        found = iter(zip(s.tolist(), back.tolist()))
+        held, scores, backs = self._pending, s.tolist(), back.tolist()
+        if len(scores) < len(held) or self._held_other:  # some without a score, or of another topic
+            found = iter(zip(scores, backs))
+            scores, backs = zip(*[next(found) if m[4] else (math.nan, 0) for m in held]) if held else ((), ())
         out: list[PendingWindow] = []
-        push_other, odom = self.windows.push, self._odom
-        for topic, stamp_ns, text, row, scored in self._pending:
-            if row is None:
-                got = push_other(topic, stamp_ns, text)
+        i = 0
+        while i < len(held):  # each stretch of odometry at once, the other messages one by one
+            if held[i][3] is None:
+                out += self.windows.push(*held[i][:3])
+                i += 1
+                continue
+            j = i + 1
+            if self._held_other:
+                while j < len(held) and held[j][3] is not None:
+                    j += 1
             else:
-                score, lb = next(found) if scored else (math.nan, 0)
-                got = odom(stamp_ns, text, row, score, score > 0, lb)
-            if got:
-                out += got
+                j = len(held)
+            out += self._odom_run(held[i:j], scores[i:j], backs[i:j])
+            i = j
         self._pending.clear()
         self._vectors.clear()
+        self._held_other = False
         return out
+
+    def _odom_run(self, held: list[tuple], scores: Sequence[float], backs: Sequence[int]) -> list[PendingWindow]:
+        """`_odom` of each held odometry message (topic, stamp_ns, text, row, scored) in
+        turn: the windows a stretch at a time (`WindowBuilder.push_run`), each summary
+        after the windows of the messages up to the one that ended its period, as in `_odom`."""
+        stamps = [m[1] for m in held]
+        texts = [m[2] for m in held]
+        scores = list(scores)
+        flags = [s > 0 for s in scores]
+        backs = list(backs)
+        self.scored += len(held)
+        self.anomalies += sum(flags)
+        if self.summary is None:
+            return self.windows.push_run(stamps, texts, flags, scores, backs)
+        rows = [m[3] for m in held]
+        speeds = list(map(math.hypot, [r[7] for r in rows], [r[8] for r in rows]))
+        out: list[PendingWindow] = []
+        a = 0
+        for k, rec in self.summary.update_many(stamps, rows, speeds, flags):
+            out += self.windows.push_run(stamps[a : k + 1], texts[a : k + 1], flags[a : k + 1], scores[a : k + 1],
+                                         backs[a : k + 1])  # fmt: skip
+            out.append(self._summary_window(rec))
+            a = k + 1
+        return out + self.windows.push_run(stamps[a:], texts[a:], flags[a:], scores[a:], backs[a:])
 
     def _scores(self, V: np.ndarray) -> np.ndarray:
         """The held vectors' scores, or where no score can matter, a bound on them.

@@ -134,6 +134,14 @@ def odom_row(msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
     return _odom_row_parsed(msg)
 
 
+def odom_rows_compiled(texts: list[str]) -> list[tuple[int, tuple[float, ...]] | None]:
+    """The compiled reader's (stamp_ns, row) of each text in one call over the list, None
+    where it declines or is not built: `odom_row` then reads that text (and names its error)."""
+    if _odom_fields_c is None:  # pragma: no cover - no C compiler at install
+        return [None] * len(texts)
+    return list(map(_odom_fields_c, texts))
+
+
 def _odom_row_python(msg: str) -> tuple[int, tuple[float, ...]]:
     """`odom_row` of a text without the compiled reader: the regex, else json.loads."""
     m = _ODOM_TEXT.fullmatch(msg)

@@ -9,11 +9,17 @@ from __future__ import annotations
 import json
 import math
 from collections import deque
+from functools import reduce
+from itertools import compress, repeat
+from operator import add, floordiv, gt, ne, sub, truediv
+
+import numpy as np
 
 __all__ = ["SUMMARY_TOPIC", "SummaryBuilder"]
 
 SUMMARY_TOPIC = "/cclog/summary"
 NS = 1_000_000_000
+MAX_HELD = 1024  # samples update_many holds at most: as fast as more, and a live push that takes them waits < 1 ms
 
 
 class SummaryBuilder:
@@ -28,6 +34,8 @@ class SummaryBuilder:
         self.bucket: int | None = None
         self.prev: tuple[int, float, float, float] | None = None
         self.recent: deque[tuple[int, float]] = deque()  # (stamp, speed) for acceleration
+        # Samples given to update_many not yet taken: stamps, rows, speeds, anomalous.
+        self._held: tuple[list, list, list, list] = ([], [], [], [])
         self._reset()
 
     def _reset(self) -> None:
@@ -38,6 +46,8 @@ class SummaryBuilder:
     def update(self, stamp_ns: int, x: float, y: float, speed: float, anomalous: bool) -> list:
         """One odometry sample; returns the records of periods that ended before it."""
         # Once per odometry message: locals and plain comparisons, no helper calls.
+        if self._held[0]:  # samples given to update_many first
+            self._settle()
         out = []
         bucket = stamp_ns // self.period
         s = self.stats
@@ -83,8 +93,93 @@ class SummaryBuilder:
                 s["peak_accel"] = accel
         return out
 
+    def update_many(self, stamps: list[int], rows: list, speeds: list[float],
+                    anomalous: list[bool]) -> list[tuple[int, tuple[int, str]]]:  # fmt: skip
+        """`update` of each sample in turn, its x and y the first two values of its row:
+        (index of the sample, record) of each record it gives, the same records.
+
+        Samples that cannot end a period (of the newest one's) are held, and taken at once
+        when one that can comes (or at `flush`, or past MAX_HELD): `_update_steady` of a
+        period's samples is 2x faster than `update` of each, of 64 no faster (issue 14)."""
+        buckets = list(map(floordiv, stamps, repeat(self.period, len(stamps))))
+        changed = list(map(ne, buckets, [self._newest_bucket(), *buckets[:-1]]))
+        out: list[tuple[int, tuple[int, str]]] = []
+        a = 0
+        for k in [k for k, c in enumerate(changed) if c] if True in changed else []:
+            self._hold(stamps[a:k], rows[a:k], speeds[a:k], anomalous[a:k])
+            self._settle()
+            out += [(k, r) for r in self.update(stamps[k], rows[k][0], rows[k][1], speeds[k], anomalous[k])]
+            a = k + 1
+        self._hold(stamps[a:], rows[a:], speeds[a:], anomalous[a:])
+        if len(self._held[0]) > MAX_HELD:
+            self._settle()
+        return out
+
+    def _newest_bucket(self) -> int | None:
+        return self._held[0][-1] // self.period if self._held[0] else self.bucket
+
+    def _hold(self, stamps: list[int], rows: list, speeds: list[float], anomalous: list[bool]) -> None:
+        for held, new in zip(self._held, (stamps, rows, speeds, anomalous)):
+            held += new
+
+    def _settle(self) -> None:
+        """`update` of the held samples (of the current period, none ending it)."""
+        stamps, rows, speeds, anomalous = self._held
+        if not stamps:
+            return
+        self._held = ([], [], [], [])
+        if self._steady(stamps):
+            self._update_steady(stamps, rows, speeds, anomalous)
+            return
+        for k in range(len(stamps)):  # none held now: `update` takes each
+            self.update(stamps[k], rows[k][0], rows[k][1], speeds[k], anomalous[k])
+
+    def _steady(self, stamps: list[int]) -> bool:
+        """Whether samples at these stamps would all stay in the current period, each
+        after the one before by at most `gap`: then `update` does the same with each."""
+        if self.prev is None or self.bucket is None or stamps[-1] // self.period != self.bucket:
+            return False
+        steps = list(map(sub, stamps, [self.prev[0], *stamps[:-1]]))
+        return min(steps) > 0 and max(steps) <= self.gap
+
+    def _update_steady(self, stamps: list[int], rows: list, speeds: list[float], anomalous: list[bool]) -> None:
+        """`update` of each sample of a steady list (`_steady`) at once: the same sums,
+        added in the same order (`reduce`), and the same maxima."""
+        s, (t0, x0, y0, _) = self.stats, self.prev
+        s["messages"] += len(stamps)
+        s["anomalies"] += sum(anomalous)
+        fast = list(map(abs, speeds))
+        s["peak_speed"] = max(s["peak_speed"], max(filter(math.isfinite, fast), default=0.0))
+        if self.first_ns is None:
+            self.first_ns = stamps[0]
+        self.last_ns = stamps[-1]
+        xs, ys = [r[0] for r in rows], [r[1] for r in rows]
+        steps = map(math.hypot, map(sub, xs, [x0, *xs[:-1]]), map(sub, ys, [y0, *ys[:-1]]))
+        s["distance_m"] = reduce(add, filter(math.isfinite, steps), s["distance_m"])
+        dts = map(sub, stamps, [t0, *stamps[:-1]])
+        moving = map(gt, fast, repeat(self.moving_speed))
+        s["moving_s"] = reduce(add, compress(map(truediv, dts, repeat(NS)), moving), s["moving_s"])
+        self._accelerations(stamps, speeds)
+        self.prev = (stamps[-1], xs[-1], ys[-1], speeds[-1])
+
+    def _accelerations(self, stamps: list[int], speeds: list[float]) -> None:
+        """`update`'s acceleration of each sample against the newest one at least
+        `baseline` older (`recent` and these samples, all in time order), at once."""
+        n = len(self.recent)
+        t = np.array([r[0] for r in self.recent] + stamps, dtype=np.int64)
+        v = np.array([r[1] for r in self.recent] + speeds, dtype=np.float64)
+        bound = t[n:] - self.baseline
+        base = np.maximum(np.searchsorted(t, bound, side="right") - 1, 0)
+        with np.errstate(invalid="ignore"):
+            accel = np.abs(v[n:] - v[base]) / ((t[n:] - t[base]) / NS)
+        seen = accel[(t[base] <= bound) & np.isfinite(accel)]
+        if len(seen):
+            self.stats["peak_accel"] = max(self.stats["peak_accel"], float(seen.max()))
+        self.recent = deque(zip(t[base[-1] :].tolist(), v[base[-1] :].tolist()))
+
     def flush(self) -> list:
         """End of input: the record of the unfinished period, if it saw any message."""
+        self._settle()
         out = [self._record()] if self.stats["messages"] else []
         self._reset()
         return out

@@ -1,9 +1,13 @@
 """cclogfs.classifier.summary: per-period statistics of the odometry, one record a period."""
 
 import json
+import math
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+from cclogfs.classifier import summary
 from cclogfs.classifier.summary import SummaryBuilder
 
 MS = 1_000_000
@@ -25,3 +29,38 @@ def test_summary_per_minute():
 
 def test_nothing_seen_gives_no_record():
     assert SummaryBuilder(period_s=60).flush() == []
+
+
+# A sample: (stamp step in ms, speed, step along x in m); steps past the 1 s gap, back and
+# zero, NaN and infinite speeds and positions.
+sample = st.tuples(st.sampled_from([100, 100, 100, 37, 0, -40, 1500, 9000]),
+                   st.sampled_from([0.5, -0.7, 0.01, 2.3, math.nan, math.inf]),
+                   st.sampled_from([0.05, 0.0, -0.013, math.nan]))  # fmt: skip
+
+
+@settings(max_examples=300, deadline=None)
+@given(samples=st.lists(sample, max_size=150), size=st.integers(1, 70), held=st.sampled_from([3, 1024]))
+def test_update_many_is_update_of_each(samples, size, held):
+    """Lists of `size` samples: the same records from the same samples, bit for bit, and
+    the same state after (with at most `held` samples held)."""
+    stamps, rows, speeds, flags, t, x = [], [], [], [], 0, 0.0
+    for k, (step, speed, dx) in enumerate(samples):
+        t, x = t + step * MS, x + dx
+        stamps.append(t)
+        rows.append((x, 0.5 * x, 0.0))
+        speeds.append(speed)
+        flags.append(k % 7 == 0)
+    one, many = SummaryBuilder(period_s=10), SummaryBuilder(period_s=10)
+    want = [(k, r) for k in range(len(stamps)) for r in one.update(stamps[k], rows[k][0], rows[k][1], speeds[k], flags[k])]
+    got = []
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(summary, "MAX_HELD", held)
+        for at in range(0, len(stamps), size):
+            part = slice(at, at + size)
+            got += [(at + k, r) for k, r in many.update_many(stamps[part], rows[part], speeds[part], flags[part])]
+    assert got == want
+    # `update` after update_many takes the held samples first
+    assert many.update(t + 10_000 * MS, x, x, 1.0, False) == one.update(t + 10_000 * MS, x, x, 1.0, False)
+    assert repr((many.stats, many.prev, list(many.recent), many.bucket, many.first_ns, many.last_ns)) == repr(
+        (one.stats, one.prev, list(one.recent), one.bucket, one.first_ns, one.last_ns))
+    assert many.flush() == one.flush()
