@@ -284,6 +284,11 @@ class SegmentOpener:
                 fault = segment_header_fault(self.fs.pread(seg.fd, SEGMENT_HEADER_SIZE, 0)[: seg.size], first_seq)
                 header_damage = Problem(path, 0, Reason.BAD_SEGMENT_HEADER, fault, SEGMENT_HEADER_SIZE,
                                         seqs=(first_seq, first_seq))  # fmt: skip
+            if reason is Reason.BAD_SEGMENT_HEADER and _vouched(checkpoint, first_seq):
+                # A clean close synced records here: they are lost with the header, not torn.
+                fault = segment_header_fault(self.fs.pread(seg.fd, SEGMENT_HEADER_SIZE, 0)[: seg.size], first_seq)
+                self.recovery.damage.append(Problem(path, 0, reason, fault, seg.size,
+                                                    seqs=(first_seq, checkpoint["next_seq"])))  # fmt: skip
             if reason is not None:
                 self.recovery.problems.append(Problem(path, 0, reason, "", seg.size))
                 self._drop_segment(seg)
@@ -451,6 +456,11 @@ def _name_lost_seqs(damage: list[Problem], next_seq: int, checkpoint_next: int) 
         if problem.seqs is None:  # an unfinished put's parts run to the end of what was scanned
             lost = problem.put_end[1] if problem.put_end else next_seq + 1
             problem.seqs = (next_seq, max(checkpoint_next, lost))
+
+
+def _vouched(checkpoint: dict, first_seq: int) -> bool:
+    """Whether the last clean close synced records into the segment starting at `first_seq`."""
+    return checkpoint.get("first_seq") == first_seq and checkpoint.get("next_seq", first_seq) > first_seq
 
 
 def _holds_records(seg: Segment) -> bool:

@@ -68,3 +68,20 @@ def test_a_tail_header_loses_no_record_and_says_so(tmp_path, capsys):
     assert "damage left: 00000000000000000000.seg at offset 0, 32 bytes, no record lost: bad segment header" in out
     assert main(["cat", "--skip-damaged", str(store)]) == 3  # damage skipped (though it lost nothing)
     assert len(capsys.readouterr().out.splitlines()) == 9  # every record behind the header
+
+
+@pytest.mark.parametrize("size", [0, 10])
+def test_an_active_header_cut_short_after_a_clean_close_loses_records_loudly(tmp_path, capsys, size):
+    # Found by an attack: the clean close synced seqs 8..9 into the active segment; cutting
+    # its file inside the header made fsck say 'clean' and cat print 24 of 30 messages, exit 0.
+    store = _store(tmp_path / "s")
+    seg = store / segment_name(8)
+    seg.write_bytes(seg.read_bytes()[:size])
+    assert main(["fsck", str(store)]) == 1
+    assert "seqs 8..9: bad segment header" in capsys.readouterr().out
+    assert main(["cat", str(store)]) != 0
+    capsys.readouterr()
+    assert main(["fsck", "--repair", str(store)]) == 1
+    assert "damaged (seqs 8..9)" in capsys.readouterr().out
+    assert main(["cat", str(store)]) == 0
+    assert len(capsys.readouterr().out.splitlines()) == 24
