@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import xxhash
 
-from ..errors import CorruptionError
+from ..errors import CorruptionError, DamagedError
 from .format import (
     MANIFEST,
     SEGMENT_HEADER_SIZE,
@@ -102,8 +102,11 @@ class SegmentOpener:
     """Opens the segments of one manifest version; a writer also repairs the tail."""
 
     def __init__(self, fs: FileSystem, path: str, readonly: bool, lock: threading.RLock, *,
-                 trust_checkpoint: bool = False):  # fmt: skip
+                 trust_checkpoint: bool = False, drop_lost_header: bool = False):  # fmt: skip
         self.fs, self.path, self.readonly, self.lock = fs, path, readonly, lock
+        # A writer drops an active segment whose header is lost although a clean close synced
+        # records into it only when asked (repair, which reports them); else it refuses.
+        self.drop_lost_header = drop_lost_header
         # A reader may take the part of the active segment a clean close proved durable from
         # the index that close wrote, instead of scanning it (FORMAT.md, "Checkpoint index").
         self.trust_checkpoint = trust_checkpoint
@@ -287,8 +290,14 @@ class SegmentOpener:
             if reason is Reason.BAD_SEGMENT_HEADER and _vouched(checkpoint, first_seq):
                 # A clean close synced records here: they are lost with the header, not torn.
                 fault = segment_header_fault(self.fs.pread(seg.fd, SEGMENT_HEADER_SIZE, 0)[: seg.size], first_seq)
-                self.recovery.damage.append(Problem(path, 0, reason, fault, seg.size,
-                                                    seqs=(first_seq, checkpoint["next_seq"])))  # fmt: skip
+                lost = Problem(path, 0, reason, fault, seg.size, seqs=(first_seq, checkpoint["next_seq"]))
+                if not self.readonly and not self.drop_lost_header:
+                    # Dropping it here (as a torn tail) would lose those records without a word.
+                    self.fs.close(seg.fd)
+                    raise DamagedError(f"{self.path}: a writer cannot open the store: {lost}; run `cclog fsck "
+                                       "--repair` to drop the segment (and name what it lost)",
+                                       [lost.damage_info()], path=path, reason=reason)  # fmt: skip
+                self.recovery.damage.append(lost)
             if reason is not None:
                 self.recovery.problems.append(Problem(path, 0, reason, "", seg.size))
                 self._drop_segment(seg)

@@ -45,7 +45,7 @@ def repair_store(path: str, *, discard_damaged: bool = False, fs: FileSystem | N
     report = RepairReport(path)
     fs = fs or FileSystem()
     _rebuild_manifest_if_damaged(path, fs, report)
-    with open_store(path, sync_every_ms=None, sync_every_bytes=None, fs=fs) as store:
+    with open_store(path, sync_every_ms=None, sync_every_bytes=None, fs=fs, drop_lost_header=True) as store:
         rec = store.recovery
         report.actions += [f"cut torn tail: {p}" for p in rec.problems]
         report.actions += [f"sealed with damage named in the manifest: {p}" for p in rec.damage]

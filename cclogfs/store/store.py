@@ -76,8 +76,10 @@ class Store:
 
     def __init__(self, path: str, fs: FileSystem, readonly: bool, codecs: Codecs,
                  sync_every_ms: float | None, sync_every_bytes: int | None, segment_bytes: int,
-                 segment_age_s: float, segment_records: int, verify: bool = False):  # fmt: skip
+                 segment_age_s: float, segment_records: int, verify: bool = False,
+                 drop_lost_header: bool = False):  # fmt: skip
         self.path = path
+        self.drop_lost_header = drop_lost_header  # see open_store
         self.verify = verify  # a reader scans the whole active segment, checkpoint or not
         self.fs = fs
         self.readonly = readonly
@@ -284,7 +286,8 @@ class Store:
         # found and sealed before it appends. Below a clean close's checkpoint one hash of the
         # bytes does it, when it matches the checkpoint's; else it scans (FORMAT.md, "checkpoint").
         opener = SegmentOpener(self.fs, self.path, self.readonly, self.lock,
-                               trust_checkpoint=self.readonly and not self.verify)  # fmt: skip
+                               trust_checkpoint=self.readonly and not self.verify,
+                               drop_lost_header=self.drop_lost_header)  # fmt: skip
         opener.recovery.removed_files = removed
         opener.open(self.manifest)
         self.recovery, self.sealed = opener.recovery, opener.sealed
@@ -827,7 +830,8 @@ def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: 
                codec: Any = "columnar", stream_codecs: Mapping[str, Any] | None = None,
                sync_every_ms: float | None = 200, sync_every_bytes: int | None = 4 << 20,
                segment_bytes: int = 64 << 20, segment_age_s: float = 3600.0,
-               segment_records: int = 16384, fs: FileSystem | None = None, verify: bool = False) -> Store:  # fmt: skip
+               segment_records: int = 16384, fs: FileSystem | None = None, verify: bool = False,
+               drop_lost_header: bool = False) -> Store:  # fmt: skip
     """Open (or with create=True make) the store at `path`; recovers after a crash.
 
     codec: default codec (id or config dict) for new records; stream_codecs: per-stream
@@ -835,7 +839,9 @@ def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: 
     segment_bytes / segment_records / segment_age_s: when the active segment is sealed; they
     bound what recovery has to scan after a crash. verify: a reader checks every record of
     the active segment on open even after a clean close (fsck), instead of taking what the
-    close proved durable from its checkpoint index.
+    close proved durable from its checkpoint index. drop_lost_header: a writer drops an active
+    segment whose header is unreadable although the last clean close synced records into it
+    (`fsck --repair`, which reports the seqs); without it the writer refuses (DamagedError).
     """
     if sync_every_ms is not None and sync_every_ms < 0:
         raise InvalidInputError("sync_every_ms must be >= 0 or None")
@@ -844,7 +850,7 @@ def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: 
     codecs = Codecs(codec_from_config(codec), {k: codec_from_config(v) for k, v in (stream_codecs or {}).items()})
     store = Store(
         os.fspath(path), fs or FileSystem(), readonly, codecs, sync_every_ms, sync_every_bytes, segment_bytes, segment_age_s, segment_records,
-        verify,
+        verify, drop_lost_header,
     )  # fmt: skip
     for name in codecs.per_stream:
         check_stream_name(name)

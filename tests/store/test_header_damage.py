@@ -85,3 +85,23 @@ def test_an_active_header_cut_short_after_a_clean_close_loses_records_loudly(tmp
     assert "damaged (seqs 8..9)" in capsys.readouterr().out
     assert main(["cat", str(store)]) == 0
     assert len(capsys.readouterr().out.splitlines()) == 24
+
+
+@pytest.mark.parametrize("size", [0, 10])
+def test_a_writer_refuses_a_store_whose_active_header_lost_synced_records(tmp_path, capsys, size):
+    # Found after the fix above: `record --append` (any writer) took the cut segment for a
+    # torn tail, deleted it and appended, exit 0: seqs 8..9 gone without a word.
+    store = _store(tmp_path / "s")
+    seg = store / segment_name(8)
+    seg.write_bytes(seg.read_bytes()[:size])
+    with pytest.raises(cclogfs.errors.DamagedError, match=r"seqs 8\.\.9.*fsck --repair"):
+        cclogfs.open_store(store)
+    assert seg.read_bytes() == seg.read_bytes()[:size] and seg.exists()  # nothing deleted
+    source = tmp_path / "one.jsonl"
+    source.write_text('{"topic": "/b", "stamp_ns": 99999, "msg": {"k": 1}}\n')
+    assert main(["record", str(source), "--store", str(store), "--append"]) == 1
+    assert "a writer cannot open the store" in capsys.readouterr().err
+    assert seg.exists()
+    assert main(["fsck", "--repair", str(store)]) == 1  # repair drops it, naming the seqs
+    assert "damaged (seqs 8..9)" in capsys.readouterr().out
+    assert main(["record", str(source), "--store", str(store), "--append"]) == 0
