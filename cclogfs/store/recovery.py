@@ -298,8 +298,9 @@ class SegmentOpener:
                                        "--repair` to drop the segment (and name what it lost)",
                                        [lost.damage_info()], path=path, reason=reason)  # fmt: skip
                 self.recovery.damage.append(lost)
-            if reason is not None:
+            elif reason is not None:  # not synced: a torn tail
                 self.recovery.problems.append(Problem(path, 0, reason, "", seg.size))
+            if reason is not None:
                 self._drop_segment(seg)
                 broken = True
                 continue

@@ -48,7 +48,9 @@ def repair_store(path: str, *, discard_damaged: bool = False, fs: FileSystem | N
     with open_store(path, sync_every_ms=None, sync_every_bytes=None, fs=fs, drop_lost_header=True) as store:
         rec = store.recovery
         report.actions += [f"cut torn tail: {p}" for p in rec.problems]
-        report.actions += [f"sealed with damage named in the manifest: {p}" for p in rec.damage]
+        for p in rec.damage:  # a segment whose header was lost is removed, not sealed (recovery)
+            removed = os.path.basename(p.path) in rec.removed_files
+            report.actions.append(f"{'removed, its records lost' if removed else 'sealed with damage named in the manifest'}: {p}")
         report.actions += [f"removed {n}" for n in rec.removed_files]
         _declare_sealed_damage(store, report)
         _rebuild_indexes(store, report)
