@@ -19,7 +19,8 @@ exit status without --repair: 0 clean (warnings allowed), 1 damaged data found, 
   check (the path is missing, not a directory, or a directory that holds no store).
 exit status with --repair (as e2fsck): 0 clean, nothing to do; 1 repaired, now clean;
   4 damage left (named in the manifest or quarantined: reads refuse it until
-  --discard-damaged); 8 operational error (the store could not be opened or written).
+  --discard-damaged; or a damaged segment header whose first seq its name, the manifest
+  and its records do not all prove, kept as it is); 8 operational error (the store could not be opened or written).
 """
 
 
@@ -57,8 +58,12 @@ def repair(args: argparse.Namespace) -> int:
         print(f"repaired: {line}")
     for line in report.damage_left:
         print(f"damage left: {line}")
+    for line in report.unproven:
+        print(f"not repaired: {line}")
     state = {0: "clean, nothing to repair", 1: "repaired, now clean",
              4: "damage left (`--discard-damaged` drops it)"}[report.exit_code]  # fmt: skip
+    if report.unproven:  # not named damage: discarding would not make the store clean
+        state = "damage left that repair cannot prove how to mend (kept as it is; see 'not repaired')"
     print(f"{report.path}: {state}")
     return report.exit_code
 

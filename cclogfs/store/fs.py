@@ -276,10 +276,11 @@ class FileSystem:
             err.renamed = True  # the new file is in place, but whether the disk has it is unknown
             raise
 
-    def copy_range_atomic(self, src_fd: int, start: int, end: int, path: str) -> None:
+    def copy_range_atomic(self, src_fd: int, start: int, end: int, path: str, *, head: bytes = b"") -> None:
         """Make `path` a copy of bytes [start, end) of the open file `src_fd`, as
         `write_file_atomic` does, in chunks (memory stays at one chunk however large the
-        range) and keeping the source's holes as holes."""
+        range) and keeping the source's holes as holes. `head`, when given, replaces the
+        copy's first bytes before it is synced (repair's rebuilt segment header)."""
         tmp = path + ".tmp"
         if self.exists(tmp):
             self.unlink(tmp)
@@ -294,6 +295,8 @@ class FileSystem:
                     self.pwrite(fd, chunk, pos - start)
                 pos = self.next_data(src_fd, pos + len(chunk))
             self.truncate(fd, end - start)  # a hole at the end is part of the copy too
+            if head:
+                self.pwrite(fd, head, 0)
             self.fsync(fd)
         finally:
             self.close(fd)

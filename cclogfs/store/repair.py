@@ -2,7 +2,7 @@
 
 Steps, each safe to repeat after a crash (FORMAT.md, "Repair"): open as the writer (recovery
 cuts an unsynced torn tail and names damage below the synced point in the manifest); rebuild
-every index that is missing, damaged or wrong; put every intact record of a side file back
+every damaged segment header its name, the manifest and its records prove; rebuild every index that is missing, damaged or wrong; put every intact record of a side file back
 into the store (marked salvaged, never twice) and then move the side file into quarantine;
 with `discard_damaged`, forget the named damage and delete the quarantine.
 """
@@ -18,6 +18,7 @@ from ..codecs import codec_from_config
 from ..errors import CclogError, CorruptionError
 from .format import AGED_META_KEY, MANIFEST, QUARANTINE, SIDE_FILE, check_fields, index_size_limit
 from .fs import FileSystem, FileTooLargeError
+from .header_repair import rebuild_headers
 from .records import intact_in
 from .index import SegmentIndex
 from .manifest import Manifest
@@ -34,11 +35,14 @@ class RepairReport:
     path: str
     actions: list[str] = field(default_factory=list)  # what was changed
     damage_left: list[str] = field(default_factory=list)  # named damage and quarantined files
+    # Damage repair would not mend by a guess (a segment header it cannot prove), kept as it
+    # is; `--discard-damaged` does not drop it either.
+    unproven: list[str] = field(default_factory=list)
 
     @property
     def exit_code(self) -> int:
         """e2fsck's: 0 clean, 1 repaired, 4 damage left (8, an operational error, is the CLI's)."""
-        return 4 if self.damage_left else 1 if self.actions else 0
+        return 4 if self.damage_left or self.unproven else 1 if self.actions else 0
 
 
 def repair_store(path: str, *, discard_damaged: bool = False, fs: FileSystem | None = None) -> RepairReport:
@@ -53,12 +57,16 @@ def repair_store(path: str, *, discard_damaged: bool = False, fs: FileSystem | N
             report.actions.append(f"{'removed, its records lost' if removed else 'sealed with damage named in the manifest'}: {p}")
         report.actions += [f"removed {n}" for n in rec.removed_files]
         _declare_sealed_damage(store, report)
+        rebuild_headers(store, report.actions, report.unproven)
         _rebuild_indexes(store, report)
         _adopt_quarantine(store, report)
         for name in sorted(n for n in store.fs.listdir(path) if SIDE_FILE.match(n)):
             _salvage(store, name, report)
         if discard_damaged:
             _discard(store, report)
+            if report.unproven:  # what contradicted those headers may have been dropped just now
+                report.unproven = []
+                rebuild_headers(store, report.actions, report.unproven, discarded=True)
         report.damage_left = [describe_damage(d) for d in store.damage()]
         report.damage_left += [f"{QUARANTINE}/{n}: bytes cut from the log" for n in store.manifest.quarantine]
     return report

@@ -1,0 +1,113 @@
+"""`fsck --repair`: a sealed segment's damaged 32-byte header written again (FORMAT.md, "Repair").
+
+A segment header holds nothing a record needs: magic, version and flags have one right value,
+and first_seq is stated three more times, by the file name, by the manifest and by the first
+record's own seq (under its header CRC). When all three agree and every record behind the
+header is intact, the header is known and is written again, to a new file renamed over the
+old one (the sealed file is never written in place); when they do not, repair keeps the
+bytes and says why, rather than guess which one is right.
+"""
+
+from __future__ import annotations
+
+import os
+
+from .format import SEGMENT_HEADER, SEGMENT_HEADER_SIZE, Reason, pack_segment_header, segment_header_fault
+from .segment import Segment, lost_seqs, scan
+from .store import Store
+
+
+def rebuild_headers(store: Store, actions: list[str], unproven: list[str], *, discarded: bool = False) -> None:
+    """Rebuild every sealed segment's damaged header that can be proven; name the others
+    in `unproven`. Also forgets the manifest's entry for a header an earlier (interrupted)
+    repair rebuilt. `discarded`: after `--discard-damaged`, records in discarded stretches
+    (their seqs named as dropped) no longer count against a header: what the store keeps
+    then agrees with the name and the manifest."""
+    for seg, info in zip(store.sealed, store.manifest.segments):
+        name = os.path.basename(seg.path)
+        fault = segment_header_fault(store.fs.pread(seg.fd, SEGMENT_HEADER_SIZE, 0)[: seg.size], seg.first_seq)
+        if not fault:
+            if _header_entries(info):  # rebuilt before a crash stopped that repair: only the entry is left
+                _forget_header_damage(store, seg, info)
+                actions.append(f"the segment header of {name} is intact (rebuilt by an earlier repair): "
+                               "its damage entry is dropped from the manifest")  # fmt: skip
+            continue
+        why = _unprovable(seg, info, seg.known_damage if discarded else set())
+        if why:
+            unproven.append(f"{name}: segment header kept as it is, not rebuilt ({fault}): {why}")
+            continue
+        _rewrite(store, seg, _new_header(store, seg))
+        if _header_entries(info):
+            _forget_header_damage(store, seg, info)
+        actions.append(f"rebuilt the segment header of {name} ({fault}): first_seq {seg.first_seq}, as "
+                       f"{_proof(info, discarded)}")  # fmt: skip
+
+
+def _proof(info: dict, discarded: bool) -> str:
+    """What vouched for the rebuilt header's first_seq, and what became of the records."""
+    gone = [d for d in info.get("discarded", ()) if d["end_seq"] > d["first_seq"]] if discarded else []
+    if not gone:
+        return (f"its name, the manifest and its first record state; its {info['end_seq'] - info['first_seq']} "
+                "records kept byte for byte")  # fmt: skip
+    lost = ", ".join(lost_seqs(d["first_seq"], d["end_seq"]) for d in gone)
+    return f"its name and the manifest state (the records that did not agree were discarded: {lost})"
+
+
+def _header_entries(info: dict) -> list[dict]:
+    """The manifest's damage entries for the segment header (offset 0; a writer that opened
+    the segment while it was active sealed it with this entry)."""
+    return [d for d in info.get("damaged", ()) if d["offset"] == 0 and d["reason"] == Reason.BAD_SEGMENT_HEADER]
+
+
+def _unprovable(seg: Segment, info: dict, dropped: set[int]) -> str:
+    """Why the header cannot be known from the name, the manifest and the records ("" when
+    it can): the file must be the size the manifest states, its first record must state
+    the seq its name does, and every record must be intact up to the manifest's end_seq,
+    but for the stretches at the offsets `dropped` (discarded)."""
+    if seg.size != seg.sealed_size:
+        return f"the file is {seg.size} bytes, the manifest says {seg.sealed_size}"
+    if seg.size > SEGMENT_HEADER_SIZE and SEGMENT_HEADER_SIZE not in dropped:
+        first = seg.read_header(SEGMENT_HEADER_SIZE)
+        if first is None:
+            return (f"its first record (offset {SEGMENT_HEADER_SIZE}) is damaged too, so no record confirms "
+                    f"first_seq {seg.first_seq}")  # fmt: skip
+        if first.seq != seg.first_seq:
+            return (f"its first record states seq {first.seq}, but its name and the manifest say "
+                    f"{seg.first_seq}: which is right cannot be told, so nothing is guessed")  # fmt: skip
+    result = scan(seg, salvage=bool(dropped))  # records only: a scan never reads the segment header
+    bad = [p for p in (*result.damage, *([result.problem] if result.problem else [])) if p.offset not in dropped]
+    if bad:
+        return (f"a record behind it is damaged too ({bad[0].reason} at offset {bad[0].offset}; "
+                "`--discard-damaged` drops it and names its seqs)")  # fmt: skip
+    ends_dropped = result.problem is not None and result.problem.offset in dropped
+    if result.next_seq != info["end_seq"] and not ends_dropped:
+        return f"its records end at seq {result.next_seq}, the manifest says {info['end_seq']}"
+    return ""
+
+
+def _new_header(store: Store, seg: Segment) -> bytes:
+    """The header again. created_ns and manifest_gen have no value to check them against:
+    kept as the damaged header states them (created_ns only times an active segment's age),
+    but manifest_gen never later than the manifest's own generation, since a later one
+    would make a leftover of this file look like a rolled-back manifest's (recovery)."""
+    head = store.fs.pread(seg.fd, SEGMENT_HEADER_SIZE, 0)
+    created_ns, gen = SEGMENT_HEADER.unpack_from(head)[4:6] if len(head) == SEGMENT_HEADER_SIZE else (0, 0)
+    return pack_segment_header(seg.first_seq, created_ns, min(gen, store.manifest.generation))
+
+
+def _rewrite(store: Store, seg: Segment, header: bytes) -> None:
+    """A copy of the segment with the new header, fsynced, renamed over it, the directory
+    fsynced: a crash leaves the old file or the new one (same size, same records, so the
+    manifest and the index describe both) and at most a `.tmp`, which a writer removes."""
+    store.fs.copy_range_atomic(seg.fd, 0, seg.size, seg.path, head=header)
+    fd = store.fs.open(seg.path)
+    store.fs.close(seg.fd)
+    seg.fd = fd
+
+
+def _forget_header_damage(store: Store, seg: Segment, info: dict) -> None:
+    """Drop the header's damage entry: it lost no record, and the header is whole now."""
+    entries = _header_entries(info)
+    left = [d for d in info.get("damaged", ()) if d not in entries]
+    store.commit_manifest(store.manifest.with_damage(seg.first_seq, left, info["streams"], info.get("aged", {})))
+    seg.damage = [p for p in seg.damage if not (p.offset == 0 and p.reason == Reason.BAD_SEGMENT_HEADER)]
