@@ -12,7 +12,14 @@ from __future__ import annotations
 
 import os
 
-from .format import SEGMENT_HEADER, SEGMENT_HEADER_SIZE, Reason, pack_segment_header, segment_header_fault
+from .format import (
+    SEGMENT_HEADER,
+    SEGMENT_HEADER_SIZE,
+    TMP_SUFFIX,
+    Reason,
+    pack_segment_header,
+    segment_header_fault,
+)
 from .segment import Segment, lost_seqs, scan
 from .store import Store
 
@@ -99,7 +106,17 @@ def _rewrite(store: Store, seg: Segment, header: bytes) -> None:
     """A copy of the segment with the new header, fsynced, renamed over it, the directory
     fsynced: a crash leaves the old file or the new one (same size, same records, so the
     manifest and the index describe both) and at most a `.tmp`, which a writer removes."""
-    store.fs.copy_range_atomic(seg.fd, 0, seg.size, seg.path, head=header)
+    store._check_lock()  # as before every commit: LOCK must still be this writer's
+    tmp = seg.path + TMP_SUFFIX
+    try:
+        store.fs.copy_range_atomic(seg.fd, 0, seg.size, seg.path, head=header)
+    except OSError:
+        try:  # not renamed: the copy may be as large as the segment, on a disk that is full
+            if store.fs.exists(tmp):
+                store.fs.unlink(tmp)
+        except OSError:
+            pass  # a leftover `*.tmp`, removed by the writer's next open
+        raise
     fd = store.fs.open(seg.path)
     store.fs.close(seg.fd)
     seg.fd = fd

@@ -204,6 +204,7 @@ def test_a_failed_rename_changes_nothing_and_repair_runs_again(tmp_path, monkeyp
     with pytest.raises(OSError):
         repair_store(str(path))
     assert (path / SEALED).read_bytes() == data
+    assert not [n for n in os.listdir(path) if n.endswith(".tmp")]  # its space given back at once
     monkeypatch.undo()
     assert repair_store(str(path)).exit_code == 1
     assert not check_store(str(path)).findings and _windows(path) == before
@@ -240,3 +241,19 @@ def test_repair_refuses_while_a_writer_holds_the_store(tmp_path, capsys):
         assert writer.wait(timeout=60) == 0
     assert repair_store(str(path)).exit_code == 1  # the writer gone, the header is rebuilt
     assert not check_store(str(path)).findings
+
+
+def test_a_compacted_generation_is_rebuilt_under_its_own_name(tmp_path):
+    from cclogfs.store import Replacement
+
+    path = _store(tmp_path / "s")
+    with cclogfs.open_store(path) as store:  # seq 5 replaced: segment 4 becomes generation 1
+        store.rewrite(lambda w: Replacement([(w.start_ns, '{"r":1}')], {}) if w.seq == 5 else None)
+    name = segment_name(4, 1)
+    before, records = _windows(path), (path / name).read_bytes()[SEGMENT_HEADER_SIZE:]
+    _flip(path / name, 8)
+    report = repair_store(str(path))
+    assert report.exit_code == 1 and any(f"rebuilt the segment header of {name}" in a for a in report.actions)
+    assert not check_store(str(path)).findings
+    assert _windows(path) == before and (path / name).read_bytes()[SEGMENT_HEADER_SIZE:] == records
+    assert _segment_files(path) == [segment_name(0), name, segment_name(8)]
