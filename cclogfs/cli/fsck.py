@@ -20,7 +20,8 @@ exit status without --repair: 0 clean (warnings allowed), 1 damaged data found, 
 exit status with --repair (as e2fsck): 0 clean, nothing to do; 1 repaired, now clean;
   4 damage left (named in the manifest or quarantined: reads refuse it until
   --discard-damaged; or a damaged segment header whose first seq its name, the manifest
-  and its records do not all prove, kept as it is); 8 operational error (the store could not be opened or written).
+  and its records do not all prove, kept as it is); 8 operational error (the store could
+  not be opened or written, or another writer holds it).
 """
 
 

@@ -2,9 +2,10 @@
 
 Steps, each safe to repeat after a crash (FORMAT.md, "Repair"): open as the writer (recovery
 cuts an unsynced torn tail and names damage below the synced point in the manifest); rebuild
-every damaged segment header its name, the manifest and its records prove; rebuild every index that is missing, damaged or wrong; put every intact record of a side file back
-into the store (marked salvaged, never twice) and then move the side file into quarantine;
-with `discard_damaged`, forget the named damage and delete the quarantine.
+every damaged segment header its name, the manifest and its records prove; rebuild every
+index that is missing, damaged or wrong; put every intact record of a side file back into
+the store (marked salvaged, never twice) and then move the side file into quarantine; with
+`discard_damaged`, forget the named damage and delete the quarantine.
 """
 
 from __future__ import annotations
