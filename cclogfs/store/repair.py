@@ -16,8 +16,8 @@ import types
 from dataclasses import dataclass, field
 
 from ..codecs import codec_from_config
-from ..errors import CclogError, CorruptionError
-from .format import AGED_META_KEY, MANIFEST, QUARANTINE, SIDE_FILE, check_fields, index_size_limit
+from ..errors import CclogError, CorruptionError, StoreLockedError
+from .format import AGED_META_KEY, LOCK, MANIFEST, QUARANTINE, SIDE_FILE, check_fields, index_size_limit
 from .fs import FileSystem, FileTooLargeError
 from .header_repair import rebuild_headers
 from .records import intact_in
@@ -82,7 +82,16 @@ def _rebuild_manifest_if_damaged(path: str, fs: FileSystem, report: RepairReport
     try:
         Manifest.load(fs, manifest)
     except CorruptionError:
-        report.actions += rebuild_manifest(fs, path, codec_from_config("columnar").get_config())
+        # Under the writer's lock, as every other step: a writer still running would commit
+        # its own manifest over the rebuilt one.
+        lock = fs.lock(os.path.join(path, LOCK))
+        if lock is None:
+            raise StoreLockedError(f"{path} is locked by another writer; its {MANIFEST} is damaged and "
+                                   "is rebuilt only once that writer has stopped") from None  # fmt: skip
+        try:
+            report.actions += rebuild_manifest(fs, path, codec_from_config("columnar").get_config())
+        finally:
+            fs.unlock(lock)
 
 
 def _rebuild_indexes(store: Store, report: RepairReport) -> None:

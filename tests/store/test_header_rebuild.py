@@ -257,3 +257,21 @@ def test_a_compacted_generation_is_rebuilt_under_its_own_name(tmp_path):
     assert not check_store(str(path)).findings
     assert _windows(path) == before and (path / name).read_bytes()[SEGMENT_HEADER_SIZE:] == records
     assert _segment_files(path) == [segment_name(0), name, segment_name(8)]
+
+
+def test_repair_does_not_rebuild_a_damaged_manifest_under_a_running_writer(tmp_path, capsys):
+    # The manifest rebuild ran before repair took the lock: a writer that still held the
+    # store would then commit its own manifest over the rebuilt one.
+    path = _store(tmp_path / "s")
+    writer = subprocess.Popen([sys.executable, "-c", _WRITER, str(path)], stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True)  # fmt: skip
+    try:
+        assert writer.stdout.readline() == "open\n"
+        _flip(path / "MANIFEST", 20, 0x01)  # bit rot under the running writer
+        manifest = (path / "MANIFEST").read_bytes()
+        assert main(["fsck", "--repair", str(path)]) == 8
+        assert "locked by another writer" in capsys.readouterr().err
+        assert (path / "MANIFEST").read_bytes() == manifest and not (path / "quarantine").exists()
+    finally:
+        writer.stdin.close()
+        writer.wait(timeout=60)
