@@ -39,8 +39,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_record_limit(p)
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.add_argument("--repair", action="store_true",
-                   help="repair: rebuild indexes, cut an unsynced torn tail, salvage intact records of side "
-                        "files into the store, quarantine damaged bytes (exit 0/1/4/8, see below)")  # fmt: skip
+                   help="repair: rebuild indexes and damaged segment headers its records prove, cut an unsynced "
+                        "torn tail, salvage intact records of side files into the store, quarantine damaged "
+                        "bytes (exit 0/1/4/8, see below)")  # fmt: skip
     p.add_argument("--discard-damaged", action="store_true",
                    help="with --repair: drop the damage named in the manifest and the quarantined bytes; "
                         "the only way they are ever dropped")  # fmt: skip
