@@ -330,6 +330,16 @@ _SHORT = slice(1, 8)
 _SCHEMES = ("trapezoid", "previous", "current")
 
 
+def accepted_rows(t: np.ndarray, finite: np.ndarray) -> np.ndarray:
+    """The messages the default features use, by the live stream's rule: a finite message
+    whose stamp passes every earlier finite one (a rejected finite stamp never raises that
+    maximum). `classifier.usable` names the others."""
+    prev_max = np.maximum.accumulate(np.where(finite, t, np.iinfo(np.int64).min))
+    accepted = finite.copy()
+    accepted[1:] &= t[1:] > prev_max[:-1]
+    return accepted
+
+
 def _wrap(a: np.ndarray) -> np.ndarray:
     return (a + np.pi) % (2 * np.pi) - np.pi
 
@@ -441,13 +451,7 @@ class DefaultFeatures:
         t = odom.stamp_ns
         if n == 0:
             return X, valid
-        # Same rule as the live stream: accept a finite message whose stamp passes every
-        # earlier finite one (a rejected finite stamp never raises that maximum).
-        finite = np.isfinite(odom.raw).all(axis=1)
-        prev_max = np.maximum.accumulate(np.where(finite, t, np.iinfo(np.int64).min))
-        accepted = finite.copy()
-        accepted[1:] &= t[1:] > prev_max[:-1]
-        acc_idx = np.nonzero(accepted)[0]
+        acc_idx = np.nonzero(accepted_rows(t, np.isfinite(odom.raw).all(axis=1)))[0]
         if len(acc_idx) == 0:
             return X, valid
         ta = t[acc_idx]

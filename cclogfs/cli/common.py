@@ -237,25 +237,44 @@ def model_fits(model, model_path: str, source: str, topic: str, *, force: bool, 
     to 3,000 are read from the file (a live source or stdin is checked as it is recorded)."""
     import itertools
 
-    from ..classifier import parse_odometry
+    from ..classifier import make_features, parse_odometry
     from ..classifier.fit import compare, robot_stats
     from ..ingest import open_source
 
+    read_all = texts is not None
     if texts is None:
         if source == "-" or "://" in source:
             return
         with open_source(source, topics=[topic], on_error="skip", report=lambda err: None) as src:
             texts = [m.text for m in itertools.islice(src, 3000)]
+        read_all = len(texts) < 3000
     if not texts:
         raise InvalidInputError(f"{source} has no topic {topic}, the odometry model {model_path} scores; "
                                 f"{source_topics(source)}; name the odometry topic with --odom-topic T.")  # fmt: skip
-    far = compare(model.training, robot_stats([parse_odometry(texts)]))
+    odom = parse_odometry(texts)
+    name = source if read_all else f"{source} (the first {len(texts):,} messages)"
+    check_odometry(odom, make_features(model.feature_config), name, topic, "score")
+    far = compare(model.training, robot_stats([odom]))
     if far:
         said = f"model {model_path} was trained on a robot unlike {source}'s {topic}: {'; '.join(far)}"
         if not force:
             raise InvalidInputError(f"{said[0].upper()}{said[1:]}; pass --force-model to use it anyway, or train a model "
                                     "on this robot (`cclog train`).")  # fmt: skip
         print(f"cclog: warning: {said}", file=sys.stderr)
+
+
+def check_odometry(odom, feature_set, name: str, topic: str, job: str):
+    """Say which odometry messages of `name` the features leave out (NaN/inf values, stamps
+    that do not advance; `classifier.usable`): a warning on stderr, or an error when no
+    message is left to `job` ("train on", "score"). Returns the `Usable` report."""
+    from ..classifier.usable import usable
+
+    report = usable(odom, feature_set)
+    if report.left_out and not report.scored:
+        raise InvalidInputError(f"{report.describe(name, topic)}; no feature vector is left to {job}.")
+    if report.left_out:
+        print(f"cclog: warning: {report.describe(name, topic)}; {job} the rest.", file=sys.stderr)
+    return report
 
 
 DAMAGED_EXIT = 4  # the input was damaged: what could be read was kept

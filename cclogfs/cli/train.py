@@ -6,8 +6,8 @@ import argparse
 import time
 from pathlib import Path
 
-from ..errors import InvalidInputError
-from .common import load_labels
+from ..errors import InvalidInputError, ModelError
+from .common import check_odometry, load_labels
 
 EXAMPLES = """\
 examples:
@@ -40,14 +40,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     # Imported here, not at the top: `cclog --help` imports every subcommand module.
-    from ..classifier import OneClassModel, format_message_table, load_dataset, message_table, train
-    from ..pipeline import read_topic
+    from ..classifier import OneClassModel, format_message_table, load_dataset, make_features, message_table, train
 
     if args.labels and len(args.labels) != len(args.sources):
         raise InvalidInputError(f"--labels was given {len(args.labels)} times for {len(args.sources)} sources")
     if bool(args.validate) != bool(args.validate_labels):
         raise InvalidInputError("--validate and --validate-labels go together")
     started = time.perf_counter()
+    if args.validate:  # checked before training, so that a bad run fails in seconds, not after
+        (validate,), _ = _read_runs([args.validate], args.topic, make_features(args.features), "score")
     if len(args.sources) == 1 and (Path(args.sources[0]) / "dataset.json").is_file():
         config, nominal, anomalous = load_dataset(args.sources[0])
         model = OneClassModel(feature_config=config, topic=args.topic,
@@ -55,22 +56,48 @@ def run(args: argparse.Namespace) -> int:
         model.fit(nominal, anomalous if len(anomalous) else None)
         what = f"{len(nominal)} nominal vectors from {args.sources[0]}"
     else:
-        runs = [[text for _, text in read_topic(src, args.topic)] for src in args.sources]
-        for src, texts in zip(args.sources, runs):
-            if not texts:
-                raise InvalidInputError(f"{src} has no messages on topic {args.topic}")
+        runs, reports = _read_runs(args.sources, args.topic, make_features(args.features))
+        # A left-out message would only repeat the vector before it: train without them.
+        runs = [odom.take(r.accepted) if r.left_out else odom for odom, r in zip(runs, reports)]
         labels = [load_labels(p) for p in args.labels] if args.labels else None
-        model = train(runs, labels=labels, features=args.features, topic=args.topic,
-                      false_alarm_rate=args.false_alarm_rate)  # fmt: skip
-        what = f"{sum(len(r) for r in runs):,} {args.topic} messages from {len(runs)} run(s)"
+        try:
+            model = train(runs, labels=labels, features=args.features, topic=args.topic,
+                          false_alarm_rate=args.false_alarm_rate)  # fmt: skip
+        except ModelError as err:
+            if not any(r.left_out for r in reports):
+                raise
+            # Say which messages were missing, not only how few vectors were left.
+            said = "; ".join(r.describe(src, args.topic) for src, r in zip(args.sources, reports) if r.left_out)
+            raise ModelError(f"{str(err).rstrip('.')}: {said}.") from err
+        total = sum(r.total for r in reports)
+        what = (f"{sum(len(r) for r in runs):,}" + (f" of {total:,}" if any(r.left_out for r in reports) else "")
+                + f" {args.topic} messages from {len(runs)} run(s)")  # fmt: skip
     model.save(args.out)
     print(f"trained model {model.model_id_} on {what} in {time.perf_counter() - started:.1f} s: "
           f"{len(model.dual_coef_)} support vectors, nu={model.nu_:g}, gamma={model.gamma_:g}; saved {args.out}")
     if args.validate:
-        from ..classifier import Detector, parse_odometry
+        from ..classifier import Detector
 
-        odom = parse_odometry(text for _, text in read_topic(args.validate, args.topic))
-        _, flags = Detector(model).score_batch(odom)
+        _, flags = Detector(model).score_batch(validate)
         print(f"\nvalidation on {args.validate} (per message, as the paper's Table 1):")
-        print(format_message_table(message_table(odom.stamp_ns, flags, load_labels(args.validate_labels))))
+        print(format_message_table(message_table(validate.stamp_ns, flags, load_labels(args.validate_labels))))
     return 0
+
+
+def _read_runs(sources: list[str], topic: str, feature_set, job: str = "train on") -> tuple[list, list]:
+    """(OdomArrays, `Usable` report) of each source's `topic`: an error for a source without
+    it or whose every message the features leave out, a warning naming what was left out."""
+    from ..classifier import parse_odometry
+    from ..pipeline import read_topic
+
+    runs, reports = [], []
+    for src in sources:
+        texts = [text for _, text in read_topic(src, topic)]
+        if not texts:
+            raise InvalidInputError(f"{src} has no messages on topic {topic}")
+        try:
+            runs.append(parse_odometry(texts))
+        except InvalidInputError as err:
+            raise InvalidInputError(f"{src}, topic {topic}: {err}") from err
+        reports.append(check_odometry(runs[-1], feature_set, src, topic, job))
+    return runs, reports

@@ -12,7 +12,8 @@ from __future__ import annotations
 import re
 from collections import OrderedDict
 from collections.abc import Sequence
-from itertools import chain
+from itertools import chain, repeat
+from operator import itemgetter
 
 __all__ = ["ShapeMatcher", "split_text"]
 
@@ -31,13 +32,16 @@ _NUMBER = r"[-+.0-9A-Za-z]++"  # numbers, true/false/null, NaN, Infinity
 _TOKEN = re.compile(
     r"((?:[\s{}\[\],:]++|" + _STRING + r"\s*+:)*+)(" + _STRING + "|" + _NUMBER + ")", re.S
 )
-# Shapes with more value slots than this are not compiled into a matcher regex.
+# Shapes with more value slots than this have no matcher (their texts are grouped by
+# split_text alone).
 _MAX_MATCHER_SLOTS = 4096
-# Shapes whose literals hold more characters than this are not compiled into a regex of
-# their text: the re module spends ~1.3 us and ~130 bytes a literal character compiling
-# one (a message with a 4 MiB string took 5.5 s and 541 MiB), so such a shape is matched
-# by _LongShape instead, which finds the same values at linear cost.
+# Shapes whose literals hold more characters than this, or with more value slots, are not
+# compiled into a regex: the re module spends ~1.3 us and ~130 bytes a literal character
+# (a message with a 4 MiB string took 5.5 s and 541 MiB) and 60-90 us a value slot
+# compiling one (20 messages of ~2,000 numbers, a new shape each as the array length
+# varies, took 4-5 s). _LongShape finds the same values at linear cost without compiling.
 _MAX_REGEX_LITERALS = 4096
+_MAX_REGEX_SLOTS = 256
 # Messages besides the first that decide which values of a shape are constant.
 _PROBES = 4
 # Rounds of specialized matching before the rest of a window is grouped text by text.
@@ -47,20 +51,26 @@ _MAX_ROUNDS = 8
 def split_text(text: str) -> tuple[tuple[str, ...], list[str]] | None:
     """(literals, values) of a text, or None when the pieces would not rebuild it."""
     pairs = _TOKEN.findall(text)
-    used = sum(len(a) + len(b) for a, b in pairs)
+    joined = "".join(chain.from_iterable(pairs))
     # findall silently skips characters no token matches; then the pieces fall short.
-    if "".join(chain.from_iterable(pairs)) != text[:used]:
+    if not text.startswith(joined):
         return None
-    literals = tuple(a for a, _ in pairs) + (text[used:],)
-    return literals, [b for _, b in pairs]
+    # map/itemgetter, not generators: ~3x faster on a message of 80,000 values.
+    literals = tuple(map(itemgetter(0), pairs)) + (text[len(joined) :],)
+    return literals, list(map(itemgetter(1), pairs))
+
+
+def _kinds(values: Sequence[str]) -> tuple[bool, ...]:
+    """Whether each value is a string (else a number, true, false or null)."""
+    return tuple(map(str.startswith, values, repeat('"')))
 
 
 def _matcher(literals: tuple[str, ...], values: list[str]) -> re.Pattern[str] | _LongShape | None:
     """A regex that matches exactly the texts of this shape, one group per value."""
     if len(values) > _MAX_MATCHER_SLOTS:
         return None
-    if sum(map(len, literals)) > _MAX_REGEX_LITERALS:
-        return _LongShape(literals, tuple(v.startswith('"') for v in values))
+    if len(values) > _MAX_REGEX_SLOTS or sum(map(len, literals)) > _MAX_REGEX_LITERALS:
+        return _LongShape(literals, _kinds(values))
     parts = []
     for lit, val in zip(literals, values):
         parts.append(re.escape(lit))
@@ -84,27 +94,57 @@ def _skipper(literals: tuple[str, ...], kinds: tuple[bool, ...]) -> re.Pattern[s
     return re.compile("".join(parts), re.S)
 
 
-class _LongShape:
-    """`_matcher`'s regex for a shape with long literals: the same matches, linear cost.
+# One value token at a position, as the matcher regex's groups take them.
+_STRING_AT = re.compile(_STRING, re.S)
+_NUMBER_AT = re.compile(_NUMBER)
 
-    The skipper compiles each literal to one `.{n}` step whatever its length; a text it
-    matches is then checked literal by literal at the offsets it found. Those are the
-    regex's offsets: literals fix where each value starts, and each value token can end
-    in one place only (a string at its first unescaped quote, a number possessively).
+
+class _Found:
+    """What `_LongShape.fullmatch` found: the values, as `re.Match.groups()` gives them."""
+
+    __slots__ = ("_values",)
+
+    def __init__(self, values: tuple[str, ...]):
+        self._values = values
+
+    def groups(self) -> tuple[str, ...]:
+        return self._values
+
+
+class _LongShape:
+    """`_matcher`'s regex for a shape with long literals or many value slots: the same
+    matches, linear cost, nothing compiled.
+
+    A text is read literal by literal and value by value: literals fix where each value
+    starts, and each value token can end in one place only (a string at its first
+    unescaped quote, a number possessively), so these are the regex's values. The
+    compiled row finder (`_rows.c`) reads the same way where it is built; else the re
+    module reads one token at a time.
     """
 
     def __init__(self, literals: tuple[str, ...], kinds: tuple[bool, ...]):
         self._literals = literals
-        self._skipper = _skipper(literals, kinds)
+        self._kinds = kinds
+        self._tokens = [_STRING_AT.match if is_string else _NUMBER_AT.match for is_string in kinds]
 
-    def fullmatch(self, text: str) -> re.Match[str] | None:
-        match = self._skipper.fullmatch(text)  # type: ignore[union-attr] - slots are bounded first
-        if match is None:
-            return None
-        for j, lit in enumerate(self._literals):
-            if not text.startswith(lit, match.end(j) if j else 0):
+    def fullmatch(self, text: str) -> _Found | None:
+        if _match_rows_c is not None:
+            rows = _match_rows_c(self._literals, self._kinds, [text])
+            if rows is not NotImplemented:
+                return None if rows[0] is None else _Found(rows[0])
+        values, at = [], 0
+        for lit, token in zip(self._literals, self._tokens):
+            if not text.startswith(lit, at):
                 return None
-        return match
+            found = token(text, at + len(lit))
+            if found is None:
+                return None
+            values.append(found.group())
+            at = found.end()
+        last = self._literals[-1]
+        if len(text) - at != len(last) or not text.startswith(last, at):
+            return None
+        return _Found(tuple(values))
 
 
 def _rebuilds(literals: tuple[str, ...], rows: list[tuple], texts: list[str]) -> bool:
@@ -298,7 +338,7 @@ class ShapeMatcher:
         if split is None:
             return None
         literals, values = split
-        kinds = tuple(v.startswith('"') for v in values)
+        kinds = _kinds(values)
         generic = self._pattern((literals, kinds), literals, values)
         if generic is None:
             return ()
@@ -313,9 +353,11 @@ class ShapeMatcher:
             fixed = [False] * len(values)
         _keep_quaternions(values, fixed)
         merged, kept = bake(literals, values, fixed)
-        key = (merged, tuple(v.startswith('"') for v in kept))
+        key = (merged, _kinds(kept))
         pattern = self._pattern(key, merged, kept)
-        return merged, pattern, None if pattern is None else _skipper(merged, key[1]), key[1]
+        # A _LongShape reads its values itself: a skipper would cost the compile it saves.
+        skipper = _skipper(merged, key[1]) if isinstance(pattern, re.Pattern) else None
+        return merged, pattern, skipper, key[1]
 
     def group(self, texts: list[str | None]) -> tuple[dict[tuple, tuple[list[int], list]], list[int]]:
         """Group texts by shape: ({literals: (indices, value rows)}, indices without shape).
@@ -343,11 +385,13 @@ class ShapeMatcher:
                     unshaped.append(i)
                     continue
                 literals, values = split
-                key = (literals, tuple(v.startswith('"') for v in values))
                 # Equal literals imply an equal number of values (one between each pair).
                 indices, rows = groups.setdefault(literals, ([], []))
                 indices.append(i)
                 rows.append(tuple(values))
+                if len(values) > _MAX_MATCHER_SLOTS:
+                    continue  # no matcher: not worth the key
+                key = (literals, _kinds(values))
                 pattern = self._pattern(key, literals, values)
                 if pattern is not None and all(key != entry[0] for entry in recent):
                     recent.insert(0, (key, pattern, indices, rows))

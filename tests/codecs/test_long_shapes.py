@@ -93,15 +93,25 @@ values_ = st.recursive(leaves, lambda inner: st.lists(inner, max_size=3) | st.di
 INSERTS = st.sampled_from(["", '"', "\\", "\\\\", '\\"', "x", "-", " ", ",", "\u00e9", "\u20ac", "\n", "1e5", '"a"'])
 
 
+def _regex(literals, values):
+    """`shapes._matcher`'s regex even for a shape it would match as a _LongShape."""
+    saved = shapes._MAX_REGEX_SLOTS, shapes._MAX_REGEX_LITERALS
+    shapes._MAX_REGEX_SLOTS = shapes._MAX_REGEX_LITERALS = 1 << 30
+    try:
+        return shapes._matcher(literals, values)
+    finally:
+        shapes._MAX_REGEX_SLOTS, shapes._MAX_REGEX_LITERALS = saved
+
+
 @settings(max_examples=300)
 @given(st.builds(json.dumps, values_), st.lists(st.tuples(st.integers(0, 10_000), st.integers(0, 3), INSERTS), max_size=6))
-def test_a_long_shape_matches_what_the_regex_matches(text, edits):
+def test_a_long_shape_matches_what_the_regex_matches(row_path, text, edits):
     split = split_text(text)
     if split is None:  # not every JSON text tokenizes (a key that looks like a number)
         return
     literals, values = split
     kinds = tuple(v.startswith('"') for v in values)
-    regex = shapes._matcher(literals, values)
+    regex = _regex(literals, values)
     if regex is None or isinstance(regex, shapes._LongShape):
         return
     long_shape = shapes._LongShape(literals, kinds)
@@ -130,4 +140,42 @@ def test_real_windows_encode_the_same_with_every_shape_matched_as_long(shared_da
 
     want = encode_all()
     monkeypatch.setattr(shapes, "_MAX_REGEX_LITERALS", 0)
+    assert encode_all() == want
+    monkeypatch.setattr(shapes, "_MAX_REGEX_LITERALS", 4096)
+    monkeypatch.setattr(shapes, "_MAX_REGEX_SLOTS", 0)
+    assert encode_all() == want
+
+
+def _varying_arrays(count=20, start=1900, step=7):
+    """LaserScan-like messages whose ranges grow by `step` values a message: a new shape
+    each, of ~2,000 value slots and under 4,096 literal characters."""
+    texts = []
+    for i in range(count):
+        ranges = [round(0.1 + ((i * 7919 + j * 104729) % 9973) / 1000, 3) for j in range(start + step * i)]
+        texts.append(json.dumps({"header": {"stamp": {"sec": 100 + i, "nanosec": 0}, "frame_id": "laser"},
+                                 "ranges": ranges}))  # fmt: skip
+    return texts
+
+
+def test_many_varying_value_slots_compile_no_big_regex(short_regexes, row_path):
+    # Each message compiled regexes of ~2,000 groups (60-90 us a slot): 20 of them took
+    # 4-5 s of CPU to encode; read slot by slot they take ~0.1 s.
+    texts = _varying_arrays()
+    assert sum(map(len, split_text(texts[0])[0])) < 4096  # the old code compiled these
+    codec = ColumnarCodec()
+    payload = codec.encode(list(range(len(texts))), texts)
+    assert codec.decode(payload, count=len(texts), raw_len=_raw_len(texts)) == (list(range(len(texts))), texts)
+
+
+def test_many_varying_value_slots_encode_the_same_bytes_as_with_regexes(monkeypatch, row_path):
+    texts = _varying_arrays(count=12, start=300, step=-11)  # 300 to 179 slots: both sides of the limit
+    steady = [texts[0].replace("laser", "laser2")] * 5 + texts[:1] * 5  # a shape that repeats
+    windows = [texts, texts[:3], steady, texts[::-1]]
+
+    def encode_all():
+        codec = ColumnarCodec()
+        return [codec.encode(list(range(len(w))), w) for w in windows]
+
+    want = encode_all()
+    monkeypatch.setattr(shapes, "_MAX_REGEX_SLOTS", shapes._MAX_MATCHER_SLOTS)  # every shape a regex
     assert encode_all() == want
