@@ -393,6 +393,12 @@ def _exit_status(args: argparse.Namespace, source, stats: RecordStats, policy, r
     LOST when a live recording knows it lost messages, or the damaged-input code."""
     if stats.messages_in == 0 and not stats.interrupted:
         raise no_source_message(args.source, read_topics, source)
+    if args.topic and not stats.interrupted and not args.source.startswith("ros1://"):
+        # A JSONL source learns its topics by reading: a --topic it never had is found only
+        # now (a bag's is refused before recording), and would else go unmentioned, exit 0.
+        if missing := [t for t in dict.fromkeys(args.topic) if t not in stats.topics_in]:
+            raise InvalidInputError(f"{args.source} has no message on {' or '.join(missing)}; the other topics "
+                                    f"were recorded ({stats.messages_kept:,} messages kept).")  # fmt: skip
     if args.model and policy.scored == 0:  # a live source or stdin, checked only now
         raise InvalidInputError(f"{args.source} sent no message on {args.odom_topic}, the odometry the model scores, "
                                 "so nothing was kept; name the odometry topic with --odom-topic T.")  # fmt: skip
