@@ -54,9 +54,11 @@ from each publisher's header.seq (a gap means dropped messages); topics whose ty
 header (tf2_msgs/TFMessage) or whose seq does not count up are listed as not checked.
 
 exit status: 0 done, 1 error, 130 interrupted (file input), 4 ros1:// recorded but
-messages were lost (seq gaps, or received after the recording stopped and not stored).
+messages were lost (seq gaps, or received after the recording stopped and not stored),
+3 done but the store is still over --budget (as `cclog compact`).
 """
 LOST = 4  # the exit status when a live recording knows it lost messages
+OVER_BUDGET = 3  # as `cclog compact`: done, but the store is larger than --budget
 
 
 HELP = "log a bag, MCAP file or JSONL stream into a store"
@@ -345,7 +347,10 @@ def _run(args: argparse.Namespace) -> int:
     if args.features_out:
         _write_dataset(args, rows)
     _print_summary(args, source, stats, upkeep, final_bytes)
-    return _exit_status(args, source, stats, policy, read_topics, received)
+    status = _exit_status(args, source, stats, policy, read_topics, received)
+    if status == 0 and upkeep is not None and upkeep.budget is not None and final_bytes > upkeep.budget:
+        return OVER_BUDGET  # said on stderr as "NOT met"; a script must not take it for met
+    return status
 
 
 def _record_run(args: argparse.Namespace, store, source, policy, upkeep: Upkeep | None, progress,

@@ -176,6 +176,19 @@ def test_recorder_keeps_to_its_budget_as_it_goes(tmp_path, capsys):
     assert not check_store(store, deep=True).errors
 
 
+def test_recorder_over_its_budget_at_the_end_exits_3_as_compact_does(tmp_path, capsys):
+    """A budget smaller than the segment being written cannot be met: stderr said NOT met,
+    but the exit status was 0, so a script took it for met (found by attack)."""
+    jsonl(tmp_path / "run.jsonl", 4_050)  # the last 50 in the segment being written, 9 KiB
+    store = str(tmp_path / "s")
+    assert main(["record", str(tmp_path / "run.jsonl"), "--store", store, "--budget", "4KiB", "--chunk", "100",
+                 "--codec", "none"]) == 3
+    assert "budget 4.0 KiB NOT met" in capsys.readouterr().err
+    with cclogfs.open_store(store, readonly=True) as s:
+        assert s.data_bytes() > 4 << 10 and s.dropped()["segments"] >= 1
+    assert main(["compact", store, "--budget", "4KiB"]) == 3
+
+
 def test_recorder_ages_in_the_background_within_bounds(tmp_path, capsys):
     jsonl(tmp_path / "run.jsonl", 40_000)  # 2000 s at 20 Hz
     store = str(tmp_path / "s")
