@@ -114,7 +114,11 @@ def test_cli_ages_reports_and_exits_by_outcome(tmp_path, capsys):
     "args, match",
     [([], "Nothing to do"), (["--error", "x=y"], "PATTERN=BOUND"), (["--budget", "lots"], "Size 'lots'"),
      (["--older-than", "3 months", "--error", "1e-3"], "Duration"),
-     (["--older-than", "3d"], "give --error or --max-rate")],
+     (["--older-than", "3d"], "give --error or --max-rate"),
+     # A rule matching no field (misspelt, or with msg. in front) aged that field by the
+     # general bound, for good, exit 0 (found by attack); dry runs say so too.
+     (["--error", "1e-3", "--error", "pose.xx=0"], "--error 'pose.xx=0' matches no number field"),
+     (["--error", "1e-3", "--error", "msg.pose.x=0", "--dry-run"], "'msg.pose.x=0' matches no number field")],
 )  # fmt: skip
 def test_cli_refuses_bad_arguments_and_leaves_the_store_alone(tmp_path, capsys, args, match):
     build(tmp_path / "s", windows=3)
@@ -358,3 +362,15 @@ def test_dry_run_changes_nothing_and_foretells_the_real_run(tmp_path, capsys):
     with cclogfs.open_store(tmp_path / "t") as store:
         real = compact(store, budget=store.data_bytes() // 2)
     assert (dropping.segments_dropped, dropping.dropped) == (real.segments_dropped, real.dropped)
+
+
+def test_a_rule_is_checked_against_the_fields_of_what_ages(tmp_path, capsys):
+    build(tmp_path / "s", windows=3)
+    store = str(tmp_path / "s")
+    assert main(["compact", store, "--error", "1e-3", "--error", "pose.x=0", "--error", "*.stamp.*=0"]) == 0
+    with cclogfs.open_store(store, readonly=True) as s:
+        for w in s.query("/odom"):
+            assert [json.loads(t)["pose"]["x"] for _, t in w.messages()] == \
+                [json.loads(odom(i))["pose"]["x"] for i in range(w.seq // 2 * 50, w.seq // 2 * 50 + 50)]
+    policy = Policy([parse_rule("a.b=1"), parse_rule("a.*=1"), parse_rule("c=1"), parse_rule("s=1")])
+    assert [r.pattern for r in policy.unmatched(['{"a": {"b": [1.5, 2]}, "s": "1.5"}'])] == ["c", "s"]
