@@ -118,7 +118,9 @@ def test_cli_ages_reports_and_exits_by_outcome(tmp_path, capsys):
      # A rule matching no field (misspelt, or with msg. in front) aged that field by the
      # general bound, for good, exit 0 (found by attack); dry runs say so too.
      (["--error", "1e-3", "--error", "pose.xx=0"], "--error 'pose.xx=0' matches no number field"),
-     (["--error", "1e-3", "--error", "msg.pose.x=0", "--dry-run"], "'msg.pose.x=0' matches no number field")],
+     (["--error", "1e-3", "--error", "msg.pose.x=0", "--dry-run"], "'msg.pose.x=0' matches no number field"),
+     # A misspelt --stream said "nothing to age (no window old enough...)", exit 0.
+     (["--error", "1e-3", "--stream", "/odom", "--stream", "/odmo"], "--stream /odmo matches no stream of")],
 )  # fmt: skip
 def test_cli_refuses_bad_arguments_and_leaves_the_store_alone(tmp_path, capsys, args, match):
     build(tmp_path / "s", windows=3)
