@@ -20,10 +20,12 @@ from operator import itemgetter
 from typing import Any, Protocol
 
 from ._signals import signals_deferred as _signals_deferred
+from .classifier.summary import SUMMARY_TOPIC
 from .classifier.windows import PendingWindow
 from .errors import InvalidInputError, StoreError
 from .jsontext.check import text_error
 from .jsontext.rostypes import StreamTypes
+from .runs import RUNS_STREAM
 from .store import Store, open_store
 from .upkeep import Upkeep
 
@@ -144,10 +146,25 @@ class RecordStats:
             self.topics_in[topic] = self.topics_in.get(topic, 0) + n
 
 
-def check_message(topic: str, stamp_ns: Any, text: Any, *, check_json: bool = True) -> None:
+def reserved_topics(policy: Any) -> frozenset[str]:
+    """The streams a recording writes itself, which no source message may join: the runs
+    (else `cat` would leave the source's messages out as bookkeeping, and `cclog info` read
+    them as runs), and the summary of a policy that writes one (a keep-all recording of a
+    smart store's export keeps that store's summary as it was)."""
+    if getattr(policy, "summary", None) is not None:
+        return frozenset((RUNS_STREAM, SUMMARY_TOPIC))
+    return frozenset((RUNS_STREAM,))
+
+
+def check_message(topic: str, stamp_ns: Any, text: Any, *, check_json: bool = True,
+                  reserved: frozenset[str] = frozenset()) -> None:  # fmt: skip
     """InvalidInputError for a message the store would refuse, before any policy holds it
     (a window refused later would lose the good messages it holds too). The store's own
-    check (`text_error`); `check_json=False` skips only the JSON parse."""
+    check (`text_error`); `check_json=False` skips only the JSON parse. `reserved`: topics
+    the recording writes itself (`reserved_topics`)."""
+    if topic in reserved:
+        raise InvalidInputError(f"the source has a message on {topic} (at {stamp_ns}), the stream this recording "
+                                "writes itself; leave that topic out with --topic")  # fmt: skip
     if (why := text_error(text, check_json=check_json)) is not None:
         raise InvalidInputError(f"message on {topic!r} at {stamp_ns} {why}")
 
@@ -204,7 +221,8 @@ def record(messages: Iterable[Any], store: Store, policy: WindowPolicy, *,
     started = time.perf_counter()
     cut = _Cutter(store, policy, stats, types, window_s)
     batches = getattr(messages, "batches", None)
-    loop_args = {"check_json": check_json, "progress": progress, "stats": stats, "upkeep": upkeep, "types": types}
+    loop_args = {"check_json": check_json, "progress": progress, "stats": stats, "upkeep": upkeep, "types": types,
+                 "reserved": reserved_topics(policy)}
     try:
         if batches is not None and hasattr(policy, "push_many"):  # JSONL: a list of messages at a time
             _record_batches(batches(), store, policy, cut, **loop_args)
@@ -248,10 +266,10 @@ def _after_put(store: Store, upkeep: Upkeep | None) -> None:
 
 def _record_each(messages: Iterable[Any], store: Store, policy: WindowPolicy, cut: _Cutter, *,
                  check_json: bool, progress: Callable[[RecordStats], None] | None, stats: RecordStats,
-                 upkeep: Upkeep | None, types: StreamTypes | None) -> None:  # fmt: skip
+                 upkeep: Upkeep | None, types: StreamTypes | None, reserved: frozenset[str]) -> None:  # fmt: skip
     """`record`'s loop, a message at a time."""
     for m in messages:
-        check_message(m.topic, m.stamp_ns, m.text, check_json=check_json)
+        check_message(m.topic, m.stamp_ns, m.text, check_json=check_json, reserved=reserved)
         stats.saw(m.topic, m.text)
         if types is not None:
             types.saw(m.topic, getattr(m, "msgtype", ""))
@@ -271,7 +289,7 @@ def _record_each(messages: Iterable[Any], store: Store, policy: WindowPolicy, cu
 
 def _record_batches(batches: Iterable[Sequence[Any]], store: Store, policy: Any, cut: _Cutter, *,
                     check_json: bool, progress: Callable[[RecordStats], None] | None, stats: RecordStats,
-                    upkeep: Upkeep | None, types: StreamTypes | None) -> None:  # fmt: skip
+                    upkeep: Upkeep | None, types: StreamTypes | None, reserved: frozenset[str]) -> None:  # fmt: skip
     """`record`'s loop for a policy with `push_many` (KeepAll, SmartLogger) and a source
     that hands over lists of messages, each a (topic, stamp_ns, text, msgtype) tuple
     (`JsonlSource.batches`): the checks, counts and pushes of a list at once, the same
@@ -280,6 +298,9 @@ def _record_batches(batches: Iterable[Sequence[Any]], store: Store, policy: Any,
     for batch in batches:
         texts = list(map(itemgetter(2), batch))
         bad = first_bad_text(texts, check_json=check_json)
+        if not reserved.isdisjoint(map(itemgetter(0), batch)):
+            first = next(i for i, m in enumerate(batch) if m[0] in reserved)
+            bad = first if bad is None else min(bad, first)
         refused = None
         if bad is not None:
             refused, batch, texts = batch[bad], batch[:bad], texts[:bad]
@@ -299,7 +320,7 @@ def _record_batches(batches: Iterable[Sequence[Any]], store: Store, policy: Any,
         if progress is not None and stats.messages_in // 4096 > before // 4096:
             progress(stats)
         if refused is not None:  # after the messages before it, as message by message
-            check_message(refused.topic, refused.stamp_ns, refused.text, check_json=check_json)
+            check_message(refused.topic, refused.stamp_ns, refused.text, check_json=check_json, reserved=reserved)
 
 
 class _Interrupts:
@@ -359,7 +380,8 @@ class Logger:
         topic = topic_or_message
         if self.topics is not None and topic not in self.topics and topic != getattr(self.policy, "odom_topic", None):
             return
-        check_message(topic, stamp_ns, text)  # at the door: a bad message must not take a window with it
+        # at the door: a bad message must not take a window with it
+        check_message(topic, stamp_ns, text, reserved=reserved_topics(self.policy))
         with self._lock:
             if self.store is None:
                 raise StoreError("this Logger is closed")

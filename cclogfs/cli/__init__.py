@@ -48,12 +48,14 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     # The top-level parser has no options but --help, so a command comes first or not at all.
     command = argv[0] if argv and argv[0] in COMMANDS else ""
-    args = build_parser(command).parse_args(argv)
-    if getattr(args, "max_record_mib", None):
-        from ..store import format as store_format  # here: `cclog --help` need not import the store
-
-        store_format.DECODE_RAW_LIMIT = args.max_record_mib << 20
     try:
+        # Inside the try: building the parser imports the subcommand's module, a few tenths
+        # of a second in which a Ctrl-C gave a traceback instead of "interrupted".
+        args = build_parser(command).parse_args(argv)
+        if getattr(args, "max_record_mib", None):
+            from ..store import format as store_format  # here: `cclog --help` need not import the store
+
+            store_format.DECODE_RAW_LIMIT = args.max_record_mib << 20
         return int(args.func(args) or 0)
     except CclogError as err:
         from .common import cli_words

@@ -18,7 +18,7 @@ from ..errors import CorruptionError, InvalidInputError
 from ..textfmt import human_bytes, iso_ns, table
 from ..times import TIME_RULE, parse_time
 
-__all__ = ["Progress", "TIME_RULE", "add_selection", "check_range", "human_bytes", "iso_ns", "load_labels",
+__all__ = ["Progress", "TIME_RULE", "add_selection", "check_range", "check_store_topics", "human_bytes", "iso_ns", "load_labels",
            "nothing_matched", "parse_size", "selected_windows", "table", "time_arg"]  # fmt: skip
 
 _SIZE = re.compile(r"(\d+(?:\.\d*)?)\s*(B|KB|MB|GB|TB|KiB|MiB|GiB|TiB)?", re.IGNORECASE)
@@ -129,12 +129,28 @@ def nothing_matched(store, args: argparse.Namespace) -> InvalidInputError:
     return InvalidInputError(f"There is no message of {wanted}{times} in {store.path}; {what_exists(streams)}.")
 
 
+def check_store_topics(store, args: argparse.Namespace) -> None:
+    """Refuse a --topic naming no stream of the store when another --topic does: the
+    others' messages came out, exit 0, and the misspelt one was never mentioned. (When none
+    does, `nothing_matched` says so.)"""
+    if not args.topic or len(args.topic) < 2:
+        return
+    streams = store.streams()
+    missing = [t for t in dict.fromkeys(args.topic) if t not in streams]
+    if missing and len(missing) < len(set(args.topic)):
+        from ..runs import hidden_by_default
+
+        shown = {n: st for n, st in streams.items() if not hidden_by_default(n) or n in args.topic}
+        raise InvalidInputError(f"{store.path} has no stream {' or '.join(missing)}; {what_exists(shown)}.")
+
+
 def selected_windows(store, args: argparse.Namespace, skipped: Skipped | None = None):
     """The store's windows for the chosen topics and times, in start order. With
     `skipped` collecting (--skip-damaged), damaged windows are left out and noted there."""
     from ..runs import hidden_by_default
 
     check_range(args)
+    check_store_topics(store, args)
     topics = set(args.topic or ())
     name = next(iter(topics)) if len(topics) == 1 else None
     skip = skipped is not None and skipped.skip
@@ -217,9 +233,15 @@ def source_topics(path: str) -> str:
 
 
 def check_topics_exist(src, path: str, topics: list[str] | None) -> None:
-    """Refuse a --topic selection of which the source (when it knows its topics) has none."""
-    if topics and not src.topics():
-        raise InvalidInputError(f"{path} has no topic {' or '.join(topics)}; {source_topics(path)}.")
+    """Refuse a --topic selection of which the source (when it knows its topics) lacks one:
+    with none, nothing would be read; with some, the missing one was silently left out. A
+    source that learns its topics by reading (JSONL) lists the selection itself."""
+    if not topics:
+        return
+    known = src.topics()
+    missing = [t for t in dict.fromkeys(topics) if t not in known]
+    if missing:
+        raise InvalidInputError(f"{path} has no topic {' or '.join(missing)}; {source_topics(path)}.")
 
 
 def no_source_message(path: str, topics: list[str] | None, source=None) -> InvalidInputError:

@@ -80,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
                    budget=budget)  # fmt: skip
     if args.dry_run:
         with open_store(args.store, readonly=True) as store:
+            _check_selection(store, options)
             report = preview(store, **options)
     else:
         try:
@@ -89,12 +90,38 @@ def run(args: argparse.Namespace) -> int:
             raise StoreLockedError(f"{held}; compaction needs the writer's lock: stop the recorder first "
                                    "(`cclog record --budget` drops old segments while it runs)") from None
         with store:
+            _check_selection(store, options)
             report = compact(store, **options)
     if args.json:
         print(json.dumps(dict(report.to_dict(), dry_run=args.dry_run), indent=2))
     else:
         print(format_preview(report, policy, args) if args.dry_run else format_report(report, policy, args))
     return 3 if report.over_budget else 0
+
+
+def _check_selection(store, options: dict) -> None:
+    """Before anything ages, refuse a --stream pattern that matches no stream (it said
+    "nothing to age", exit 0) and an --error rule that matches no number field of what
+    would age: rounding is for good, and a misspelt field (or `msg.pose...`) was rounded by
+    the general bound with exit 0."""
+    from fnmatch import fnmatchcase
+
+    from ..upkeep import unmatched_rules
+
+    names = store.streams()
+    for pattern in options["streams"] or ():
+        if not any(fnmatchcase(name, pattern) for name in names):  # else "nothing to age", as if all were new
+            raise InvalidInputError(f"--stream {pattern} matches no stream of {store.path}; it holds "
+                                    f"{', '.join(sorted(names)) or 'no streams'}.")  # fmt: skip
+    policy = options["policy"]
+    if policy is None or not policy.rules:
+        return
+    unmatched = unmatched_rules(store, policy, before_ns=options["before_ns"], older_than_ns=options["older_than_ns"],
+                                streams=options["streams"])  # fmt: skip
+    if unmatched:
+        said = ", ".join(f"'{r.pattern}={r.bound:g}'" for r in unmatched)
+        raise InvalidInputError(f"--error {said} matches no number field of the windows to age (field patterns "
+                                "start inside msg: 'pose.covariance', not 'msg.pose.covariance'); nothing was aged.")
 
 
 def _aging_line(policy: Policy, args: argparse.Namespace) -> str:

@@ -66,9 +66,14 @@ def run(args: argparse.Namespace) -> int:
 def _write(src, out, args: argparse.Namespace) -> None:
     from ..jsontext.lines import format_line
 
+    seen: set[str] = set()
     with Progress("convert") as progress:
         for m in src:
             out.write(format_line(m.topic, m.stamp_ns, m.text))
+            seen.add(m.topic)
             progress()
     if progress.count == 0:  # raised inside the output's block: no empty output is left
         raise no_source_message(args.source, args.topic, src)
+    # A JSONL source learns its topics by reading (a bag's missing --topic is refused before).
+    if missing := [t for t in dict.fromkeys(args.topic or ()) if t not in seen]:
+        raise no_source_message(args.source, missing, src)

@@ -7,7 +7,7 @@ import sys
 import time
 
 from ..errors import InvalidInputError
-from .common import TIME_RULE, check_range, nothing_matched, time_arg
+from .common import TIME_RULE, check_range, check_store_topics, nothing_matched, time_arg
 
 # The engine and the players are imported where they are used, not here: `cclog --help`
 # imports every subcommand module.
@@ -66,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
         names = sorted(n for n in store.streams() if (n in args.topic if args.topic else not hidden_by_default(n)))
         if not names:
             raise nothing_matched(store, args)
+        check_store_topics(store, args)
         types = stream_types(store, names)
         _warn_long_span(store.streams(), names, args)
         send, close = _sink(args, store, names, types)

@@ -54,9 +54,11 @@ from each publisher's header.seq (a gap means dropped messages); topics whose ty
 header (tf2_msgs/TFMessage) or whose seq does not count up are listed as not checked.
 
 exit status: 0 done, 1 error, 130 interrupted (file input), 4 ros1:// recorded but
-messages were lost (seq gaps, or received after the recording stopped and not stored).
+messages were lost (seq gaps, or received after the recording stopped and not stored),
+3 done but the store is still over --budget (as `cclog compact`).
 """
 LOST = 4  # the exit status when a live recording knows it lost messages
+OVER_BUDGET = 3  # as `cclog compact`: done, but the store is larger than --budget
 
 
 HELP = "log a bag, MCAP file or JSONL stream into a store"
@@ -345,7 +347,10 @@ def _run(args: argparse.Namespace) -> int:
     if args.features_out:
         _write_dataset(args, rows)
     _print_summary(args, source, stats, upkeep, final_bytes)
-    return _exit_status(args, source, stats, policy, read_topics, received)
+    status = _exit_status(args, source, stats, policy, read_topics, received)
+    if status == 0 and upkeep is not None and upkeep.budget is not None and final_bytes > upkeep.budget:
+        return OVER_BUDGET  # said on stderr as "NOT met"; a script must not take it for met
+    return status
 
 
 def _record_run(args: argparse.Namespace, store, source, policy, upkeep: Upkeep | None, progress,
@@ -393,6 +398,12 @@ def _exit_status(args: argparse.Namespace, source, stats: RecordStats, policy, r
     LOST when a live recording knows it lost messages, or the damaged-input code."""
     if stats.messages_in == 0 and not stats.interrupted:
         raise no_source_message(args.source, read_topics, source)
+    if args.topic and not stats.interrupted and not args.source.startswith("ros1://"):
+        # A JSONL source learns its topics by reading: a --topic it never had is found only
+        # now (a bag's is refused before recording), and would else go unmentioned, exit 0.
+        if missing := [t for t in dict.fromkeys(args.topic) if t not in stats.topics_in]:
+            raise InvalidInputError(f"{args.source} has no message on {' or '.join(missing)}; the other topics "
+                                    f"were recorded ({stats.messages_kept:,} messages kept).")  # fmt: skip
     if args.model and policy.scored == 0:  # a live source or stdin, checked only now
         raise InvalidInputError(f"{args.source} sent no message on {args.odom_topic}, the odometry the model scores, "
                                 "so nothing was kept; name the odometry topic with --odom-topic T.")  # fmt: skip

@@ -10,7 +10,9 @@ column per message field with nested objects flattened to dotted names
 from __future__ import annotations
 
 import datetime as dt
+import errno
 import json
+import os
 import shutil
 from collections.abc import Iterable
 from pathlib import Path
@@ -80,13 +82,43 @@ def export_parquet(
             "without '/', '\\' or '='."
         )
     root = Path(out_dir) / f"robot={quote(robot, safe='')}"
-    if root.exists():
-        if not replace:
-            raise InvalidInputError(
-                f"{root} already holds an export for robot {robot!r}; remove it, pass "
-                "replace=True (--force), or choose another directory."
-            )
-        shutil.rmtree(root)
+    if root.exists() and not replace:
+        raise InvalidInputError(
+            f"{root} already holds an export for robot {robot!r}; remove it, pass "
+            "replace=True (--force), or choose another directory."
+        )
+    # Written beside its place and renamed in when whole, as the file exports are: a failed
+    # export (a stream name too long for a directory, a damaged window, Ctrl-C) left the
+    # partitions written so far, a partial data set, and with --force had deleted the old
+    # one first. The dot keeps the work hidden from Hive readers (Spark, `**/*.parquet`).
+    work = root.with_name(f".{root.name}.partial-{os.getpid()}")
+    shutil.rmtree(work, ignore_errors=True)
+    work.mkdir(parents=True)
+    try:
+        stats = _write_streams(windows, work, rows_per_part, progress)
+        _swap_in(work, root)
+    except BaseException:
+        shutil.rmtree(work, ignore_errors=True)
+        raise
+    stats.files = [str(root / Path(f).relative_to(work)) for f in stats.files]
+    return stats
+
+
+def _swap_in(work: Path, root: Path) -> None:
+    """Put the finished export `work` in the place of `root` (an older export, or none)."""
+    if not root.exists():
+        work.rename(root)
+        return
+    old = root.with_name(f".{root.name}.old-{os.getpid()}")
+    shutil.rmtree(old, ignore_errors=True)
+    root.rename(old)
+    work.rename(root)
+    shutil.rmtree(old)
+
+
+def _write_streams(windows: Iterable[StoredWindow], root: Path, rows_per_part: int,
+                   progress: Progress | None) -> ExportStats:  # fmt: skip
+    """Every window's messages as parts under `root`."""
     stats = ExportStats()
     streams: dict[str, _Stream] = {}
     for w in windows:
@@ -124,7 +156,15 @@ def _flush(root: Path, name: str, buf: _Stream, stats: ExportStats) -> None:
         part = table.filter(pc.equal(days, day))
         date = (_EPOCH + dt.timedelta(days=day)).isoformat()
         out = stream_dir / f"date={date}" / f"part-{buf.parts:05d}.parquet"
-        out.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            out.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            if err.errno != errno.ENAMETOOLONG:
+                raise
+            shown = repr(name) if len(name) <= 80 else f"{name[:60]!r}..."
+            raise InvalidInputError(f"Stream {shown} cannot be a Parquet partition: its directory name "
+                                    f"{stream_dir.name[:40]}... is too long for the file system; leave it out "
+                                    "with --topic.") from None  # fmt: skip
         pq.write_table(part, out, compression="zstd")
         stats.files.append(str(out))
     buf.parts += 1

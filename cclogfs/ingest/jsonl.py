@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import BinaryIO, Literal
 
 from ..errors import InvalidInputError, SourceError
+from ..jsontext.check import name_error
 from ..jsontext.lines import JsonlLineError, parse_line, split_canonical, split_canonical_bytes
 from .base import SourceMessage, topic_filter
 
@@ -99,6 +100,7 @@ class JsonlSource:
         self._report = report
         self.skipped = 0
         self._max_text = max_text_bytes
+        self._names_ok: set[str] = set()
         self._owned = str(path) != "-"
         self._file: BinaryIO | Iterator[list[bytes]]
         if self._owned:
@@ -145,6 +147,8 @@ class JsonlSource:
                 # too long to store. Such lines go the slow way, which checks the size.
                 messages = [None if len(raw) > self._max_text else m for raw, m in zip(lines, messages)]
             error = None
+            if bad := self._bad_names(messages):  # read again line by line, which names the line
+                messages = [None if m is not None and m.topic in bad else m for m in messages]
             if None in messages:
                 messages, error = self._settle(messages, lines, lineno)
             lineno += len(lines)
@@ -169,6 +173,15 @@ class JsonlSource:
             if message is not None:
                 out.append(message)
         return out, None
+
+    def _bad_names(self, messages: list[SourceMessage | None]) -> set[str]:
+        """Topics of the fast path's messages the store would refuse as stream names (a
+        C1 control character, over 1024 bytes): the fast layout already keeps out escapes
+        and C0 controls. Each name is checked once per source."""
+        new = {m.topic for m in messages if m is not None}.difference(self._names_ok)
+        bad = {name for name in new if name_error(name) is not None}
+        self._names_ok.update(new - bad)
+        return bad
 
     def _line_batches(self) -> Iterator[list[bytes]]:
         if not self._owned:  # standard input: already a list per read
@@ -197,6 +210,11 @@ class JsonlSource:
             message = SourceMessage(*parse_line(line))
         except JsonlLineError as err:
             self._bad_line(lineno, str(err))
+            return None
+        if (why := name_error(message.topic)) is not None:
+            # Here, not when the store refuses its window: that loses the window's good
+            # messages, and names no line.
+            self._bad_line(lineno, f"'topic' {why}")
             return None
         if self._max_text is not None and len(raw) > self._max_text:
             size = len(message.text.encode())

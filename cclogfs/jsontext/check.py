@@ -12,13 +12,18 @@ from __future__ import annotations
 import json
 import re
 import threading
+import unicodedata
 
 try:
     import simdjson
 except ImportError:  # the fast path is optional: `json` alone gives the same answers
     simdjson = None
 
-__all__ = ["json_error", "object_members", "text_error"]
+__all__ = ["NAME_MAX_BYTES", "json_error", "name_error", "object_members", "text_error"]
+
+# A stream name's limit in a record header (store/format.py MAX_NAME; a test checks they agree),
+# here so that a source can refuse a name per line before the store would refuse its window.
+NAME_MAX_BYTES = 1024
 
 _decoder = json.JSONDecoder()
 _local = threading.local()  # a simdjson parser is not thread-safe
@@ -85,4 +90,20 @@ def text_error(text: object, *, check_json: bool = True) -> str | None:
         return f"is not well-formed JSON: {why}"
     if not text.isascii() and _SURROGATE.search(text):
         return "is not valid UTF-8 text: surrogates not allowed"
+    return None
+
+
+def name_error(name: str, max_bytes: int = NAME_MAX_BYTES) -> str | None:
+    """None when the store takes `name` (non-empty) as a stream name, else why not, phrased to
+    follow the name. Names are data, never paths (`../x` is fine); a control character is
+    refused since it would garble every listing and error that prints the name."""
+    try:
+        size = len(name.encode("utf-8"))
+    except UnicodeEncodeError as err:
+        return f"is not valid UTF-8: {err.reason}"
+    if size > max_bytes:
+        return f"is {size} bytes as UTF-8, over the {max_bytes}-byte limit"
+    for ch in name:
+        if unicodedata.category(ch) == "Cc":
+            return f"contains the control character {ch!r}"
     return None

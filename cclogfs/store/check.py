@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import operator
-import unicodedata
 from collections.abc import Sequence
 
 from ..errors import InvalidInputError
 from .format import MAX_COUNT, MAX_NAME, MAX_NS, MIN_NS
-from ..jsontext.check import text_error
+from ..jsontext.check import name_error, text_error
 
 
 def check_stream_name(name: object) -> bytes:
@@ -17,16 +16,10 @@ def check_stream_name(name: object) -> bytes:
         raise InvalidInputError(f"stream name must be a str, got {type(name).__name__}")
     if not name:
         raise InvalidInputError("stream name must not be empty")
-    try:
-        data = name.encode("utf-8")
-    except UnicodeEncodeError as err:
-        raise InvalidInputError(f"stream name {name!r} is not valid UTF-8: {err.reason}") from err
-    if len(data) > MAX_NAME:
-        raise InvalidInputError(f"stream name is {len(data)} bytes as UTF-8, over the {MAX_NAME}-byte limit")
-    for ch in name:
-        if unicodedata.category(ch) == "Cc":
-            raise InvalidInputError(f"stream name {name!r} contains the control character {ch!r}")
-    return data
+    if (why := name_error(name, MAX_NAME)) is not None:
+        shown = repr(name) if len(name) <= 80 else f"{name[:60]!r}..."
+        raise InvalidInputError(f"stream name {shown} {why}")
+    return name.encode("utf-8")
 
 
 def encode_messages(messages: Sequence[tuple[int, str]], *, check_json: bool = True) -> tuple[list[int], list[str]]:

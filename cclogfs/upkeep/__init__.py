@@ -9,8 +9,8 @@ docs/UPKEEP.md describes the commands and the guarantees.
 """
 
 from .background import Upkeep
-from .job import DEFAULT_EXCLUDE, CompactReport, compact, passes_of, preview
+from .job import DEFAULT_EXCLUDE, CompactReport, compact, passes_of, preview, unmatched_rules
 from .policy import Policy, Rule, grid_step, parse_rule
 
-__all__ = ["DEFAULT_EXCLUDE", "CompactReport", "Policy", "Rule", "Upkeep", "compact", "grid_step", "parse_rule",
+__all__ = ["DEFAULT_EXCLUDE", "CompactReport", "Policy", "Rule", "Upkeep", "compact", "grid_step", "parse_rule", "unmatched_rules",
            "passes_of", "preview"]  # fmt: skip

@@ -35,7 +35,7 @@ from ..store import RecordFlag, Replacement, Store, Window, file_bytes, merge_st
 from .policy import Policy
 
 __all__ = ["DEFAULT_EXCLUDE", "CompactReport", "Stopped", "age_segments", "candidate_segments", "compact", "no_space",
-           "passes_of", "preview", "room_to_age", "selected"]  # fmt: skip
+           "passes_of", "preview", "room_to_age", "selected", "unmatched_rules"]  # fmt: skip
 
 # The smart-logging summary answers "how far did the robot drive this year"; it is tiny,
 # so it stays exact unless a stream pattern names it.
@@ -188,6 +188,22 @@ def preview(
             merge_stream_stats(report.dropped, seg.streams)
     report.disk_after = size
     return report
+
+
+def unmatched_rules(store: Store, policy: Policy, *, before_ns: int | None = None, older_than_ns: int | None = None,
+                    streams: Sequence[str] | None = None) -> list:  # fmt: skip
+    """The policy's rules that match no number field of the first window due in each stream
+    (`Policy.unmatched`), to refuse before aging changes anything for good. One window per
+    stream: a stream's messages share their type, and reading every window would cost a
+    second pass over all that ages."""
+    desc, cutoff = policy.describe(), _cutoffs(store, before_ns, older_than_ns)
+    seen: set[str] = set()
+    texts: list[str] = []
+    for w in store.query():
+        if w.name not in seen and _due(w, desc, cutoff, streams):
+            seen.add(w.name)
+            texts.extend(text for _, text in w.messages())
+    return policy.unmatched(texts) if texts else []
 
 
 def passes_of(window: Window) -> list:

@@ -61,3 +61,33 @@ def test_convert_and_record_of_a_missing_topic_fail_naming_the_topics(shared_dat
     assert "it holds /a" in capsys.readouterr().err and not (tmp_path / "o.jsonl").exists()
     assert main(["record", str(src), "--store", str(tmp_path / "s2"), "--topic", "/b"]) == 1
     assert "it holds /a" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv", [
+    ["cat", "{s}", "--topic", "/odom", "--topic", "/gps"],
+    ["export", "{s}", "--topic", "/odom", "--topic", "/gps", "--mcap", "{t}/o.mcap"],
+    ["export", "{s}", "--topic", "/gps", "--topic", "/odom", "--parquet", "{t}/lake"],
+    ["play", "{s}", "--topic", "/odom", "--topic", "/gps", "--rate", "1000"],
+])  # fmt: skip
+def test_one_of_several_topics_missing_from_a_store_is_an_error(store, tmp_path, capsys, argv):
+    """A misspelt --topic beside a right one gave the right one's messages, exit 0, and said
+    nothing of the other (found by attack)."""
+    assert main([a.format(s=store, t=tmp_path) for a in argv]) == 1
+    cap = capsys.readouterr()
+    assert cap.out == "" and "has no stream /gps; it holds /odom (" in cap.err
+    assert not (tmp_path / "o.mcap").exists() and not (tmp_path / "lake").exists()
+
+
+def test_one_of_several_topics_missing_from_a_source_is_an_error(shared_data, tmp_path, capsys):
+    bag = str(shared_data("tf_example.bag"))
+    assert main(["convert", bag, "-o", str(tmp_path / "o.jsonl"), "--topic", "/tf", "--topic", "/tff"]) == 1
+    assert "has no topic /tff; it holds /tf, /tf_static" in capsys.readouterr().err
+    assert main(["record", bag, "--store", str(tmp_path / "s"), "--topic", "/tf", "--topic", "/tff"]) == 1
+    assert "has no topic /tff" in capsys.readouterr().err and not (tmp_path / "s").exists()
+    # JSONL learns its topics by reading: convert leaves no output, record says so after the run.
+    src = tmp_path / "in.jsonl"
+    src.write_text("".join(json.dumps({"topic": "/a", "stamp_ns": i, "msg": {}}) + "\n" for i in range(3)))
+    assert main(["convert", str(src), "-o", str(tmp_path / "o.jsonl"), "--topic", "/a", "--topic", "/b"]) == 1
+    assert "yielded no topic /b; it holds /a" in capsys.readouterr().err and not (tmp_path / "o.jsonl").exists()
+    assert main(["record", str(src), "--store", str(tmp_path / "s2"), "--topic", "/a", "--topic", "/b"]) == 1
+    assert "has no message on /b; the other topics were recorded (3 messages kept)" in capsys.readouterr().err

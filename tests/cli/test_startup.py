@@ -52,3 +52,18 @@ def test_cat_loads_the_store_and_no_exporter_or_source(tmp_path):
     # the index and the columnar decoder are plain Python.
     assert not got & {"numpy", "pyarrow", "rosbags", "mcap", "sklearn", "cclogfs.classifier", "cclogfs.ingest",
                       "cclogfs.export.parquet", "cclogfs.export.mcap", "cclogfs.sim", "cclogfs.pipeline"}
+
+
+def test_ctrl_c_while_loading_a_command_is_interrupted_not_a_traceback(monkeypatch, capsys):
+    """A Ctrl-C in the first half second (found by attack: /tmp/atk3/sigint.py, SIGINT 0.15 s
+    after starting `cclog record`) printed a KeyboardInterrupt traceback from the import."""
+    import importlib
+
+    from cclogfs.cli import main
+
+    def interrupted(name, *args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(importlib, "import_module", interrupted)
+    assert main(["record", "x.jsonl", "--store", "s"]) == 130
+    assert capsys.readouterr().err == "cclog: interrupted\n"

@@ -113,3 +113,22 @@ def test_types_partitions_and_refusals(tmp_path):
     assert len(list((tmp_path / "robot=r").rglob("*.parquet"))) == 1
     with pytest.raises(InvalidInputError, match=r"Robot name 'a/b' cannot be a partition"):
         export_parquet(windows, tmp_path, robot="a/b")
+
+
+def test_a_failed_export_leaves_the_old_partition_whole_and_no_part_of_the_new(tmp_path):
+    """A stream name too long for a directory (legal in a store: up to 1024 bytes) failed
+    the export after the streams before it were written, and with --force after the old
+    export was deleted (found by attack: /tmp/atk3/parquet_partial.sh)."""
+    old = [FakeWindow("/old", 0, [(5, '{"a": 1}')])]
+    export_parquet(old, tmp_path, robot="r")
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    new = [FakeWindow("/a", 0, [(5, '{"a": 1}')]), FakeWindow("/" + "l" * 300, 1, [(6, '{"a": 2}')])]
+    with pytest.raises(InvalidInputError, match=r"Stream '/l+'\.\.\. cannot be a Parquet partition"):
+        export_parquet(new, tmp_path, robot="r", replace=True)
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
+    with pytest.raises(InvalidInputError, match=r"cannot be a Parquet partition"):
+        export_parquet(new, tmp_path, robot="s")
+    assert not list(tmp_path.glob("*robot=s*"))
+    stats = export_parquet(new[:1], tmp_path, robot="r", replace=True)  # and a good one replaces it
+    assert stats.files == [str(tmp_path / "robot=r/stream=%2Fa/date=1970-01-01/part-00000.parquet")]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["robot=r"]

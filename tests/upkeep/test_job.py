@@ -78,7 +78,7 @@ def test_same_policy_twice_rewrites_nothing_and_a_new_one_adds_a_pass(tmp_path):
     with cclogfs.open_store(tmp_path / "s", readonly=True) as s:
         w = next(iter(s.query("/odom")))
         assert [p["rules"] for p in w.aged] == [[["**", 0.001]], [["**", 0.01]]]
-        assert len(list(w.messages())) == 11  # 2 Hz over 4.9 s, first and last kept
+        assert len(list(w.messages())) == 10  # 2 Hz over 4.9 s: 0, 0.5 .. 4.0 s and the last (4.9 s; not 4.5)
         assert (w.start_ns, w.end_ns) == (0, 49 * NS // 10)
 
 
@@ -114,7 +114,13 @@ def test_cli_ages_reports_and_exits_by_outcome(tmp_path, capsys):
     "args, match",
     [([], "Nothing to do"), (["--error", "x=y"], "PATTERN=BOUND"), (["--budget", "lots"], "Size 'lots'"),
      (["--older-than", "3 months", "--error", "1e-3"], "Duration"),
-     (["--older-than", "3d"], "give --error or --max-rate")],
+     (["--older-than", "3d"], "give --error or --max-rate"),
+     # A rule matching no field (misspelt, or with msg. in front) aged that field by the
+     # general bound, for good, exit 0 (found by attack); dry runs say so too.
+     (["--error", "1e-3", "--error", "pose.xx=0"], "--error 'pose.xx=0' matches no number field"),
+     (["--error", "1e-3", "--error", "msg.pose.x=0", "--dry-run"], "'msg.pose.x=0' matches no number field"),
+     # A misspelt --stream said "nothing to age (no window old enough...)", exit 0.
+     (["--error", "1e-3", "--stream", "/odom", "--stream", "/odmo"], "--stream /odmo matches no stream of")],
 )  # fmt: skip
 def test_cli_refuses_bad_arguments_and_leaves_the_store_alone(tmp_path, capsys, args, match):
     build(tmp_path / "s", windows=3)
@@ -174,6 +180,19 @@ def test_recorder_keeps_to_its_budget_as_it_goes(tmp_path, capsys):
         assert [w.seq for w in windows] == list(range(windows[0].seq, windows[0].seq + len(windows)))
         assert all(w.aged is None for w in windows)
     assert not check_store(store, deep=True).errors
+
+
+def test_recorder_over_its_budget_at_the_end_exits_3_as_compact_does(tmp_path, capsys):
+    """A budget smaller than the segment being written cannot be met: stderr said NOT met,
+    but the exit status was 0, so a script took it for met (found by attack)."""
+    jsonl(tmp_path / "run.jsonl", 4_050)  # the last 50 in the segment being written, 9 KiB
+    store = str(tmp_path / "s")
+    assert main(["record", str(tmp_path / "run.jsonl"), "--store", store, "--budget", "4KiB", "--chunk", "100",
+                 "--codec", "none"]) == 3
+    assert "budget 4.0 KiB NOT met" in capsys.readouterr().err
+    with cclogfs.open_store(store, readonly=True) as s:
+        assert s.data_bytes() > 4 << 10 and s.dropped()["segments"] >= 1
+    assert main(["compact", store, "--budget", "4KiB"]) == 3
 
 
 def test_recorder_ages_in_the_background_within_bounds(tmp_path, capsys):
@@ -345,3 +364,15 @@ def test_dry_run_changes_nothing_and_foretells_the_real_run(tmp_path, capsys):
     with cclogfs.open_store(tmp_path / "t") as store:
         real = compact(store, budget=store.data_bytes() // 2)
     assert (dropping.segments_dropped, dropping.dropped) == (real.segments_dropped, real.dropped)
+
+
+def test_a_rule_is_checked_against_the_fields_of_what_ages(tmp_path, capsys):
+    build(tmp_path / "s", windows=3)
+    store = str(tmp_path / "s")
+    assert main(["compact", store, "--error", "1e-3", "--error", "pose.x=0", "--error", "*.stamp.*=0"]) == 0
+    with cclogfs.open_store(store, readonly=True) as s:
+        for w in s.query("/odom"):
+            assert [json.loads(t)["pose"]["x"] for _, t in w.messages()] == \
+                [json.loads(odom(i))["pose"]["x"] for i in range(w.seq // 2 * 50, w.seq // 2 * 50 + 50)]
+    policy = Policy([parse_rule("a.b=1"), parse_rule("a.*=1"), parse_rule("c=1"), parse_rule("s=1")])
+    assert [r.pattern for r in policy.unmatched(['{"a": {"b": [1.5, 2]}, "s": "1.5"}'])] == ["c", "s"]

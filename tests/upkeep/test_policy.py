@@ -137,7 +137,21 @@ def test_thinning_keeps_first_and_last_and_the_rate():
     assert kept[0] == msgs[0] and kept[-1] == msgs[-1]
     assert len(kept) == 11
     gaps = [b[0] - a[0] for a, b in zip(kept, kept[1:])]
-    assert min(gaps[:-1]) >= 100_000_000
+    assert min(gaps) >= 100_000_000
+
+
+@pytest.mark.parametrize("n", [2, 3, 4, 105, 106, 109, 110])
+def test_thinning_holds_the_rate_at_the_end_of_a_window_too(n):
+    """The last message was kept however close it came after the one kept before it: twice
+    the rate at each window's end (found by attack: compact --max-rate 2, tuc_corridor)."""
+    msgs = [(i * 10_000_000, "{}") for i in range(n)]  # 100 Hz
+    policy = Policy(max_rate_hz=10)
+    kept = policy.thin(msgs)
+    assert kept[0] == msgs[0] and kept[-1] == msgs[-1]
+    if len(kept) > 2:
+        assert min(b[0] - a[0] for a, b in zip(kept, kept[1:])) >= 100_000_000
+    assert len(kept) == max(2, 1 + (n - 1) // 10) if n > 1 else 1
+    assert policy.thin(kept) == kept  # aging again changes nothing
 
 
 @pytest.mark.parametrize(
