@@ -173,7 +173,8 @@ class WindowBuilder:
             w.last_ns = stamp_ns
             self._take_pending(stamp_ns, out)
             if anomalous:
-                self._reach_back(stamp_ns - reach, out)
+                if self.back and self.back[-1][0] >= stamp_ns - reach - self.before_ns:  # inline: most do not
+                    self._reach_back(stamp_ns - reach, out)
                 self._trigger(stamp_ns, score)
             else:
                 if self.hold_score is not None and score > self.hold_score:
@@ -323,9 +324,9 @@ class WindowBuilder:
     def _reach_back(self, from_ns: int, out: list[PendingWindow]) -> None:
         """An anomaly in the open window whose evidence starts at `from_ns`: the window
         starts `before` ahead of that, taking back what its start had left out."""
-        lo = from_ns - (self.before_ns or 0)
-        if not self.back or self.back[-1][0] < lo:
+        if not self.back or self.back[-1][0] < from_ns - self.before_ns:  # none needed
             return
+        lo = from_ns - self.before_ns
         take = []
         while self.back and self.back[-1][0] >= lo:
             take.append(self.back.pop())
