@@ -39,7 +39,8 @@ from cclogfs.classifier.evaluate import detection_delays, event_table, window_sp
 from cclogfs.classifier.features import NS, OdomArrays, parse_odometry  # noqa: E402
 from cclogfs.classifier.testing import inject, odom_texts, read_odometry, resample  # noqa: E402
 from cclogfs.errors import ModelError  # noqa: E402
-from cclogfs.pipeline import WINDOW_AFTER, WINDOW_BEFORE, smart_policy  # noqa: E402
+from cclogfs.classifier.api import SmartLogger  # noqa: E402
+from cclogfs.pipeline import WINDOW_AFTER, WINDOW_BEFORE, parse_span, smart_policy  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "long"
 OUT = ROOT / "out" / "classifier_long.json"
@@ -111,6 +112,11 @@ def smart_run(model, odom: OdomArrays, labels: dict, args) -> dict:
     of issue 15."""
     texts = odom_texts(odom)
     policy = smart_policy(model, summary=False, before=args.before, after=args.after)
+    if args.window:  # other window options (merge_s, hold_score, lookback_max_s, ...)
+        b_n, b_s = parse_span(args.before)
+        a_n, a_s = parse_span(args.after)
+        policy = SmartLogger(policy.detector, odom_topic=policy.odom_topic, before=b_n, after=a_n, before_s=b_s,
+                             after_s=a_s, batch=64, summary_period_s=None, **args.window)  # fmt: skip
     t0 = time.perf_counter()
     windows = policy.replay([("/odom", int(s), x) for s, x in zip(odom.stamp_ns, texts)])
     replay_s = time.perf_counter() - t0
@@ -125,13 +131,51 @@ def smart_run(model, odom: OdomArrays, labels: dict, args) -> dict:
             missed.append(f"{ev['kind']}@{ev['severity']}")
     if args.explain:
         explain(model, odom, spans, labels, policy.detector)
-    return e | {
+    scores, _ = policy.detector.score_batch(odom)
+    return e | {"kept_parts": kept_parts(odom.stamp_ns, scores, spans, labels, policy.windows.hold_score),
         "kept_bytes_fraction": kept_bytes / sum(len(x) for x in texts),
         "replay_msg_per_s": len(texts) / replay_s, "missed": missed,
         "flagged_fraction": float(flags.mean()),
         "false_spans": [(a, b) for a, b in spans
                         if not any(a <= x["end_ns"] and x["start_ns"] <= b for x in labels["events"])],
     }  # fmt: skip
+
+
+def kept_parts(stamp_ns: np.ndarray, scores: np.ndarray, spans: list, labels: dict,
+               hold: float | None) -> dict:
+    """Where the kept messages go, as fractions of all messages (they sum to the share
+    kept): per window, true (touching an event) or false, the messages inside an event,
+    and of the others the context before its first flagged message, from its first to
+    its last flag those flagged (score > 0), held (above the hold level) or neither (a
+    merged gap), and the context after its last flag. "before_s": per window, seconds from
+    its start to its first flag."""
+    events = [(e["start_ns"], e["end_ns"]) for e in labels["events"]]
+    in_event = np.zeros(len(stamp_ns), dtype=bool)
+    for a, b in events:
+        in_event[np.searchsorted(stamp_ns, a, "left") : np.searchsorted(stamp_ns, b, "right")] = True
+    flags = np.nan_to_num(scores, nan=-np.inf) > 0
+    held = np.nan_to_num(scores, nan=-np.inf) > (0.0 if hold is None else hold)
+    out = {f"{side}_{part}": 0 for side in ("true", "false") for part in PARTS}
+    before_s = {"true": [], "false": []}
+    for a, b in spans:
+        i, j = np.searchsorted(stamp_ns, a, "left"), np.searchsorted(stamp_ns, b, "right")
+        side = "true" if any(a <= y and x <= b for x, y in events) else "false"
+        hit = np.nonzero(flags[i:j])[0]
+        f, g = (i + hit[0], i + hit[-1] + 1) if len(hit) else (j, j)
+        if len(hit):
+            before_s[side].append((stamp_ns[f] - stamp_ns[i]) / NS)
+        ev = in_event[i:j]
+        part = np.full(j - i, 5)  # after
+        part[: f - i] = 0  # before
+        mid = slice(f - i, g - i)
+        part[mid] = np.where(flags[f:g], 2, np.where(held[f:g], 3, 4))
+        part[ev] = 1
+        for k, name in enumerate(PARTS):
+            out[f"{side}_{name}"] += int(np.sum(part == k))
+    return {k: v / len(stamp_ns) for k, v in out.items()} | {"before_s": before_s}
+
+
+PARTS = ("before", "event", "flagged", "held", "gap", "after")
 
 
 def explain(model, odom: OdomArrays, spans: list, labels: dict, detector) -> None:
@@ -203,7 +247,17 @@ def total(rows: list[dict], sched: str) -> dict:
         "delay_median_s": _nan(np.nanmedian, [r["delay_median_s"] for r in rs]),
         "delay_max_s": _nan(np.nanmax, [r["delay_max_s"] for r in rs]),
         "missed": [m for r in rs for m in r["missed"]],
+        "kept_parts": {k: float(np.mean([r["kept_parts"][k] for r in rs])) for k in rs[0]["kept_parts"]
+                       if k != "before_s"}
+        | {"before_s": {side: [x for r in rs for x in r["kept_parts"]["before_s"][side]] for side in ("true", "false")}},
     }  # fmt: skip
+
+
+def parts_line(parts: dict) -> str:
+    """The share kept, split as `kept_parts`, in % of all messages."""
+    q = lambda x: "/".join(f"{v:.1f}" for v in np.quantile(x, (0.1, 0.5, 0.9))) if x else "-"  # noqa: E731
+    return "  ".join(f"{side} " + " ".join(f"{p} {100 * parts[f'{side}_{p}']:.2f}" for p in PARTS)
+                     + f" (before, s: {q(parts['before_s'][side])})" for side in ("true", "false"))  # fmt: skip
 
 
 def line(label: str, r: dict, k60: dict, k600: dict) -> str:
@@ -225,7 +279,7 @@ def run_sim(args) -> list[dict]:
 
     ns = argparse.Namespace(split="report", train_min=2.0, train_runs=2, anomalous_runs=2,
                             nominal_runs=1, nominal_min=10.0, heading="imu", kinds=None,
-                            before=cs.WINDOW_BEFORE, after=cs.WINDOW_AFTER)  # fmt: skip
+                            before=args.before, after=args.after, window=args.window)  # fmt: skip
     out, cache = [], {}
     for features in args.features.split(","):
         for rate in (10.0, 30.0, 100.0):
@@ -341,11 +395,17 @@ def main() -> None:
     p.add_argument("--seed-offset", type=int, default=0,
                    help="added to each run's seed for placing the anomalies: 0 (default) gives the "
                         "seeds the tables report; tune settings on others (the fourth pass used 500)")
+    p.add_argument("--window", action="append", default=[], metavar="K=V",
+                   help="a window option (WindowBuilder), e.g. merge_s=1.5 or hold_score=-0.1")
+    p.add_argument("--breakdown", action="store_true",
+                   help="per row group, where the kept messages go (context before, event, flagged, "
+                        "held, merged gap, context after; true and false windows), in %% of all messages")
     p.add_argument("--plot", type=Path, default=None, help="plot the real episodes here and stop")
     p.add_argument("--param", action="append", default=[], metavar="K=V",
                    help="a training parameter (OneClassModel), e.g. false_alarm_rate=0.0005")
     args = p.parse_args()
     args.param = {k: float(v) for k, v in (kv.split("=", 1) for kv in args.param)}
+    args.window = {k: float(v) for k, v in (kv.split("=", 1) for kv in args.window)}
     runs = load_runs(args.runs.split(",") if args.runs else None)
     if args.plot:
         plot_episodes(runs, args.plot)
@@ -369,6 +429,10 @@ def main() -> None:
             if group:
                 tot = {s: total(group, s) for s in SCHEDULES}
                 print(line(f"ALL {features} {rate}", tot["80s"], tot["60s"], tot["600s"]), flush=True)
+                if args.breakdown:
+                    for sched in SCHEDULES:
+                        if tot[sched]:
+                            print(f"  kept {sched}: " + parts_line(tot[sched]["kept_parts"]), flush=True)
                 rows.append({"features": features, "rate": rate, "runs": group, "total": tot})
     result = {"args": vars(args) | {"out": str(args.out)}, "rows": rows}
     if args.sim:

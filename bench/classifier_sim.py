@@ -49,13 +49,15 @@ def sim(args, **kw):
     return simulate(robot_seed=ROBOT[args.split], heading=args.heading, **kw)
 
 
-def windows_of(model, odom: OdomArrays, before: str, after: str):
+def windows_of(model, odom: OdomArrays, before: str, after: str, window_args: dict | None = None):
+    """The windows' (start, end) spans and the scores; `window_args`: other WindowBuilder
+    options (bench/classifier_long.py --window)."""
     from cclogfs.pipeline import parse_span
 
     b_n, b_s = parse_span(before)
     a_n, a_s = parse_span(after)
     logger = SmartLogger(Detector(model), summary_period_s=None, before=b_n, after=a_n,
-                         before_s=b_s, after_s=a_s)  # fmt: skip
+                         before_s=b_s, after_s=a_s, **(window_args or {}))  # fmt: skip
     texts = [str(i) for i in range(len(odom))]  # window logic only needs stamps
     scores, flags, back = logger.detector.score_windows(odom)
     out = []
@@ -87,7 +89,7 @@ def evaluate(args, rate: float, severity: tuple[float, float], features: str, ca
                       severity=severity, kinds=args.kinds)  # fmt: skip
             cache[skey] = (odom_of(run), run.labels_dict())
         odom, labels = cache[skey]
-        spans, scores = windows_of(model, odom, args.before, args.after)
+        spans, scores = windows_of(model, odom, args.before, args.after, getattr(args, "window", None))
         e = event_table(odom.stamp_ns, spans, labels)
         recalled += e["recalled"]
         events += e["events"]
@@ -110,7 +112,7 @@ def evaluate(args, rate: float, severity: tuple[float, float], features: str, ca
             cache[skey] = odom_of(sim(args, seed=nom_base + k, duration_s=args.nominal_min * 60,
                                       rate_hz=rate))  # fmt: skip
         odom = cache[skey]
-        spans, _ = windows_of(model, odom, args.before, args.after)
+        spans, _ = windows_of(model, odom, args.before, args.after, getattr(args, "window", None))
         nom_false += len(spans)
         nom_min += (odom.stamp_ns[-1] - odom.stamp_ns[0]) / 60e9
     return {

@@ -32,14 +32,17 @@ from .upkeep import Upkeep
 # Default logging-window extents, in seconds so they mean the same at any odometry rate.
 # The window starts `before` ahead of where the anomaly's evidence starts, not of the first
 # flagged message: a feature seen over an 8 s window (a spin's net rotation, a stuck robot's
-# reversals) makes the window reach 8 s further back (WindowBuilder lookback), so the slow
-# anomalies recognised seconds after they start keep their start without 8 s of context
-# around every jolt (1 s lost the simulator's back-and-forth events, whose first flags
-# come late). 1 s after, with hysteresis and a 3 s merge gap (classifier.api HOLD_SCORE,
-# MERGE_S): the window closes soon after the score falls, and the flagged stretches of one
-# event stay one window (bench/classifier_long.py, docs/CLASSIFIER.md).
-WINDOW_BEFORE = "2s"
-WINDOW_AFTER = "1s"
+# reversals) makes the window reach 8 s further back (WindowBuilder lookback), also when it
+# flags after a quicker feature opened the window, so the slow anomalies recognised seconds
+# after they start keep their start without 8 s of context around every jolt. 0.5 s after,
+# with hysteresis and a 4.5 s merge gap (classifier.api HOLD_SCORE, MERGE_S): the window
+# closes soon after the score falls, and the flagged stretches of one event stay one window.
+# Issue 15's sixth pass halved both (2 s and 1 s before): the short features look 0.55 s
+# back, so 1 s before covers a first flag up to 1.55 s late, and the last flag already comes
+# ~0.5 s after an event's end; the long runs lost no event and kept 2-3 % less of the log
+# at one anomaly a minute (bench/classifier_long.py --breakdown, docs/CLASSIFIER.md).
+WINDOW_BEFORE = "1s"
+WINDOW_AFTER = "0.5s"
 
 
 class WindowPolicy(Protocol):

@@ -260,8 +260,10 @@ class Detector:
 # comes within MERGE_S of a closed window joins it (a collision's stop and its restart up
 # to 4 s later stay one window), and a window stays open while the score is above
 # HOLD_SCORE (hysteresis: the tail of a mild event scores just below 0), so that the
-# context after can be 1 s.
-MERGE_S = 3.0
+# context after can be short. MERGE_S was 3 s with 2 s before and 1 s after
+# (pipeline.WINDOW_BEFORE, WINDOW_AFTER); with 1 s and 0.5 s it is 4.5 s, so that flags
+# as far apart as before stay one window (sixth pass: the same windows, each shorter).
+MERGE_S = 4.5
 HOLD_SCORE = -0.3
 
 

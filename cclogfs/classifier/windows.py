@@ -3,8 +3,11 @@
 The trigger topic (odometry) decides. A ring keeps the last `before` messages (or
 `before_s` seconds); an anomalous message opens a window with that context, and the
 window stays open until `after` messages (or `after_s` seconds) have passed since the last
-anomalous one. The window is then held until `before` more messages have passed: if an
-anomaly comes first, its context would overlap (or touch) the window, so the two merge
+anomalous one. In seconds mode an anomaly may say how far back its evidence reaches
+(`lookback_ns`): the window starts `before_s` ahead of that, and a later anomaly of the
+open window whose evidence reaches further back than the window's start extends it back
+(what the start left out is kept for that, within `lookback_max_s`). The window is then
+held until `before` more messages have passed: if an anomaly comes first, its context would overlap (or touch) the window, so the two merge
 and no message is logged twice. Other topics are logged over the window's time span
 [first, last trigger-topic stamp], whatever order they arrive in. Latched topics (e.g.
 /tf_static) are kept and added to every window so each window can be read alone: the newest
@@ -124,6 +127,11 @@ class WindowBuilder:
         # `push_run` checks it before taking a stretch at once.
         self.ring_in_order = True
         self.window: _Open | None = None
+        # Seconds mode with lookback: what the open window's start left out, within the
+        # longest lookback, so that a later anomaly whose evidence reaches further back
+        # (a slow feature after a quick one) extends the window back (`_reach_back`).
+        self.back: deque[tuple[int, str]] = deque()
+        self.back_other: dict[str, list[tuple[int, str]]] = {}
         self.windows_emitted = 0
 
     # -- input ------------------------------------------------------------------------
@@ -165,6 +173,8 @@ class WindowBuilder:
             w.last_ns = stamp_ns
             self._take_pending(stamp_ns, out)
             if anomalous:
+                if self.back and self.back[-1][0] >= stamp_ns - reach - self.before_ns:  # inline: most do not
+                    self._reach_back(stamp_ns - reach, out)
                 self._trigger(stamp_ns, score)
             else:
                 if self.hold_score is not None and score > self.hold_score:
@@ -183,6 +193,7 @@ class WindowBuilder:
                 self.ring.clear()
                 w.last_ns = stamp_ns
                 self._take_pending(stamp_ns, out)
+                self._reach_back(stamp_ns - reach, out)
                 self._trigger(stamp_ns, score)
             elif (
                 len(self.ring) > self.before
@@ -300,11 +311,34 @@ class WindowBuilder:
     def _start(self, stamp_ns: int, reach: int, score: float, out: list[PendingWindow]) -> None:
         """Open a window for an anomaly whose evidence starts `reach` ns before it: in
         seconds mode the ring keeps `before` ahead of the evidence, no more."""
+        self.back.clear()
+        self.back_other.clear()
         if self.before_ns is not None:
             while self.ring and self.ring[0][0] < stamp_ns - reach - self.before_ns:
-                self.ring.popleft()
+                m = self.ring.popleft()
+                if self.lookback_max_ns:
+                    self.back.append(m)
         self._open(stamp_ns, out)
         self._trigger(stamp_ns, score)
+
+    def _reach_back(self, from_ns: int, out: list[PendingWindow]) -> None:
+        """An anomaly in the open window whose evidence starts at `from_ns`: the window
+        starts `before` ahead of that, taking back what its start had left out."""
+        if not self.back or self.back[-1][0] < from_ns - self.before_ns:  # none needed
+            return
+        lo = from_ns - self.before_ns
+        take = []
+        while self.back and self.back[-1][0] >= lo:
+            take.append(self.back.pop())
+        take.reverse()
+        w = self.window
+        w.start_ns = min(w.start_ns, take[0][0])
+        self._add(self.trigger_topic, take, out)
+        for topic, kept in self.back_other.items():
+            k = bisect.bisect_left(kept, w.start_ns, key=lambda m: m[0])
+            if k < len(kept):
+                self._add(topic, kept[k:], out)
+                del kept[k:]
 
     def _trim_ring(self, now_ns: int) -> None:
         """Keep the newest message and the `before` messages (or seconds, plus the
@@ -340,9 +374,12 @@ class WindowBuilder:
         self.window = _Open(window_id=f"w{start}", start_ns=start, last_ns=stamp_ns)
         self._add(self.trigger_topic, list(self.ring), out)
         self.ring.clear()
-        for q in self.pending.values():
+        oldest = self.back[0][0] if self.back else start
+        for topic, q in self.pending.items():
             while q and q[0][0] < start:
-                q.popleft()
+                m = q.popleft()
+                if m[0] >= oldest:
+                    self.back_other.setdefault(topic, []).append(m)
         self._take_pending(stamp_ns, out)
 
     def _trigger(self, stamp_ns: int, score: float) -> None:
@@ -406,4 +443,6 @@ class WindowBuilder:
             meta = {"part": 0, "latched": True, "latched_dropped": dropped}
             out.append(PendingWindow(topic, msgs, self._meta(True) | meta))
         self.window = None
+        self.back.clear()
+        self.back_other.clear()
         self.windows_emitted += 1

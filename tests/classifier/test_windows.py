@@ -170,3 +170,21 @@ def test_hold_score_keeps_a_window_open_while_the_score_is_close():
         out += b.push("/odom", i * 10 * MS, f"odom{i}", anomalous=score > 0, score=score)
     (w,) = odom_indices(out + b.flush())
     assert w == list(range(20, 45))
+
+
+def test_a_later_flag_extends_the_window_back_with_other_topics():
+    """A quick flag opens a window 0.1 s before its evidence; a slow one 0.5 s later whose
+    evidence reaches 1 s back extends it back, trigger and other topics alike, and nothing
+    is logged twice (issue 15, sixth pass: before, what the start left out was dropped)."""
+    b = WindowBuilder(before_s=0.1, after_s=0.1, lookback_max_s=2.0, merge_s=0.0)
+    out = []
+    for i in range(300):  # odometry every 10 ms, /scan between
+        out += b.push("/scan", i * 10 * MS + 5 * MS, f"scan{i}")
+        flag, back = {150: (True, 50 * MS), 200: (True, 1000 * MS)}.get(i, (False, 0))
+        out += b.push("/odom", i * 10 * MS, f"odom{i}", anomalous=flag, lookback_ns=back)
+    out += b.flush()
+    (odom,) = odom_indices(out)
+    assert odom == list(range(90, 211))  # 2 s - 1 s - 0.1 s = 0.9 s, up to 0.1 s after
+    scans = [int(t[4:]) for w in out if w.topic == "/scan" for _, t in w.messages]
+    assert scans == list(range(90, 210))
+    assert out[-1].meta["start_ns"] == 900 * MS
