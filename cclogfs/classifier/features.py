@@ -229,8 +229,8 @@ def parse_odometry(messages: Iterable[dict | str | bytes]) -> OdomArrays:
     for i, msg in enumerate(messages):
         try:
             stamp, row = odom_row(msg)
-        except InvalidInputError as err:
-            raise InvalidInputError(f"Odometry message {i}: {err}") from err
+        except InvalidInputError as err:  # numbered from 1, as `usable` names messages
+            raise InvalidInputError(f"Odometry message {i + 1:,}: {err}") from err
         stamps.append(stamp)
         rows.append(twist(stamp, row))
     raw = np.array(rows, dtype=np.float64).reshape(len(rows), RAW_WIDTH)

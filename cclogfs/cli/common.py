@@ -273,7 +273,10 @@ def model_fits(model, model_path: str, source: str, topic: str, *, force: bool, 
     if not texts:
         raise InvalidInputError(f"{source} has no topic {topic}, the odometry model {model_path} scores; "
                                 f"{source_topics(source)}; name the odometry topic with --odom-topic T.")  # fmt: skip
-    odom = parse_odometry(texts)
+    try:
+        odom = parse_odometry(texts)
+    except InvalidInputError as err:  # as `cclog train` says it: which file and topic
+        raise InvalidInputError(f"{source}, topic {topic}: {err}") from err
     name = source if read_all else f"{source} (the first {len(texts):,} messages)"
     check_odometry(odom, make_features(model.feature_config), name, topic, "score")
     far = compare(model.training, robot_stats([odom]))

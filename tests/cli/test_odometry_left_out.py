@@ -112,3 +112,17 @@ def test_record_and_eval_name_bad_stamps_and_refuse_mostly_nan(tmp_path, capsys,
             err = capsys.readouterr().err
             assert f"{src}: " in err and why in err and "no feature vector is left to score" in err
             assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize("cmd", ["train", "record", "eval"])
+def test_a_message_that_is_no_odometry_is_named_with_file_topic_and_number_from_1(tmp_path, capsys, odom, model, cmd):
+    """Found by attack: record/eval said only 'Odometry message 10: ...' (no file, no topic),
+    and counted from 0 while the left-out warning of the same run counts from 1."""
+    src = write(tmp_path / "bad.jsonl", odom, lambda i, m: i == 10 and m["twist"]["twist"].pop("angular"))
+    args = {"train": ["--out", str(tmp_path / "m")], "record": ["--model", model, "--store", str(tmp_path / "s")],
+            "eval": ["--model", model, "--labels", str(tmp_path / "labels.json")]}[cmd]  # fmt: skip
+    (tmp_path / "labels.json").write_text('{"events": []}')
+    assert main([cmd, src, *args]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and f"{src}, topic /odom: Odometry message 11: " in err, err
+    assert "(missing or bad field: 'angular')" in err
