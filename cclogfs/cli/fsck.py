@@ -54,7 +54,7 @@ def repair(args: argparse.Namespace) -> int:
     try:
         report = repair_store(args.store, discard_damaged=args.discard_damaged)
     except (CclogError, OSError) as err:
-        print(f"cclog: error: cannot repair {args.store}: {err}", file=sys.stderr)
+        print(f"cclog: error: cannot repair {args.store}: {cli_words(str(err))}", file=sys.stderr)
         return 8
     for line in report.actions:
         print(f"repaired: {line}")

@@ -233,7 +233,8 @@ def test_repair_refuses_while_a_writer_holds_the_store(tmp_path, capsys):
         with pytest.raises(StoreLockedError, match="locked by another writer"):
             repair_store(str(path))
         assert main(["fsck", "--repair", str(path)]) == 8
-        assert "locked by another writer" in capsys.readouterr().err
+        err = capsys.readouterr().err
+        assert "locked by another writer" in err and "readonly=True" not in err, err  # the CLI's words
         assert (path / SEALED).read_bytes() == data
         assert not [n for n in os.listdir(path) if n.endswith(".tmp")]
     finally:
@@ -275,3 +276,11 @@ def test_repair_does_not_rebuild_a_damaged_manifest_under_a_running_writer(tmp_p
     finally:
         writer.stdin.close()
         writer.wait(timeout=60)
+
+
+def test_repair_of_a_directory_that_holds_no_store_names_the_command_not_the_api(tmp_path, capsys):
+    # Found by attack: 'cannot repair DIR: ... pass create=True to make one' (the Python API's
+    # words; `cli_words` was applied to every other command's store errors).
+    assert main(["fsck", "--repair", str(tmp_path)]) == 8
+    err = capsys.readouterr().err
+    assert "create=True" not in err and "`cclog record SOURCE --store PATH` makes one" in err, err
