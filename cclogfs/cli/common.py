@@ -296,7 +296,12 @@ def check_odometry(odom, feature_set, name: str, topic: str, job: str):
 
     report = usable(odom, feature_set)
     if report.left_out and not report.scored:
-        raise InvalidInputError(f"{report.describe(name, topic)}; no feature vector is left to {job}.")
+        # "N usable" and "no feature vector" side by side need the why: usable messages far
+        # apart (between left-out ones) never give the features the history they need.
+        none = ""
+        if report.usable:
+            none = f"; none of the {report.usable:,} has the usable history before it that a feature vector needs"
+        raise InvalidInputError(f"{report.describe(name, topic)}{none}; no feature vector is left to {job}.")
     if report.left_out:
         print(f"cclog: warning: {report.describe(name, topic)}; {job} the rest.", file=sys.stderr)
     return report

@@ -126,3 +126,18 @@ def test_a_message_that_is_no_odometry_is_named_with_file_topic_and_number_from_
     err = capsys.readouterr().err
     assert "Traceback" not in err and f"{src}, topic /odom: Odometry message 11: " in err, err
     assert "(missing or bad field: 'angular')" in err
+
+
+def test_usable_messages_without_a_feature_vector_say_why(tmp_path, capsys, odom):
+    """Found by attack: NaN in 97 of every 100 messages said '18 of 600 /odom messages
+    usable: ...; no feature vector is left to train on' without saying why 18 give none."""
+
+    def nan(i, m):
+        if i % 100 > 2:
+            m["pose"]["pose"]["orientation"]["z"] = float("nan")
+
+    src = write(tmp_path / "nan97.jsonl", odom, nan)
+    assert main(["train", src, "--out", str(tmp_path / "m")]) == 1
+    err = capsys.readouterr().err
+    assert f"{src}: 18 of 600 /odom messages usable: 582 with NaN or infinite values" in err, err
+    assert "none of the 18 has the usable history before it that a feature vector needs" in err, err
