@@ -163,8 +163,16 @@ def _upkeep(args: argparse.Namespace) -> Upkeep | None:
     return Upkeep(budget=budget, policy=policy, older_than_ns=older)
 
 
-def _skipped(err: Exception) -> None:
-    print(f"cclog: skipped: {err}", file=sys.stderr)
+class _Skips:
+    """Says each bad line `--on-error skip` skips, and counts them: the summary says how
+    many, as the lines said one by one scroll away in a long run."""
+
+    def __init__(self) -> None:
+        self.count = 0
+
+    def __call__(self, err: Exception) -> None:
+        self.count += 1
+        print(f"cclog: skipped: {err}", file=sys.stderr)
 
 
 def _open(args: argparse.Namespace, topics: list[str] | None):
@@ -178,7 +186,8 @@ def _open(args: argparse.Namespace, topics: list[str] | None):
 
     if args.exclude:
         raise InvalidInputError("--exclude goes with a live source (ros1://); name the topics to read with --topic")
-    return open_source(args.source, topics=topics, on_error=args.on_error, report=_skipped, clock=args.clock,
+    args.skips = _Skips()
+    return open_source(args.source, topics=topics, on_error=args.on_error, report=args.skips, clock=args.clock,
                        max_text_bytes=MAX_MESSAGE_TEXT)  # fmt: skip
 
 
@@ -422,6 +431,9 @@ def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep:
           f"{stats.messages_in:,} messages in, {stats.messages_kept:,} kept ({100 * kept:.1f} % of "
           f"{human_bytes(stats.json_bytes_in)} JSON) in {stats.windows:,} windows, {stats.seconds:.1f} s "
           f"({stats.messages_in / max(stats.seconds, 1e-9):,.0f} msg/s)", file=sys.stderr)  # fmt: skip
+    skipped = getattr(getattr(args, "skips", None), "count", 0)
+    if skipped:
+        print(f"{args.source}: {skipped:,} bad lines skipped (--on-error skip), not recorded", file=sys.stderr)
     if getattr(source, "stopped_by", None):
         print(f"{args.source}: stopped by {source.stopped_by}; received "
               + (", ".join(f"{t} {n:,}" for t, n in sorted(source.received.items())) or "nothing"), file=sys.stderr)

@@ -44,6 +44,9 @@ def test_bad_topics_are_skipped_and_the_rest_recorded(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("'topic' contains the control character") == 12
     assert err.count("over the 1024-byte limit") == 3
+    # Found by attack: the summary said only 'N messages in, N kept' (exit 0) however many
+    # lines were skipped; now it counts them too.
+    assert f"{path}: 15 bad lines skipped (--on-error skip), not recorded" in err, err
     with open_store(store, readonly=True) as s:
         kept = [stamp for w in s.query("/ok") for stamp, _ in w.messages()]
     assert kept == [i for i, t in enumerate(topics) if t == '"/ok"']
