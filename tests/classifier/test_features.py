@@ -117,7 +117,7 @@ def test_odom_text_fast_path_equals_json():
 
 def test_bad_message_and_config_errors():
     # A pose without twist is a PoseWithCovarianceStamped now (issue 12); without orientation it is nothing.
-    with pytest.raises(InvalidInputError, match="message 1.*orientation"):
+    with pytest.raises(InvalidInputError, match="message 2: .*orientation"):
         parse_odometry([odom_texts(synthetic(n=1))[0], '{"header": {"stamp": {"sec": 1, "nanosec": 0}}, "pose": {"pose": {"position": {"x":0,"y":0,"z":0}}}}'])
     with pytest.raises(InvalidInputError):
         odom_row("not json")
