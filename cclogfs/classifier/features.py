@@ -36,6 +36,11 @@ __all__ = [
 NS = 1_000_000_000
 # Per message: position xyz, orientation xyzw, linear twist xyz, angular twist xyz.
 RAW_WIDTH = 13
+# Column names of OdomArrays.raw, to name a bad or non-finite value.
+RAW_NAMES = tuple(
+    [f"pose.position.{k}" for k in "xyz"] + [f"pose.orientation.{k}" for k in "xyzw"]
+    + [f"twist.linear.{k}" for k in "xyz"] + [f"twist.angular.{k}" for k in "xyz"]
+)  # fmt: skip
 TWO_PI = 2 * pi
 
 
@@ -160,8 +165,8 @@ def _odom_row_parsed(msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
         sec = stamp["sec"] if "sec" in stamp else stamp["secs"]
         nsec = stamp["nanosec"] if "nanosec" in stamp else stamp["nsecs"]
         v, w = (twist["linear"], twist["angular"]) if twist is not None else (_NAN_XYZ, _NAN_XYZ)
-        row = (p["x"], p["y"], p["z"], q["x"], q["y"], q["z"], q["w"],
-               v["x"], v["y"], v["z"], w["x"], w["y"], w["z"])  # fmt: skip
+        row = _numbers((p["x"], p["y"], p["z"], q["x"], q["y"], q["z"], q["w"],
+                        v["x"], v["y"], v["z"], w["x"], w["y"], w["z"]))  # fmt: skip
         return int(sec) * NS + int(nsec), row if twist is not None else PoseOnly(row)
     except (KeyError, TypeError, ValueError) as err:
         raise InvalidInputError(
@@ -171,6 +176,24 @@ def _odom_row_parsed(msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
 
 
 _NAN_XYZ = {"x": float("nan"), "y": float("nan"), "z": float("nan")}
+
+
+def _numbers(row: tuple) -> tuple[float, ...]:
+    """The row as floats: null is NaN (rosbridge writes NaN so); a string or a list is an
+    error naming its field (it was a ValueError traceback when the rows became an array)."""
+    try:
+        return tuple(float("nan") if v is None else float(v) for v in row)
+    except (TypeError, ValueError):
+        i = next(i for i, v in enumerate(row) if v is not None and not _is_number(v))
+        raise ValueError(f"{RAW_NAMES[i]} is {json.dumps(row[i])[:40]}, not a number") from None
+
+
+def _is_number(v) -> bool:
+    try:
+        float(v)
+    except (TypeError, ValueError):
+        return False
+    return True
 
 
 class PoseOnly(tuple):

@@ -12,15 +12,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .features import NS, OdomArrays, accepted_rows
+from .features import NS, RAW_NAMES, OdomArrays, accepted_rows
 
 __all__ = ["Usable", "usable"]
-
-# Column names of OdomArrays.raw, to name the first non-finite value.
-RAW_NAMES = tuple(
-    [f"pose.position.{k}" for k in "xyz"] + [f"pose.orientation.{k}" for k in "xyzw"]
-    + [f"twist.linear.{k}" for k in "xyz"] + [f"twist.angular.{k}" for k in "xyz"]
-)  # fmt: skip
 
 
 @dataclass

@@ -141,3 +141,16 @@ def test_usable_messages_without_a_feature_vector_say_why(tmp_path, capsys, odom
     err = capsys.readouterr().err
     assert f"{src}: 18 of 600 /odom messages usable: 582 with NaN or infinite values" in err, err
     assert "none of the 18 has the usable history before it that a feature vector needs" in err, err
+
+
+@pytest.mark.parametrize("value, said", [("abc", '"abc"'), ([1], "[1]")])
+@pytest.mark.parametrize("cmd", ["train", "record"])
+def test_a_value_that_is_no_number_is_named_not_a_traceback(tmp_path, capsys, odom, model, cmd, value, said):
+    """Found by attack: a string or a list for pose.position.x was a ValueError traceback
+    when the rows became an array; null stays NaN (rosbridge writes NaN so)."""
+    src = write(tmp_path / "bad.jsonl", odom, lambda i, m: i == 5 and m["pose"]["pose"]["position"].update(x=value))
+    args = ["--out", str(tmp_path / "m")] if cmd == "train" else ["--model", model, "--store", str(tmp_path / "s")]
+    assert main([cmd, src, *args]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and f"{src}, topic /odom: Odometry message 6: " in err, err
+    assert f"pose.position.x is {said}, not a number" in err, err
