@@ -54,7 +54,8 @@ from each publisher's header.seq (a gap means dropped messages); topics whose ty
 header (tf2_msgs/TFMessage) or whose seq does not count up are listed as not checked.
 
 exit status: 0 done, 1 error, 130 interrupted (file input), 4 ros1:// recorded but
-messages were lost (seq gaps, or received after the recording stopped and not stored),
+messages were lost (seq gaps, received after the recording stopped, or of another type than
+the topic's first: a publisher restarted with another type; such messages are skipped, not stored),
 3 done but the store is still over --budget (as `cclog compact`).
 """
 LOST = 4  # the exit status when a live recording knows it lost messages
@@ -410,9 +411,15 @@ def _exit_status(args: argparse.Namespace, source, stats: RecordStats, policy, r
     if stats.interrupted:
         return 128 + (received[0] if received else signal.SIGINT)
     seq = getattr(source, "seq", None)
-    if seq is not None and seq.lost:
+    if seq is not None and (seq.lost or _refused_types(source)):
         return LOST
     return damaged_exit(source)
+
+
+def _refused_types(source) -> dict[str, int]:
+    """Topic -> messages a live source skipped for a type other than their stream's."""
+    types = getattr(source, "types", None)
+    return getattr(types, "refused", None) or {}
 
 
 def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep: Upkeep | None, final_bytes: int | None) -> None:
@@ -428,6 +435,11 @@ def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep:
         for topic in sorted(t for t, n in source.received.items() if not n):
             print(f"{args.source}: received nothing on {topic} (nothing published while subscribed, or only "
                   "before, and not latched)", file=sys.stderr)  # fmt: skip
+    if getattr(source, "skipped", 0):  # --on-error skip
+        print(f"{args.source}: SKIPPED {source.skipped:,} bad lines (named above), not stored", file=sys.stderr)
+    if refused := _refused_types(source):
+        print(f"{args.source}: SKIPPED {sum(refused.values()):,} messages whose type differs from their stream's, not "
+              "stored: " + ", ".join(f"{t} {n:,}" for t, n in sorted(refused.items())), file=sys.stderr)  # fmt: skip
     if getattr(source, "seq", None) is not None:
         lost = source.seq.lost
         print(f"{args.source}: {'LOST ' if lost else ''}{lost:,} messages lost (from header.seq)", file=sys.stderr)

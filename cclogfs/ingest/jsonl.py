@@ -16,6 +16,7 @@ from typing import BinaryIO, Literal
 from ..errors import InvalidInputError, SourceError
 from ..jsontext.check import name_error
 from ..jsontext.lines import JsonlLineError, parse_line, split_canonical, split_canonical_bytes
+from ..jsontext.rostypes import TypeCheck
 from .base import SourceMessage, topic_filter
 
 # The compiled splitter (cclogfs/ingest/_jsonl_split.c; setup.py builds it where a C
@@ -101,6 +102,7 @@ class JsonlSource:
         self.skipped = 0
         self._max_text = max_text_bytes
         self._names_ok: set[str] = set()
+        self._types = TypeCheck()  # lines naming a type go the slow way, which checks it
         self._owned = str(path) != "-"
         self._file: BinaryIO | Iterator[list[bytes]]
         if self._owned:
@@ -215,6 +217,10 @@ class JsonlSource:
             # Here, not when the store refuses its window: that loses the window's good
             # messages, and names no line.
             self._bad_line(lineno, f"'topic' {why}")
+            return None
+        if (self._wanted is None or message.topic in self._wanted) and \
+                (why := self._types.mismatch(message.topic, message.msgtype)) is not None:  # fmt: skip
+            self._bad_line(lineno, why)
             return None
         if self._max_text is not None and len(raw) > self._max_text:
             size = len(message.text.encode())

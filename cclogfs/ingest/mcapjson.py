@@ -14,6 +14,7 @@ from typing import BinaryIO
 from mcap.reader import make_reader
 
 from ..errors import SourceError
+from ..jsontext.rostypes import TypeCheck
 from .base import SourceMessage, topic_filter
 
 
@@ -71,8 +72,9 @@ class McapJsonSource:
     def __iter__(self) -> Iterator[SourceMessage]:
         self._file.seek(0)
         topics = None if self._wanted is None else sorted(self._wanted)
+        types = TypeCheck()
         try:
-            for schema, channel, message in make_reader(self._file).iter_messages(topics=topics):
+            for index, (schema, channel, message) in enumerate(make_reader(self._file).iter_messages(topics=topics), 1):
                 if channel.message_encoding != "json":
                     raise SourceError(
                         f"{self.name}: channel {channel.topic} has message encoding "
@@ -87,6 +89,9 @@ class McapJsonSource:
                         f"{message.log_time} ns is not valid JSON: {err}"
                     ) from err
                 msgtype = schema.name if schema is not None else ""
+                if (why := types.mismatch(channel.topic, msgtype)) is not None:
+                    raise SourceError(f"{self.name}, message {index:,} (logged at {message.log_time} ns): "
+                                      f"{why}")  # fmt: skip
                 yield SourceMessage(channel.topic, message.log_time, text, msgtype)
         except SourceError:
             raise

@@ -20,7 +20,7 @@ from rosbags.rosbag1 import Reader as Bag1Reader
 from ..errors import SourceError
 from ..jsontext.ros import MessageConverter, message_stamp_ns
 from ..jsontext.roswire import WireError, WireFormatter
-from ..jsontext.rostypes import ros1_description
+from ..jsontext.rostypes import TypeCheck, ros1_description
 from . import ros1chunks
 from .base import SourceMessage, check_clock, topic_filter
 
@@ -92,10 +92,14 @@ class RosbagSource:
         # SourceMessage(...) runs the named tuple's Python-level __new__; tuple.__new__
         # builds the same object in C, 0.5 us less per message (issue 14).
         make = tuple.__new__
+        mixed = self._mixed_types()
+        types = TypeCheck()
         index = 0
         try:
             for con, logtime, raw in self._raw_messages():
                 index += 1
+                if con.id in mixed and (why := types.mismatch(con.topic, con.msgtype)) is not None:
+                    raise SourceError(f"{self.name}, message {index:,} of the bag (logged at {logtime} ns): {why}")
                 fmt = formats[con.id]
                 if fmt is None:
                     text, stamp = self._convert(con, logtime, raw, index, None)
@@ -109,6 +113,14 @@ class RosbagSource:
             raise
         except Exception as err:
             raise SourceError(f"{self.name}: reading the bag failed: {err}") from err
+
+    def _mixed_types(self) -> set[Any]:
+        """The ids of the connections whose topic has connections of more than one type:
+        only their messages need checking against the stream's type."""
+        by_topic: dict[str, set[str]] = {}
+        for c in self._connections:
+            by_topic.setdefault(c.topic, set()).add(c.msgtype)
+        return {c.id for c in self._connections if len(by_topic[c.topic]) > 1}
 
     def _raw_messages(self) -> Iterator[tuple[Any, int, bytes]]:
         """(connection, log time, bytes) of the selected topics, in log-time order. A ROS 1
