@@ -309,6 +309,45 @@ def _end_run(run, source, stats: RecordStats, received: list[int], error: BaseEx
             raise
 
 
+def _store_failed(store, err: CclogError, run_seq: int | None, stats: RecordStats) -> CclogError:
+    """The store's failure, saying what of this run is stored: its windows fsynced before
+    the failure (kept whatever happens), those handed to the OS but not fsynced (a reopen
+    keeps them unless power is lost too), and that the rest was lost. The run's end record
+    cannot be written once the store has failed."""
+    from ..errors import StoreFailedError
+
+    synced, written = store.synced_seq(), store.synced_seq(written=True)
+    kept = _run_windows(store, run_seq, written)
+    said = f"synced up to seq {synced}: {_counted(kept, synced)}" if synced is not None else "nothing synced"
+    if written is not None and written != synced:
+        said += (f"; written but not yet fsynced up to seq {written} or further: at least {_counted(kept, written)} "
+                 "(a reopen keeps them unless power was lost too)")  # fmt: skip
+    return StoreFailedError(
+        f"{err}. This run's messages stored: {said}; the rest of the {stats.messages_in:,} messages it read was "
+        "lost, and its end record could not be written. Reopening the store (any cclog command) keeps what is "
+        "stored; free space, then record the rest again (--append)")  # fmt: skip
+
+
+def _run_windows(store, run_seq: int | None, upto: int | None) -> list[tuple[int, int]] | None:
+    """(seq, message count) of this run's windows up to seq `upto`; None when unreadable."""
+    from ..runs import hidden_by_default
+
+    if upto is None:
+        return []
+    try:
+        return [(w.seq, w.count) for w in store.query(skip_damaged=True)
+                if (run_seq is None or w.seq > run_seq) and w.seq <= upto and not hidden_by_default(w.name)]  # fmt: skip
+    except CclogError:
+        return None
+
+
+def _counted(windows: list[tuple[int, int]] | None, upto: int) -> str:
+    if windows is None:
+        return "count unknown"
+    mine = [n for seq, n in windows if seq <= upto]
+    return f"{sum(mine):,} messages in {len(mine):,} windows"
+
+
 def _run(args: argparse.Namespace) -> int:
     from ..pipeline import RecordStats, interrupt_handler
     from ..store import open_store
@@ -335,11 +374,14 @@ def _run(args: argparse.Namespace) -> int:
                 Progress("recording", total=getattr(source, "message_count", None)) as progress:  # fmt: skip
             _warn_damage(store)
             run = _begin_run(args, store, source)
+            run_seq = store.synced_seq()  # the run's start record, synced by begin_run
             stats = RecordStats()
             try:
                 rows, final_bytes = _record_run(args, store, source, policy, upkeep, progress, stats)
             except BaseException as err:
                 _end_run(run, source, stats, received, err)
+                if store.failed is not None and isinstance(err, CclogError):  # disk full, I/O error
+                    raise _store_failed(store, err, run_seq, stats) from err
                 raise
             _end_run(run, source, stats, received, None)
     finally:
