@@ -94,7 +94,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--codec", default="columnar",
                    help="codec for new records: columnar (default, smallest), zstd (fastest), lzma, none")
     p.add_argument("--on-error", choices=["stop", "skip"], default="stop",
-                   help="a malformed JSONL line stops the run (default) or is reported and skipped")
+                   help="a malformed JSONL line, or a message of another type than its topic's first, stops "
+                        "the run (default) or is reported and skipped")
     p.add_argument("--sync-ms", type=float, default=200, help="group commit interval (default 200 ms)")
     p.add_argument("--no-summary", action="store_true", help="with --model: no per-minute summary stream")
     p.add_argument("--features-out", metavar="DIR",
@@ -478,7 +479,7 @@ def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep:
             print(f"{args.source}: received nothing on {topic} (nothing published while subscribed, or only "
                   "before, and not latched)", file=sys.stderr)  # fmt: skip
     if getattr(source, "skipped", 0):  # --on-error skip
-        print(f"{args.source}: SKIPPED {source.skipped:,} bad lines (named above), not stored", file=sys.stderr)
+        print(f"{args.source}: SKIPPED {source.skipped:,} bad messages (named above), not stored", file=sys.stderr)
     if refused := _refused_types(source):
         print(f"{args.source}: SKIPPED {sum(refused.values()):,} messages whose type differs from their stream's, not "
               "stored: " + ", ".join(f"{t} {n:,}" for t, n in sorted(refused.items())), file=sys.stderr)  # fmt: skip

@@ -9,7 +9,7 @@ chunks by ros1chunks (issue 14: 4x faster than rosbags' objects and json.dumps).
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +22,7 @@ from ..jsontext.ros import MessageConverter, message_stamp_ns
 from ..jsontext.roswire import WireError, WireFormatter
 from ..jsontext.rostypes import TypeCheck, ros1_description
 from . import ros1chunks
-from .base import SourceMessage, check_clock, topic_filter
+from .base import BadMessages, OnError, SourceMessage, check_clock, topic_filter
 
 
 class RosbagSource:
@@ -34,8 +34,10 @@ class RosbagSource:
     time. The header stamp always stays in the message's JSON.
     """
 
-    def __init__(self, path: str | Path, *, topics: Iterable[str] | None = None, clock: str = "log") -> None:
+    def __init__(self, path: str | Path, *, topics: Iterable[str] | None = None, clock: str = "log",
+                 on_error: OnError = "stop", report: Callable[[SourceError], None] | None = None) -> None:  # fmt: skip
         self.name = str(path)
+        self._bad = BadMessages(on_error, report)  # a message of another type than its topic's first
         self._header_clock = check_clock(clock) == "header"
         self._wanted = topic_filter(topics)
         self._converter: MessageConverter | None = None
@@ -64,6 +66,11 @@ class RosbagSource:
 
     def topics(self) -> dict[str, str]:
         return {c.topic: c.msgtype for c in self._connections}
+
+    @property
+    def skipped(self) -> int:
+        """Bad messages skipped (on_error="skip")."""
+        return self._bad.skipped
 
     @property
     def message_count(self) -> int:
@@ -99,7 +106,8 @@ class RosbagSource:
             for con, logtime, raw in self._raw_messages():
                 index += 1
                 if con.id in mixed and (why := types.mismatch(con.topic, con.msgtype)) is not None:
-                    raise SourceError(f"{self.name}, message {index:,} of the bag (logged at {logtime} ns): {why}")
+                    self._bad(SourceError(f"{self.name}, message {index:,} of the bag (logged at {logtime} ns): {why}"))
+                    continue
                 fmt = formats[con.id]
                 if fmt is None:
                     text, stamp = self._convert(con, logtime, raw, index, None)

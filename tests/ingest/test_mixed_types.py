@@ -50,7 +50,7 @@ def test_a_type_change_in_jsonl_is_skipped_and_counted_with_on_error_skip(tmp_pa
     r = record(src, "--store", tmp_path / "s", "--on-error", "skip")
     assert r.returncode == 0, r.stderr
     assert f"cclog: skipped: {src}, line 2: the message on /t is a std_msgs/msg/Int32" in r.stderr
-    assert f"{src}: SKIPPED 1 bad lines (named above), not stored" in r.stderr
+    assert f"{src}: SKIPPED 1 bad messages (named above), not stored" in r.stderr
     assert stored(tmp_path / "s") == [("std_msgs/msg/String", ['{"data": "hi"}', '{"data": "ho"}'])]
     r = subprocess.run([*CCLOG, "export", tmp_path / "s", "--mcap", tmp_path / "o.mcap"], capture_output=True,
                        text=True)  # fmt: skip
@@ -67,6 +67,9 @@ def test_a_second_channel_of_another_type_in_a_json_mcap_is_named(tmp_path):
         for t, chan in ((1, a), (2, a), (3, b)):
             w.add_message(chan, log_time=t, data=b'{"x": 1}', publish_time=t)
         w.finish()
+    r = record(path, "--store", tmp_path / "skip", "--on-error", "skip")
+    assert r.returncode == 0 and f"{path}: SKIPPED 1 bad messages (named above)" in r.stderr, r.stderr
+    assert stored(tmp_path / "skip") == [("demo/A", ['{"x": 1}', '{"x": 1}'])]
     r = record(path, "--store", tmp_path / "s")
     assert r.returncode == 1, r.stderr
     assert (f"{path}, message 3 (logged at 3 ns): the message on /t is a demo/B, but the stream /t has type "
@@ -86,6 +89,11 @@ def test_a_second_connection_of_another_type_in_a_ros1_bag_is_named(tmp_path):
         i = bag.add_connection("/t", "std_msgs/msg/Int32", typestore=ts)
         bag.write(s, 1, bytes(ts.serialize_ros1(String(data="hi"), "std_msgs/msg/String")))
         bag.write(i, 2, bytes(ts.serialize_ros1(Int32(data=5), "std_msgs/msg/Int32")))
+        bag.write(s, 3, bytes(ts.serialize_ros1(String(data="ho"), "std_msgs/msg/String")))
+    r = record(path, "--store", tmp_path / "skip", "--on-error", "skip")
+    assert r.returncode == 0 and f"cclog: skipped: {path}, message 2 of the bag" in r.stderr, r.stderr
+    assert f"{path}: SKIPPED 1 bad messages (named above)" in r.stderr
+    assert stored(tmp_path / "skip") == [("std_msgs/msg/String", ['{"data": "hi"}', '{"data": "ho"}'])]
     r = record(path, "--store", tmp_path / "s")
     assert r.returncode == 1, r.stderr
     assert (f"{path}, message 2 of the bag (logged at 2 ns): the message on /t is a std_msgs/msg/Int32, but the "
