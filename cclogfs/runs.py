@@ -91,7 +91,7 @@ class RunInfo:
     @property
     def status(self) -> str:
         """done, interrupted (Ctrl-C/SIGTERM), error, or unfinished: no end record (killed,
-        lost power, or still recording)."""
+        lost power, the disk full or failing when the end was due, or still recording)."""
         return "unfinished" if self.end is None else self.end.get("status", "done")
 
     @property

@@ -82,7 +82,7 @@ def summary_totals(store) -> dict:
 
 
 STATUS = {"done": "done", "interrupted": "interrupted", "error": "error",
-          "unfinished": "interrupted: no end (killed, power lost, or still recording)"}  # fmt: skip
+          "unfinished": "interrupted: no end record (killed, power lost, disk full, or still recording)"}  # fmt: skip
 
 
 def _flags(options: dict) -> str:

@@ -54,7 +54,8 @@ from each publisher's header.seq (a gap means dropped messages); topics whose ty
 header (tf2_msgs/TFMessage) or whose seq does not count up are listed as not checked.
 
 exit status: 0 done, 1 error, 130 interrupted (file input), 4 ros1:// recorded but
-messages were lost (seq gaps, or received after the recording stopped and not stored),
+messages were lost (seq gaps, received after the recording stopped, or of another type than
+the topic's first: a publisher restarted with another type; such messages are skipped, not stored),
 3 done but the store is still over --budget (as `cclog compact`).
 """
 LOST = 4  # the exit status when a live recording knows it lost messages
@@ -93,7 +94,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--codec", default="columnar",
                    help="codec for new records: columnar (default, smallest), zstd (fastest), lzma, none")
     p.add_argument("--on-error", choices=["stop", "skip"], default="stop",
-                   help="a malformed JSONL line stops the run (default) or is reported and skipped")
+                   help="a malformed JSONL line, or a message of another type than its topic's first, stops "
+                        "the run (default) or is reported and skipped")
     p.add_argument("--sync-ms", type=float, default=200, help="group commit interval (default 200 ms)")
     p.add_argument("--no-summary", action="store_true", help="with --model: no per-minute summary stream")
     p.add_argument("--features-out", metavar="DIR",
@@ -317,6 +319,45 @@ def _end_run(run, source, stats: RecordStats, received: list[int], error: BaseEx
             raise
 
 
+def _store_failed(store, err: CclogError, run_seq: int | None, stats: RecordStats) -> CclogError:
+    """The store's failure, saying what of this run is stored: its windows fsynced before
+    the failure (kept whatever happens), those handed to the OS but not fsynced (a reopen
+    keeps them unless power is lost too), and that the rest was lost. The run's end record
+    cannot be written once the store has failed."""
+    from ..errors import StoreFailedError
+
+    synced, written = store.synced_seq(), store.synced_seq(written=True)
+    kept = _run_windows(store, run_seq, written)
+    said = f"synced up to seq {synced}: {_counted(kept, synced)}" if synced is not None else "nothing synced"
+    if written is not None and written != synced:
+        said += (f"; written but not yet fsynced up to seq {written} or further: at least {_counted(kept, written)} "
+                 "(a reopen keeps them unless power was lost too)")  # fmt: skip
+    return StoreFailedError(
+        f"{err}. This run's messages stored: {said}; the rest of the {stats.messages_in:,} messages it read was "
+        "lost, and its end record could not be written. Reopening the store (any cclog command) keeps what is "
+        "stored; free space, then record the rest again (--append)")  # fmt: skip
+
+
+def _run_windows(store, run_seq: int | None, upto: int | None) -> list[tuple[int, int]] | None:
+    """(seq, message count) of this run's windows up to seq `upto`; None when unreadable."""
+    from ..runs import hidden_by_default
+
+    if upto is None:
+        return []
+    try:
+        return [(w.seq, w.count) for w in store.query(skip_damaged=True)
+                if (run_seq is None or w.seq > run_seq) and w.seq <= upto and not hidden_by_default(w.name)]  # fmt: skip
+    except CclogError:
+        return None
+
+
+def _counted(windows: list[tuple[int, int]] | None, upto: int) -> str:
+    if windows is None:
+        return "count unknown"
+    mine = [n for seq, n in windows if seq <= upto]
+    return f"{sum(mine):,} messages in {len(mine):,} windows"
+
+
 def _run(args: argparse.Namespace) -> int:
     from ..pipeline import RecordStats, interrupt_handler
     from ..store import open_store
@@ -343,11 +384,14 @@ def _run(args: argparse.Namespace) -> int:
                 Progress("recording", total=getattr(source, "message_count", None)) as progress:  # fmt: skip
             _warn_damage(store)
             run = _begin_run(args, store, source)
+            run_seq = store.synced_seq()  # the run's start record, synced by begin_run
             stats = RecordStats()
             try:
                 rows, final_bytes = _record_run(args, store, source, policy, upkeep, progress, stats)
             except BaseException as err:
                 _end_run(run, source, stats, received, err)
+                if store.failed is not None and isinstance(err, CclogError):  # disk full, I/O error
+                    raise _store_failed(store, err, run_seq, stats) from err
                 raise
             _end_run(run, source, stats, received, None)
     finally:
@@ -419,9 +463,15 @@ def _exit_status(args: argparse.Namespace, source, stats: RecordStats, policy, r
     if stats.interrupted:
         return 128 + (received[0] if received else signal.SIGINT)
     seq = getattr(source, "seq", None)
-    if seq is not None and seq.lost:
+    if seq is not None and (seq.lost or _refused_types(source)):
         return LOST
     return damaged_exit(source)
+
+
+def _refused_types(source) -> dict[str, int]:
+    """Topic -> messages a live source skipped for a type other than their stream's."""
+    types = getattr(source, "types", None)
+    return getattr(types, "refused", None) or {}
 
 
 def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep: Upkeep | None, final_bytes: int | None) -> None:
@@ -440,6 +490,11 @@ def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep:
         for topic in sorted(t for t, n in source.received.items() if not n):
             print(f"{args.source}: received nothing on {topic} (nothing published while subscribed, or only "
                   "before, and not latched)", file=sys.stderr)  # fmt: skip
+    if getattr(source, "skipped", 0):  # --on-error skip
+        print(f"{args.source}: SKIPPED {source.skipped:,} bad messages (named above), not stored", file=sys.stderr)
+    if refused := _refused_types(source):
+        print(f"{args.source}: SKIPPED {sum(refused.values()):,} messages whose type differs from their stream's, not "
+              "stored: " + ", ".join(f"{t} {n:,}" for t, n in sorted(refused.items())), file=sys.stderr)  # fmt: skip
     if getattr(source, "seq", None) is not None:
         lost = source.seq.lost
         print(f"{args.source}: {'LOST ' if lost else ''}{lost:,} messages lost (from header.seq)", file=sys.stderr)

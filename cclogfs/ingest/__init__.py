@@ -13,8 +13,8 @@ from pathlib import Path
 
 from ..errors import SourceError
 from ..jsontext.lines import format_line, parse_line
-from .base import Source, SourceMessage, check_clock
-from .jsonl import JsonlSource, OnError
+from .base import OnError, Source, SourceMessage, check_clock
+from .jsonl import JsonlSource
 
 __all__ = [
     "FORMATS",
@@ -130,7 +130,8 @@ def open_source(
     """Open a log for reading, choosing the reader by file type (or by `format`). `clock`:
     the time of a bag's messages, "log" or "header" (JSONL lines and JSON MCAP carry their
     own times, so for them only "log" is accepted). `max_text_bytes`: a JSONL line whose
-    message is longer is a bad line (named, or skipped with on_error="skip")."""
+    message is longer is a bad line (named, or skipped with on_error="skip"), as is a message of
+    another type than its topic's first in any source (a stream keeps one type)."""
     fmt = format or detect_format(path)
     if fmt not in _READERS:
         raise SourceError(
@@ -147,14 +148,14 @@ def open_source(
         try:
             if fmt == "rosbag2" and _db3_cut_short(Path(path)):
                 raise SourceError("its database is cut short")  # the bag reader would fail midway
-            return cls(path, topics=topics, clock=clock)
+            return cls(path, topics=topics, clock=clock, on_error=on_error, report=report)
         except SourceError as err:
             salvage = _salvage_class(fmt, Path(path))
             if salvage is None:
                 raise
             return salvage(path, topics=topics, clock=clock, why=str(err))
     _log_clock_only(path, clock)
-    return cls(path, topics=topics)
+    return cls(path, topics=topics, on_error=on_error, report=report)
 
 
 def _salvage_class(fmt: str, p: Path):

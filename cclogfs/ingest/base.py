@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
-from typing import NamedTuple, Protocol, runtime_checkable
+from collections.abc import Callable, Iterable, Iterator
+from typing import Literal, NamedTuple, Protocol, runtime_checkable
 
-from ..errors import InvalidInputError
+from ..errors import InvalidInputError, SourceError
+
+OnError = Literal["stop", "skip"]
 
 
 class SourceMessage(NamedTuple):
@@ -34,6 +36,24 @@ class Source(Protocol):
     def topics(self) -> dict[str, str]:
         """Topic -> message type of what the source holds ("" when not known up front)."""
         ...
+
+
+class BadMessages:
+    """What a source does with a bad message (line): raise its error (on_error="stop"), or
+    skip it, counting it in `skipped` and passing the error to `report` ("skip")."""
+
+    def __init__(self, on_error: OnError = "stop", report: Callable[[SourceError], None] | None = None) -> None:
+        if on_error not in ("stop", "skip"):
+            raise InvalidInputError(f"on_error must be 'stop' or 'skip', not {on_error!r}.")
+        self.on_error, self.report = on_error, report
+        self.skipped = 0
+
+    def __call__(self, err: SourceError) -> None:
+        if self.on_error == "stop":
+            raise err
+        self.skipped += 1
+        if self.report is not None:
+            self.report(err)
 
 
 CLOCKS = ("log", "header")

@@ -11,12 +11,13 @@ import select
 import sys
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from typing import BinaryIO, Literal
+from typing import BinaryIO
 
-from ..errors import InvalidInputError, SourceError
+from ..errors import SourceError
 from ..jsontext.check import name_error
 from ..jsontext.lines import JsonlLineError, parse_line, split_canonical, split_canonical_bytes
-from .base import SourceMessage, topic_filter
+from ..jsontext.rostypes import TypeCheck
+from .base import BadMessages, OnError, SourceMessage, topic_filter
 
 # The compiled splitter (cclogfs/ingest/_jsonl_split.c; setup.py builds it where a C
 # compiler is): the messages of a list of lines in the canonical layout, None for each
@@ -26,7 +27,6 @@ try:
 except ImportError:  # no C compiler at install: the Python path gives the same messages
     _split_lines_c = None
 
-OnError = Literal["stop", "skip"]
 # Lines read at a time: one read call and one call of the splitter per 64 KiB.
 _BATCH_BYTES = 1 << 16
 
@@ -93,14 +93,11 @@ class JsonlSource:
         report: Callable[[SourceError], None] | None = None,
         max_text_bytes: int | None = None,
     ) -> None:
-        if on_error not in ("stop", "skip"):
-            raise InvalidInputError(f"on_error must be 'stop' or 'skip', not {on_error!r}.")
+        self._bad = BadMessages(on_error, report)
         self._wanted = topic_filter(topics)
-        self._on_error = on_error
-        self._report = report
-        self.skipped = 0
         self._max_text = max_text_bytes
         self._names_ok: set[str] = set()
+        self._types = TypeCheck()  # lines naming a type go the slow way, which checks it
         self._owned = str(path) != "-"
         self._file: BinaryIO | Iterator[list[bytes]]
         if self._owned:
@@ -216,6 +213,10 @@ class JsonlSource:
             # messages, and names no line.
             self._bad_line(lineno, f"'topic' {why}")
             return None
+        if (self._wanted is None or message.topic in self._wanted) and \
+                (why := self._types.mismatch(message.topic, message.msgtype)) is not None:  # fmt: skip
+            self._bad_line(lineno, why)
+            return None
         if self._max_text is not None and len(raw) > self._max_text:
             size = len(message.text.encode())
             wanted = self._wanted is None or message.topic in self._wanted
@@ -225,10 +226,10 @@ class JsonlSource:
                 return None
         return message
 
+    @property
+    def skipped(self) -> int:
+        """Bad lines skipped (on_error="skip")."""
+        return self._bad.skipped
+
     def _bad_line(self, lineno: int, reason: str) -> None:
-        err = SourceError(f"{self.name}, line {lineno}: {reason}.")
-        if self._on_error == "stop":
-            raise err
-        self.skipped += 1
-        if self._report is not None:
-            self._report(err)
+        self._bad(SourceError(f"{self.name}, line {lineno}: {reason}."))

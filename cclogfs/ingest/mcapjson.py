@@ -7,14 +7,15 @@ The message bytes are the JSON text, so it is passed on unchanged.
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import BinaryIO
 
 from mcap.reader import make_reader
 
 from ..errors import SourceError
-from .base import SourceMessage, topic_filter
+from ..jsontext.rostypes import TypeCheck
+from .base import BadMessages, OnError, SourceMessage, topic_filter
 
 
 def mcap_encodings(path: str | Path) -> set[str]:
@@ -40,8 +41,10 @@ class McapJsonSource:
     `stamp_ns` is the message's log time; `msgtype` the channel's schema name.
     """
 
-    def __init__(self, path: str | Path, *, topics: Iterable[str] | None = None) -> None:
+    def __init__(self, path: str | Path, *, topics: Iterable[str] | None = None, on_error: OnError = "stop",
+                 report: Callable[[SourceError], None] | None = None) -> None:  # fmt: skip
         self.name = str(path)
+        self._bad = BadMessages(on_error, report)  # a message of another type than its topic's first
         self._wanted = topic_filter(topics)
         try:
             self._file: BinaryIO = open(path, "rb")
@@ -57,6 +60,11 @@ class McapJsonSource:
     def close(self) -> None:
         self._file.close()
 
+    @property
+    def skipped(self) -> int:
+        """Bad messages skipped (on_error="skip")."""
+        return self._bad.skipped
+
     def topics(self) -> dict[str, str]:
         self._file.seek(0)
         summary = make_reader(self._file).get_summary()
@@ -71,8 +79,9 @@ class McapJsonSource:
     def __iter__(self) -> Iterator[SourceMessage]:
         self._file.seek(0)
         topics = None if self._wanted is None else sorted(self._wanted)
+        types = TypeCheck()
         try:
-            for schema, channel, message in make_reader(self._file).iter_messages(topics=topics):
+            for index, (schema, channel, message) in enumerate(make_reader(self._file).iter_messages(topics=topics), 1):
                 if channel.message_encoding != "json":
                     raise SourceError(
                         f"{self.name}: channel {channel.topic} has message encoding "
@@ -87,6 +96,9 @@ class McapJsonSource:
                         f"{message.log_time} ns is not valid JSON: {err}"
                     ) from err
                 msgtype = schema.name if schema is not None else ""
+                if (why := types.mismatch(channel.topic, msgtype)) is not None:
+                    self._bad(SourceError(f"{self.name}, message {index:,} (logged at {message.log_time} ns): {why}"))
+                    continue
                 yield SourceMessage(channel.topic, message.log_time, text, msgtype)
         except SourceError:
             raise

@@ -31,7 +31,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.msg import normalize_msgtype as _normalize
 
 from ..errors import InvalidInputError, SourceError
-from ..jsontext.rostypes import ros1_description
+from ..jsontext.rostypes import TypeCheck, ros1_description
 from ..jsontext.ros import MessageConverter, message_stamp_ns
 from ..jsontext.roswire import WireFormatter
 from .base import SourceMessage, check_clock
@@ -137,6 +137,7 @@ class Ros1LiveSource:
         self.poll_s, self.idle_s = poll_s, idle_s
         self.received: dict[str, int] = {}
         self.seq = SeqCheck()  # messages lost, told from header.seq: `seq.lost`, `seq.lines()`
+        self.types = TypeCheck()  # `types.refused`: messages of another type than their stream's, not stored
         self.stopped_by: str | None = None
         self._master_lost = False
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
@@ -229,14 +230,22 @@ class Ros1LiveSource:
                 if stopping:
                     return
                 item = None
-            if item is not None:
-                yield self._convert(*item)
+            if item is not None and (message := self._convert(*item)) is not None:
+                yield message
             if not stopping and time.monotonic() >= next_poll:
                 self.discover()
                 next_poll = time.monotonic() + self.poll_s
 
-    def _convert(self, topic: str, recv_ns: int, raw: bytes, header: dict[str, str]) -> SourceMessage:
+    def _convert(self, topic: str, recv_ns: int, raw: bytes, header: dict[str, str]) -> SourceMessage | None:
+        """The message, or None for one of another type than its stream's (a publisher
+        restarted with another type): skipped, said once per topic, counted in `types.refused`;
+        stopping would lose the rest of a live recording."""
         msgtype = normalize_msgtype(header["type"])
+        if (why := self.types.mismatch(topic, msgtype)) is not None:
+            if self.types.refused[topic] == 1:
+                print(f"cclog: warning: {self.name}: {why}; skipping its messages of type {msgtype} (counted at the "
+                      "end)", file=sys.stderr, flush=True)  # fmt: skip
+            return None
         self.seq.add(topic, raw, header)
         if topic not in self._conns:
             self._conns[topic] = header

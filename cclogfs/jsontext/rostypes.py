@@ -15,11 +15,41 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any
 
+from ..errors import InvalidInputError
+
 Describe = Callable[[str], Mapping[str, Any] | None]
 
 # A record's metadata is at most 64 KiB (docs/FORMAT.md); a definition larger than this is
 # left out (play then uses rosbags' types), so that no window is ever refused for it.
 MAX_MSGDEF = 32 * 1024
+
+
+def type_mismatch(types: dict[str, str], topic: str, msgtype: str) -> str | None:
+    """None when a message of `msgtype` on `topic` fits its stream in `types` (topic -> the
+    first type seen, which this adds; an unnamed type always fits); else why not. A stream
+    keeps one type: export and play read all its windows as the type its windows name."""
+    if not msgtype:
+        return None
+    first = types.setdefault(topic, msgtype)
+    if first == msgtype:
+        return None
+    return (f"the message on {topic} is a {msgtype}, but the stream {topic} has type {first} (its first "
+            "message's); a stream keeps one type, so record this topic's other type into another store")
+
+
+class TypeCheck:
+    """For a source: topic -> its stream's type, and the messages refused for another type."""
+
+    def __init__(self) -> None:
+        self.types: dict[str, str] = {}
+        self.refused: dict[str, int] = {}  # topic -> messages refused
+
+    def mismatch(self, topic: str, msgtype: str) -> str | None:
+        """`type_mismatch`, counting each refused message."""
+        why = type_mismatch(self.types, topic, msgtype)
+        if why is not None:
+            self.refused[topic] = self.refused.get(topic, 0) + 1
+        return why
 
 
 class StreamTypes:
@@ -31,8 +61,10 @@ class StreamTypes:
         self._described: set[str] = set()
 
     def saw(self, topic: str, msgtype: str) -> None:
-        if msgtype and topic not in self.types:
-            self.types[topic] = msgtype
+        """Note a message's type; InvalidInputError for one its stream cannot keep (the
+        sources refuse those first, naming the line: this is for any other caller)."""
+        if (why := type_mismatch(self.types, topic, msgtype)) is not None:
+            raise InvalidInputError(why)
 
     def meta(self, topic: str, meta: Mapping[str, Any]) -> Mapping[str, Any]:
         """`meta` with the stream's type added (and its definition, the first time)."""

@@ -347,6 +347,26 @@ class Store:
                 "refuses further writes because what reached the disk is unknown; reopen it to recover"
             ) from self._failed
 
+    @property
+    def failed(self) -> BaseException | None:
+        """The write or fsync failure that stopped this writer (None: none)."""
+        return self._failed
+
+    def synced_seq(self, *, written: bool = False) -> int | None:
+        """The seq of the last record proven durable (an fsync completed past its end), None
+        when none is: after a failed write, what reopening the store keeps even after a power
+        loss. `written`: the last record handed to the OS instead (fsynced or not), which a
+        reopen keeps unless the machine lost power too."""
+        with self.lock:
+            seg = self.active
+            if seg is None:
+                return None
+            bound = seg.size if written else seg.synced
+            for row in reversed(seg.rows):  # (name, count, seq, first, last, offset, length, raw)
+                if row[5] + row[6] <= bound:
+                    return row[2]
+            return seg.first_seq - 1 if seg.first_seq > 0 else None
+
     def put_window(self, name: str, messages: Sequence[tuple[int, str]],
                    meta: Mapping[str, Any] | None = None, *, codec: Any = None,
                    check_json: bool = True) -> Receipt:  # fmt: skip

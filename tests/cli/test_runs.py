@@ -136,7 +136,7 @@ def test_an_interrupted_and_a_killed_run_are_told_apart(tmp_path, capsys):
     assert runs[1]["end_ns"] is None and "messages_kept" not in runs[1]
     assert main(["info", str(store)]) == 0
     out = capsys.readouterr().out
-    assert "interrupted (SIGINT)" in out and "interrupted: no end (killed" in out
+    assert "interrupted (SIGINT)" in out and "interrupted: no end record (killed" in out
 
 
 def test_stdin_is_never_refused(tmp_path):

@@ -405,3 +405,43 @@ def test_a_headerless_topic_on_another_clock_than_the_stamps_is_said(master, tmp
     finally:
         stop(rec)
     assert "/tf has no header stamp" in err and "/odom" in err and "another clock" in err, err
+
+
+RETYPING_PUBLISHER = """
+import time
+from cclogfs.ingest.ros1live import import_rospy
+rospy = import_rospy()
+from std_msgs.msg import Int32, String
+
+rospy.init_node("retyper")
+for kind, values in ((String, ["a", "b", "c"]), (Int32, [1, 2, 3, 4])):  # the publisher restarts with another type
+    pub = rospy.Publisher("/t", kind, queue_size=100)
+    while pub.get_num_connections() == 0:
+        time.sleep(0.05)
+    time.sleep(0.5)
+    for v in values:
+        pub.publish(kind(data=v))
+        time.sleep(0.01)
+    time.sleep(0.5)
+    pub.unregister()
+"""
+
+
+def test_a_publisher_restarting_with_another_type_is_skipped_said_and_exit_4(master, tmp_path):
+    script = tmp_path / "retyper.py"
+    script.write_text(RETYPING_PUBLISHER)
+    rec = recorder(master, tmp_path / "s", "--topic", "/t")
+    try:
+        wait_subscribed(master, "/t")
+        publisher = start([sys.executable, str(script)], master, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        played(publisher, timeout=60)
+        time.sleep(0.5)
+        rc = stop(rec)
+        err = rec.stderr.read()
+    finally:
+        stop(rec)
+    assert rc == 4, err  # the recording went on to the end, but a script must notice
+    warning = ("the message on /t is a std_msgs/msg/Int32, but the stream /t has type std_msgs/msg/String")
+    assert err.count(warning) == 1, err  # once per topic, not per message
+    assert "ros1://: SKIPPED 4 messages whose type differs from their stream's, not stored: /t 4" in err
+    assert sorted(store_messages(tmp_path / "s")["/t"]) == ['{"data": "a"}', '{"data": "b"}', '{"data": "c"}']

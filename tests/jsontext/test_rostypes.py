@@ -1,7 +1,10 @@
 """cclogfs.jsontext.rostypes: each stream's message type (and, once, its ROS 1 definition)
 in the metadata of the windows a recording stores."""
 
-from cclogfs.jsontext.rostypes import MAX_MSGDEF, StreamTypes, ros1_description, ros1_typestore
+import pytest
+
+from cclogfs.errors import InvalidInputError
+from cclogfs.jsontext.rostypes import MAX_MSGDEF, StreamTypes, TypeCheck, ros1_description, ros1_typestore
 
 
 def test_stream_types_keep_the_type_everywhere_and_the_definition_once():
@@ -14,13 +17,25 @@ def test_stream_types_keep_the_type_everywhere_and_the_definition_once():
     assert t.meta("/untyped", {"k": 1}) == {"k": 1}
 
 
-def test_the_first_type_seen_sticks_and_an_empty_one_is_ignored():
+def test_the_first_type_seen_sticks_another_is_refused_and_an_empty_one_is_ignored():
     t = StreamTypes()
     t.saw("/a", "")
     assert t.meta("/a", {}) == {}
     t.saw("/a", "pkg/msg/A")
-    t.saw("/a", "pkg/msg/Other")
+    t.saw("/a", "")
+    # A stream keeps one type: another would leave windows export reads as the wrong type.
+    with pytest.raises(InvalidInputError, match="on /a is a pkg/msg/Other, but the stream /a has type pkg/msg/A"):
+        t.saw("/a", "pkg/msg/Other")
     assert t.meta("/a", {}) == {"msgtype": "pkg/msg/A"}  # no describe: the type only
+
+
+def test_type_check_counts_the_messages_it_refuses_per_topic():
+    c = TypeCheck()
+    assert c.mismatch("/a", "pkg/msg/A") is None and c.mismatch("/b", "") is None
+    assert "the stream /a has type pkg/msg/A" in c.mismatch("/a", "pkg/msg/B")
+    c.mismatch("/a", "pkg/msg/B")
+    assert c.mismatch("/a", "pkg/msg/A") is None
+    assert c.refused == {"/a": 2}
 
 
 def test_ros1_description_of_a_known_type():

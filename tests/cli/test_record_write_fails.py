@@ -1,0 +1,52 @@
+"""`cclog record` when the store's disk fills (RLIMIT_FSIZE stands in for a full disk: the
+write fails with EFBIG as it would with ENOSPC): the error says what of the run is stored,
+up to which seq, and that the rest was lost; `cclog info` does not claim the run was only
+killed or cut by a power loss."""
+
+from __future__ import annotations
+
+import json
+import re
+import resource
+import subprocess
+import sys
+
+import cclogfs
+
+CCLOG = [sys.executable, "-m", "cclogfs"]
+
+
+def _limit_file_size():
+    resource.setrlimit(resource.RLIMIT_FSIZE, (3 << 20, 3 << 20))  # Python ignores SIGXFSZ: writes fail
+
+
+def _odom(path, n=40000):
+    with open(path, "w") as f:
+        for i in range(n):
+            msg = {"pose": {"x": i * 0.0123456789, "y": -i * 0.0098765432}, "twist": {"vx": 0.25, "wz": -0.01 * i}}
+            f.write(json.dumps({"topic": "/odom", "stamp_ns": i * 50_000_000, "msg": msg}) + "\n")
+
+
+def _stored(store):
+    with cclogfs.open_store(store) as s:  # the writer's reopen: recovery keeps what is whole
+        return sum(w.count for w in s.query("/odom"))
+
+
+def test_a_full_disk_says_what_was_synced_and_info_does_not_blame_a_kill(tmp_path):
+    src, store = tmp_path / "odom.jsonl", tmp_path / "s"
+    _odom(src)
+    r = subprocess.run([*CCLOG, "record", str(src), "--store", str(store), "--codec", "none", "--sync-ms", "0",
+                        "--chunk", "100"], capture_output=True, text=True, preexec_fn=_limit_file_size)  # fmt: skip
+    assert r.returncode == 1, r.stderr
+    assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    said = re.search(r"This run's messages stored: synced up to seq (\d+): ([\d,]+) messages in (\d+) windows;", r.stderr)
+    assert said, r.stderr
+    read = re.search(r"the rest of the ([\d,]+) messages it read was lost, and its end record could not be written",
+                     r.stderr)  # fmt: skip
+    assert read, r.stderr
+    assert "written but not yet fsynced" not in r.stderr  # --sync-ms 0: every window fsynced as written
+    synced = int(said[2].replace(",", ""))
+    assert 0 < synced < int(read[1].replace(",", "")) <= 40000 and int(said[3]) == synced // 100
+    assert _stored(store) == synced  # exactly what the error said is what the store keeps
+    info = subprocess.run([*CCLOG, "info", str(store)], capture_output=True, text=True)
+    assert "no end record (killed, power lost, disk full, or still recording)" in info.stdout, info.stdout

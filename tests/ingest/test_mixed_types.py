@@ -1,0 +1,101 @@
+"""A topic whose message type changes within one input: a stream keeps one type (export and
+play read all its windows as it), so the message of another type is a bad message, named by
+file, line or message number, topic and both types; what came before it is stored."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+from mcap.writer import Writer
+
+from cclogfs import open_store
+
+CCLOG = [sys.executable, "-m", "cclogfs"]
+
+
+def line(stamp, msg, msgtype):
+    return json.dumps({"topic": "/t", "stamp_ns": stamp, "msg": msg, "msgtype": msgtype}) + "\n"
+
+
+def mixed_jsonl(path):
+    path.write_text(line(1, {"data": "hi"}, "std_msgs/msg/String") + line(2, {"data": 5}, "std_msgs/msg/Int32")
+                    + line(3, {"data": "ho"}, "std_msgs/msg/String"))  # fmt: skip
+
+
+def stored(store_path, topic="/t"):
+    with open_store(store_path, readonly=True) as store:
+        return [(w.meta.get("msgtype"), [text for _, text in w.messages()]) for w in store.query(topic)]
+
+
+def record(*args):
+    return subprocess.run([*CCLOG, "record", *map(str, args)], capture_output=True, text=True)
+
+
+def test_a_type_change_in_jsonl_stops_naming_the_line_and_keeps_what_came_before(tmp_path):
+    src = tmp_path / "mixed.jsonl"
+    mixed_jsonl(src)
+    r = record(src, "--store", tmp_path / "s")
+    assert r.returncode == 1, r.stderr
+    assert (f"{src}, line 2: the message on /t is a std_msgs/msg/Int32, but the stream /t has type "
+            "std_msgs/msg/String") in r.stderr  # fmt: skip
+    assert "Traceback" not in r.stderr
+    assert stored(tmp_path / "s") == [("std_msgs/msg/String", ['{"data": "hi"}'])]
+
+
+def test_a_type_change_in_jsonl_is_skipped_and_counted_with_on_error_skip(tmp_path):
+    src = tmp_path / "mixed.jsonl"
+    mixed_jsonl(src)
+    r = record(src, "--store", tmp_path / "s", "--on-error", "skip")
+    assert r.returncode == 0, r.stderr
+    assert f"cclog: skipped: {src}, line 2: the message on /t is a std_msgs/msg/Int32" in r.stderr
+    assert f"{src}: SKIPPED 1 bad messages (named above), not stored" in r.stderr
+    assert stored(tmp_path / "s") == [("std_msgs/msg/String", ['{"data": "hi"}', '{"data": "ho"}'])]
+    r = subprocess.run([*CCLOG, "export", tmp_path / "s", "--mcap", tmp_path / "o.mcap"], capture_output=True,
+                       text=True)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+
+
+def test_a_second_channel_of_another_type_in_a_json_mcap_is_named(tmp_path):
+    path = tmp_path / "mixed.mcap"
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start()
+        a = w.register_channel("/t", "json", w.register_schema("demo/A", "jsonschema", b"{}"))
+        b = w.register_channel("/t", "json", w.register_schema("demo/B", "jsonschema", b"{}"))
+        for t, chan in ((1, a), (2, a), (3, b)):
+            w.add_message(chan, log_time=t, data=b'{"x": 1}', publish_time=t)
+        w.finish()
+    r = record(path, "--store", tmp_path / "skip", "--on-error", "skip")
+    assert r.returncode == 0 and f"{path}: SKIPPED 1 bad messages (named above)" in r.stderr, r.stderr
+    assert stored(tmp_path / "skip") == [("demo/A", ['{"x": 1}', '{"x": 1}'])]
+    r = record(path, "--store", tmp_path / "s")
+    assert r.returncode == 1, r.stderr
+    assert (f"{path}, message 3 (logged at 3 ns): the message on /t is a demo/B, but the stream /t has type "
+            "demo/A") in r.stderr  # fmt: skip
+    assert stored(tmp_path / "s") == [("demo/A", ['{"x": 1}', '{"x": 1}'])]
+
+
+def test_a_second_connection_of_another_type_in_a_ros1_bag_is_named(tmp_path):
+    from rosbags.rosbag1 import Writer as BagWriter
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    String, Int32 = ts.types["std_msgs/msg/String"], ts.types["std_msgs/msg/Int32"]
+    path = tmp_path / "mixed.bag"
+    with BagWriter(path) as bag:
+        s = bag.add_connection("/t", "std_msgs/msg/String", typestore=ts)
+        i = bag.add_connection("/t", "std_msgs/msg/Int32", typestore=ts)
+        bag.write(s, 1, bytes(ts.serialize_ros1(String(data="hi"), "std_msgs/msg/String")))
+        bag.write(i, 2, bytes(ts.serialize_ros1(Int32(data=5), "std_msgs/msg/Int32")))
+        bag.write(s, 3, bytes(ts.serialize_ros1(String(data="ho"), "std_msgs/msg/String")))
+    r = record(path, "--store", tmp_path / "skip", "--on-error", "skip")
+    assert r.returncode == 0 and f"cclog: skipped: {path}, message 2 of the bag" in r.stderr, r.stderr
+    assert f"{path}: SKIPPED 1 bad messages (named above)" in r.stderr
+    assert stored(tmp_path / "skip") == [("std_msgs/msg/String", ['{"data": "hi"}', '{"data": "ho"}'])]
+    r = record(path, "--store", tmp_path / "s")
+    assert r.returncode == 1, r.stderr
+    assert (f"{path}, message 2 of the bag (logged at 2 ns): the message on /t is a std_msgs/msg/Int32, but the "
+            "stream /t has type std_msgs/msg/String") in r.stderr  # fmt: skip
+    assert stored(tmp_path / "s") == [("std_msgs/msg/String", ['{"data": "hi"}'])]
