@@ -259,8 +259,7 @@ class SegmentOpener:
         records (with --skip-damaged) and not a refusal of the whole store. A writer refuses:
         only `fsck --repair` (which records the cut in the manifest) may go on."""
         cut = cut_damage(seg)
-        if not self.readonly and not self.drop_lost_header:
-            self.fs.close(seg.fd)
+        if not self.readonly and not self.drop_lost_header:  # `open` closes the segments on the way out
             raise DamagedError(f"{self.path}: a writer cannot open the store: {cut}; run `cclog fsck --repair "
                                "--discard-damaged` to drop what the cut lost (and name its seqs)",
                                [cut.damage_info()], path=seg.path, reason=cut.reason)  # fmt: skip
