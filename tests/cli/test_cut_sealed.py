@@ -67,6 +67,7 @@ def test_cut_sealed_segment_is_read_and_repaired(store, capsys, case, header):
     # Readers open the store: cat refuses naming the segment and the seqs, --skip-damaged reads the rest.
     code, out, err = _cli(capsys, "cat", str(store))
     assert code != 0 and SEG in err and lost_words in err and out == ""
+    assert "cclog fsck --repair --discard-damaged" in err
     code, out, err = _cli(capsys, "cat", str(store), "--skip-damaged")
     kept = out.splitlines()
     assert len(kept) == 3 * (10 - len(lost)) and set(kept) <= set(whole)
