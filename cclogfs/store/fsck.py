@@ -26,7 +26,7 @@ from .records import count_intact_in
 from .fs import FileSystem
 from .index import SegmentIndex
 from .manifest import SealedSegment
-from .segment import Problem, Segment, scan
+from .segment import Problem, Segment, ends_declared, scan
 from .store import Store, describe_damage, open_store
 
 
@@ -223,7 +223,7 @@ def _check_segment(store: Store, fs: FileSystem, info: SealedSegment, checked: S
         _check_past_damage(store, fs, info, checked, p.offset, report)
     elif result.end != info.size and not found or checked.size != info.size:
         report.add("error", name, f"is {checked.size} bytes, the manifest says {info.size}")
-    ends_known = result.problem is not None and result.problem.offset in known
+    ends_known = ends_declared(result, known)
     if not unknown and not ends_known and result.next_seq != info.end_seq:
         report.add("error", name, f"ends at seq {result.next_seq}, the manifest says {info.end_seq}")
     report.records += len(result.rows)

@@ -20,7 +20,7 @@ from .format import (
     pack_segment_header,
     segment_header_fault,
 )
-from .segment import Segment, lost_seqs, scan
+from .segment import Segment, ends_declared, lost_seqs, scan
 from .store import Store
 
 
@@ -86,7 +86,7 @@ def _unprovable(seg: Segment, info: dict, dropped: set[int]) -> str:
     if bad:
         return (f"a record behind it is damaged too ({bad[0].reason} at offset {bad[0].offset}; "
                 "`--discard-damaged` drops it and names its seqs)")  # fmt: skip
-    ends_dropped = result.problem is not None and result.problem.offset in dropped
+    ends_dropped = ends_declared(result, dropped)
     if result.next_seq != info["end_seq"] and not ends_dropped:
         return f"its records end at seq {result.next_seq}, the manifest says {info['end_seq']}"
     return ""

@@ -155,11 +155,12 @@ class Manifest(Mapping[str, Any]):
         return self._next(quarantine=sorted({*self.quarantine, name}))
 
     def with_damage(self, first_seq: int, damaged: list[dict[str, Any]], streams: dict[str, Any],
-                    aged: dict[str, int]) -> Manifest:  # fmt: skip
+                    aged: dict[str, int], size: int | None = None) -> Manifest:  # fmt: skip
         """The sealed segment at `first_seq` holds these damaged stretches; `streams` and
-        `aged` count only its intact records."""
-        segments = [dict(info, damaged=damaged, streams=streams, aged=aged) if info["first_seq"] == first_seq
-                    else info for info in self.segments]  # fmt: skip
+        `aged` count only its intact records; `size`, when given, is its file's size now
+        (a segment cut short since sealing, the cut among the stretches)."""
+        segments = [dict(info, damaged=damaged, streams=streams, aged=aged, size=info["size"] if size is None else size)
+                    if info["first_seq"] == first_seq else info for info in self.segments]  # fmt: skip
         return self._next(segments=segments)
 
     def with_damage_discarded(self) -> Manifest:

@@ -34,7 +34,7 @@ from . import planted
 from .index import OFFSET, SEQ, SegmentIndex
 from .manifest import Manifest
 from .records import intact_in
-from .segment import Problem, ScanResult, Segment, hash_file, intact_after, open_segment, scan
+from .segment import Problem, ScanResult, Segment, cut_damage, ends_declared, hash_file, intact_after, open_segment, scan
 
 
 @dataclass
@@ -189,7 +189,7 @@ class SegmentOpener:
         result = scan(seg, start=start, salvage=bool(declared))
         if _undeclared(result, declared) and start is not None:  # a stale or forged index
             index, result = None, scan(seg, salvage=bool(declared))
-        if _undeclared(result, declared) or (result.problem is not None and result.problem.offset in declared):
+        if _undeclared(result, declared) or ends_declared(result, declared):
             return  # other damage is reported by every read; a segment ending in declared damage has no last record to check
         if result.next_seq != seg.next_seq:
             i = len(manifest.segments) - 1
@@ -250,11 +250,30 @@ class SegmentOpener:
                                   seqs=(d["first_seq"], d["end_seq"])) for d in info.get("damaged", ())]  # fmt: skip
             seg.known_damage = {d["offset"] for d in (*info.get("damaged", ()), *info.get("discarded", ()))}
             self.sealed.append(seg)
+            if seg.size < seg.sealed_size:
+                self._open_cut(seg)
+
+    def _open_cut(self, seg: Segment) -> None:
+        """A sealed segment cut short since sealing: what it lost is damage below the synced
+        point, named as the writer names a torn record there, so that readers get its intact
+        records (with --skip-damaged) and not a refusal of the whole store. A writer refuses:
+        only `fsck --repair` (which records the cut in the manifest) may go on."""
+        cut = cut_damage(seg)
+        if not self.readonly and not self.drop_lost_header:  # `open` closes the segments on the way out
+            raise DamagedError(f"{self.path}: a writer cannot open the store: {cut}; run `cclog fsck --repair "
+                               "--discard-damaged` to drop what the cut lost (and name its seqs)",
+                               [cut.damage_info()], path=seg.path, reason=cut.reason)  # fmt: skip
+        seg.cut = True
+        seg.sealed_size = seg.size  # reads take the file as it is, the cut named as damage
+        seg.damage = sorted([*seg.damage, cut], key=lambda p: p.offset)
+        seg.known_damage.add(cut.offset)
+        if self.readonly:
+            self.recovery.damage.append(cut)
 
     def _remove_leftovers(self, files: _Files) -> None:
         # Only now, with every file the manifest names found, and of the size it states: were
         # one missing or cut short, the other generation might be all that is left of it.
-        damaged = {seg.first_seq for seg in self.sealed if seg.size != seg.sealed_size}
+        damaged = {seg.first_seq for seg in self.sealed if seg.size != seg.sealed_size or seg.cut}
         leftovers = [n for n in files.leftovers if parse_seq_name(n)[0] not in damaged]
         self.recovery.leftovers = leftovers
         if leftovers and not self.readonly:

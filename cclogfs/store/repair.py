@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 from ..codecs import codec_from_config
 from ..errors import CclogError, CorruptionError, StoreLockedError
-from .format import AGED_META_KEY, LOCK, MANIFEST, QUARANTINE, SIDE_FILE, check_fields, index_size_limit
+from .format import AGED_META_KEY, Reason, LOCK, MANIFEST, QUARANTINE, SIDE_FILE, check_fields, index_size_limit
 from .fs import FileSystem, FileTooLargeError
 from .header_repair import rebuild_headers
 from .records import intact_in
@@ -116,22 +116,27 @@ def _declare_sealed_damage(store: Store, report: RepairReport) -> None:
     """Name in the manifest every damaged stretch of a sealed segment (all of it was
     synced), so that reads know what they miss and the index can be rebuilt around it."""
     for seg, info in zip(store.sealed, store.manifest.segments):
-        if seg.size != seg.sealed_size:
-            continue  # cut or grown since sealing: left for fsck to report, never guessed at
+        if seg.size > seg.sealed_size:
+            continue  # grown since sealing: left for fsck to report, never guessed at
         result = scan(seg, salvage=True)
-        declared = seg.known_damage
+        # A segment cut short (recovery) holds its cut as damage the manifest does not name yet.
+        declared = {d["offset"] for d in (*info.get("damaged", ()), *info.get("discarded", ()))}
         found = [*result.damage, *([result.problem] if result.problem else [])]
-        new = [p for p in found if p.offset not in declared]
+        found += [p for p in seg.damage if seg.cut and p.reason == Reason.SIZE_MISMATCH]
+        new = list({p.offset: p for p in found if p.offset not in declared}.values())
         for p in new:
             if p.seqs is None:  # up to the end: the manifest knows where the segment ended
                 p.seqs = (result.next_seq, max(info["end_seq"], result.next_seq + 1))
         if new:
-            seg.damage = sorted([*seg.damage, *new], key=lambda p: p.offset)
+            seg.damage = sorted([*{p.offset: p for p in [*seg.damage, *new]}.values()], key=lambda p: p.offset)
             seg.known_damage |= {p.offset for p in new}
             # The lost windows leave the statistics: they are no longer in the store.
             stats = SegmentIndex.build(result.rows).stream_stats()
             damaged = [p.damage_info() for p in seg.damage]
-            store.commit_manifest(store.manifest.with_damage(seg.first_seq, damaged, stats, result.aged))
+            # The manifest records the cut file's size: the cut is named damage from now on.
+            manifest = store.manifest.with_damage(seg.first_seq, damaged, stats, result.aged, size=seg.size)
+            store.commit_manifest(manifest)
+            seg.cut = False
             report.actions += [f"named damage in a sealed segment in the manifest: {p}" for p in new]
 
 

@@ -106,6 +106,7 @@ class Segment:
         self.rows: list[tuple] = []
         self.next_seq = first_seq
         self.sealed_size = -1  # for a sealed segment: its size in the manifest
+        self.cut = False  # a sealed segment found shorter than the manifest says (recovery)
         self.gen = 0  # for a sealed segment: how often compaction rewrote it (names its files)
         self.synced = 0  # bytes proven durable: the size at the last completed fsync
         self.damage: list[Problem] = []  # damage below the synced point (recovery, the manifest)
@@ -201,7 +202,7 @@ class Segment:
             declared = self.known_damage
             found = [*result.damage, *([result.problem] if result.problem else [])]
             problem = next((p for p in found if p.offset not in declared), None)
-            ends_damaged = result.problem is not None and result.problem.offset in declared
+            ends_damaged = ends_declared(result, declared)
             if problem is None and result.next_seq != self.next_seq and not ends_damaged:
                 problem = Problem(self.path, result.end, Reason.SEQ_GAP,
                                   f"ends at seq {result.next_seq}, the manifest says {self.next_seq}")  # fmt: skip
@@ -261,6 +262,22 @@ def hash_file(fs: FileSystem, fd: int, start: int, end: int,
     for pos in range(start, end, HASH_CHUNK):
         state.update(fs.pread(fd, min(HASH_CHUNK, end - pos), pos))
     return state
+
+
+def ends_declared(result: ScanResult, declared: set[int]) -> bool:
+    """Whether the records stop at damage the manifest names: a torn record, or (for a
+    segment cut at a record boundary) the end of the file itself."""
+    return (result.problem.offset if result.problem is not None else result.end) in declared
+
+
+def cut_damage(segment: Segment) -> Problem:
+    """What a sealed segment cut short since sealing lost: from its last intact record's
+    end to the size it was sealed at, the seqs from the first missing one to its end_seq."""
+    result = scan(segment, salvage=bool(segment.known_damage))
+    offset = result.problem.offset if result.problem is not None else result.end
+    return Problem(segment.path, offset, Reason.SIZE_MISMATCH,
+                   f"the file is {segment.size} bytes, it was sealed at {segment.sealed_size}",
+                   segment.sealed_size - offset, seqs=(result.next_seq, max(segment.next_seq, result.next_seq)))  # fmt: skip
 
 
 def scan(segment: Segment, *, salvage: bool = False, start: tuple[int, int] | None = None) -> ScanResult:

@@ -749,8 +749,8 @@ class Store:
         if damage:
             where = "; ".join(describe_damage(d) for d in damage)
             raise DamagedError(f"{self.path}: windows lost to damage below the synced point ({where}); a "
-                               "query could miss them, so it refuses: run `cclog fsck --repair`, or read "
-                               "the intact windows with --skip-damaged", damage, path=self.path,
+                               "query could miss them, so it refuses: run `cclog fsck --repair --discard-damaged` "
+                               "to drop them (their seqs named), or read the intact windows with --skip-damaged", damage, path=self.path,
                                reason=damage[0]["reason"])  # fmt: skip
 
     def query(self, name: str | None = None, start_ns: int | None = None,

@@ -1,0 +1,115 @@
+"""A sealed segment cut short since sealing (`truncate -s -3`) is damage, not a store no one can
+open: readers get the intact records (with --skip-damaged), `fsck --repair` names the seqs the
+cut lost (exit 4) and `--discard-damaged` drops them; the old code refused every open."""
+
+import json
+import os
+
+import pytest
+
+import cclogfs
+from cclogfs.cli import main
+from cclogfs.errors import DamagedError
+
+SEG = "00000000000000000004.seg"  # seqs 4..7, sealed
+
+
+def _store(path):
+    with cclogfs.open_store(path, create=True, segment_records=4) as s:
+        for w in range(10):
+            s.put_window("/a", [(w * 1000 + i, json.dumps({"w": w, "i": i})) for i in range(3)])
+
+
+def _record_offsets(path):
+    with cclogfs.open_store(path, readonly=True) as s:
+        return {w.seq: (w._offset, w._length) for w in s.query() if 4 <= w.seq < 8}
+
+
+def _cli(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _cut_by(path, nbytes):
+    seg = path / SEG
+    os.truncate(seg, seg.stat().st_size - nbytes)
+
+
+@pytest.fixture
+def store(tmp_path):
+    _store(tmp_path / "s")
+    return tmp_path / "s"
+
+
+def _cut_cases(path):
+    off = _record_offsets(path)
+    size = (path / SEG).stat().st_size
+    last_len = off[7][1]
+    return {"by 1": (1, [7]), "by 3": (3, [7]), "most of the last record": (last_len - 2, [7]),
+            "in the middle": (size - off[5][0] - 5, [5, 6, 7])}
+
+
+@pytest.mark.parametrize("case", ["by 1", "by 3", "most of the last record", "in the middle"])
+@pytest.mark.parametrize("header", [False, True])
+def test_cut_sealed_segment_is_read_and_repaired(store, capsys, case, header):
+    code, whole, _ = _cli(capsys, "cat", str(store))
+    assert code == 0
+    whole = whole.splitlines()
+    nbytes, lost = _cut_cases(store)[case]
+    if header:  # a flipped segment header byte too
+        with open(store / SEG, "r+b") as f:
+            f.seek(5)
+            f.write(b"\xff")
+    _cut_by(store, nbytes)
+    lost_words = f"seq {lost[0]}" if len(lost) == 1 else f"seqs {lost[0]}..{lost[-1]}"
+
+    # Readers open the store: cat refuses naming the segment and the seqs, --skip-damaged reads the rest.
+    code, out, err = _cli(capsys, "cat", str(store))
+    assert code != 0 and SEG in err and lost_words in err and out == ""
+    assert "cclog fsck --repair --discard-damaged" in err
+    code, out, err = _cli(capsys, "cat", str(store), "--skip-damaged")
+    kept = out.splitlines()
+    assert len(kept) == 3 * (10 - len(lost)) and set(kept) <= set(whole)
+    assert lost_words in err
+
+    # A writer refuses rather than append after (or delete) the cut segment.
+    with pytest.raises(DamagedError, match="a writer cannot open the store"):
+        cclogfs.open_store(store)
+
+    # Repair keeps the bytes and names the seqs: exit 4, not 8.
+    before = (store / SEG).read_bytes()
+    code, out, err = _cli(capsys, "fsck", str(store), "--repair")
+    assert code == 4 and lost_words in out + err and "run `cclog fsck`" not in out + err
+    assert (store / SEG).read_bytes() == before
+
+    code, out, err = _cli(capsys, "fsck", str(store), "--repair", "--discard-damaged")
+    assert code == 1 and lost_words in out + err
+    code, out, err = _cli(capsys, "fsck", str(store))
+    assert code == 0, out + err
+    code, out, _ = _cli(capsys, "cat", str(store))
+    assert code == 0 and out.splitlines() == kept
+
+    # Appends work again and take fresh seqs.
+    with cclogfs.open_store(store) as s:
+        s.put_window("/a", [(99000, json.dumps({"w": 99}))])
+    with cclogfs.open_store(store, readonly=True) as s:
+        got = [w.seq for w in s.query()]
+    assert got == sorted(set(got)) and got[-1] == 10 and not set(lost) & set(got)
+
+
+def test_failure_while_repair_commits_leaves_it_repairable(store, capsys, monkeypatch):
+    _cut_by(store, 3)
+    from cclogfs.store.store import Store
+
+    def fail(self, manifest):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(Store, "commit_manifest", fail)
+    code, _, err = _cli(capsys, "fsck", str(store), "--repair", "--discard-damaged")
+    assert code != 0
+    monkeypatch.undo()
+    code, out, err = _cli(capsys, "fsck", str(store), "--repair", "--discard-damaged")
+    assert code == 1 and "seq 7" in out + err
+    code, _, _ = _cli(capsys, "fsck", str(store))
+    assert code == 0
