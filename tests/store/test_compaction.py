@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 import cclogfs
-from cclogfs.errors import CorruptionError, InvalidInputError, StoreError, StoreFailedError
+from cclogfs.errors import CorruptionError, DamagedError, InvalidInputError, StoreError, StoreFailedError
 from cclogfs.store.format import MANIFEST, RecordFlag, pack_manifest, unpack_manifest
 from cclogfs.store.fs import FileSystem, RecordingFileSystem
 from cclogfs.store import check_store
@@ -442,7 +442,11 @@ def test_open_keeps_the_old_generation_while_the_named_one_is_cut_short(tmp_path
         (tmp_path / "s" / name).write_bytes(data)
     new = tmp_path / "s" / "00000000000000000000-1.seg"
     new.write_bytes(new.read_bytes()[:-10])  # and the new generation lost its end
-    with cclogfs.open_store(tmp_path / "s", **OPTS) as s:
+    # A cut sealed segment is damage: a writer refuses to open (it would append past it),
+    # a reader opens and refuses the query; either way the old generation stays.
+    with pytest.raises(DamagedError, match="00000000000000000000-1.seg"):
+        cclogfs.open_store(tmp_path / "s", **OPTS)
+    with cclogfs.open_store(tmp_path / "s", readonly=True) as s:
         with pytest.raises(CorruptionError):
             list(s.query())
     assert all((tmp_path / "s" / name).read_bytes() == data for name, data in old_files.items())
