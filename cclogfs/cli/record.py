@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 from ..errors import CclogError, InvalidInputError
 from ..times import parse_duration
 from .common import (Progress, check_topics_exist, damaged_exit, human_bytes, iso_ns, load_labels, model_fits,
-                     no_source_message, parse_size)
+                     no_source_message, parse_size, stored_types)
 
 # The engine, sources and classifier are imported where they are used, not here:
 # `cclog --help` imports every subcommand module.
@@ -177,20 +177,27 @@ class _Skips:
         print(f"cclog: skipped: {err}", file=sys.stderr)
 
 
-def _open(args: argparse.Namespace, topics: list[str] | None):
-    """The source: a file, stdin, or live ROS 1 topics (ros1://)."""
+def _open(args: argparse.Namespace, topics: list[str] | None, policy):
+    """The source: a file, stdin, or live ROS 1 topics (ros1://); and the check of each
+    message's topic and type it makes (`TypeCheck`: the streams the recording writes itself
+    are refused there, naming the line, and the store's types once it is open)."""
+    from ..jsontext.rostypes import TypeCheck
+    from ..pipeline import reserved_topics
+
     if args.source.startswith("ros1://"):
         from ..ingest.ros1live import Ros1LiveSource
 
-        return Ros1LiveSource(args.source, topics=topics, exclude=args.exclude, clock=args.clock)
+        source = Ros1LiveSource(args.source, topics=topics, exclude=args.exclude, clock=args.clock)
+        return source, source.types
     from ..ingest import open_source
     from ..store.format import MAX_MESSAGE_TEXT
 
     if args.exclude:
         raise InvalidInputError("--exclude goes with a live source (ros1://); name the topics to read with --topic")
     args.skips = _Skips()
+    check = TypeCheck(reserved=reserved_topics(policy))
     return open_source(args.source, topics=topics, on_error=args.on_error, report=args.skips, clock=args.clock,
-                       max_text_bytes=MAX_MESSAGE_TEXT)  # fmt: skip
+                       max_text_bytes=MAX_MESSAGE_TEXT, types=check), check  # fmt: skip
 
 
 def _logging_policy(args: argparse.Namespace):
@@ -367,7 +374,7 @@ def _run(args: argparse.Namespace) -> int:
     if not args.window_max_s > 0:
         raise InvalidInputError(f"--window-max-s must be positive, not {args.window_max_s}")
     store_options = upkeep.store_options() if upkeep is not None else {}
-    source = _open(args, read_topics)
+    source, check = _open(args, read_topics, policy)
     if not args.source.startswith("ros1://"):
         check_topics_exist(source, args.source, read_topics)
     handler = getattr(source, "signal_handler", interrupt_handler)  # live: the first signal ends the input
@@ -383,6 +390,8 @@ def _run(args: argparse.Namespace) -> int:
                                 **store_options) as store, \
                 Progress("recording", total=getattr(source, "message_count", None)) as progress:  # fmt: skip
             _warn_damage(store)
+            # A stream keeps one type, also across runs (--append, or another source).
+            check.stored.update(stored_types(store))
             run = _begin_run(args, store, source)
             run_seq = store.synced_seq()  # the run's start record, synced by begin_run
             stats = RecordStats()
