@@ -186,6 +186,14 @@ def stored_types(store) -> dict[str, str]:
     return out
 
 
+def unmatched_rules_error(flag: str, rules, what: str) -> InvalidInputError:
+    """The error for aging rules (`upkeep.Rule`) that match no number field: `compact --error`
+    and `record --age-error` refuse them alike. `what`: what became of the data."""
+    said = ", ".join(f"'{r.pattern}={r.bound:g}'" for r in rules)
+    return InvalidInputError(f"{flag} {said} matches no number field of the windows to age (field patterns start "
+                             f"inside msg: 'pose.covariance', not 'msg.pose.covariance'); {what}.")  # fmt: skip
+
+
 def load_labels(path: str | None):
     """The labelled events of a run from a JSON file (None without a path)."""
     if path is None:

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 from ..errors import CclogError, InvalidInputError
 from ..times import parse_duration
 from .common import (Progress, check_topics_exist, damaged_exit, human_bytes, iso_ns, load_labels, model_fits,
-                     no_source_message, parse_size, stored_types)
+                     no_source_message, parse_size, stored_types, unmatched_rules_error)
 
 # The engine, sources and classifier are imported where they are used, not here:
 # `cclog --help` imports every subcommand module.
@@ -402,17 +402,30 @@ def _run(args: argparse.Namespace) -> int:
                 if store.failed is not None and isinstance(err, CclogError):  # disk full, I/O error
                     raise _store_failed(store, err, run_seq, stats) from err
                 raise
-            _end_run(run, source, stats, received, None)
+            refused = _refused_rules(upkeep)
+            _end_run(run, source, stats, received, refused)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     if args.features_out:
         _write_dataset(args, rows)
     _print_summary(args, source, stats, upkeep, final_bytes)
+    if refused is not None:
+        raise refused
     status = _exit_status(args, source, stats, policy, read_topics, received)
     if status == 0 and upkeep is not None and upkeep.budget is not None and final_bytes > upkeep.budget:
         return OVER_BUDGET  # said on stderr as "NOT met"; a script must not take it for met
     return status
+
+
+def _refused_rules(upkeep: Upkeep | None) -> InvalidInputError | None:
+    """The error for --age-error rules that matched no number field (`Upkeep.check_rules`):
+    aging stopped, but the recording went on (nothing lost, nothing to record again, which
+    --append would store twice)."""
+    if upkeep is None or not upkeep.unmatched:
+        return None
+    return unmatched_rules_error("--age-error", upkeep.unmatched, "nothing was aged (no value rounded) and the "
+                                 "recording went on; age the store with `cclog compact --error` and the right field")  # fmt: skip
 
 
 def _record_run(args: argparse.Namespace, store, source, policy, upkeep: Upkeep | None, progress,
@@ -424,10 +437,14 @@ def _record_run(args: argparse.Namespace, store, source, policy, upkeep: Upkeep 
     from ..upkeep import compact
 
     last = [0]
+    said = []
 
     def tick(stats):
         progress(stats.messages_in - last[0])
         last[0] = stats.messages_in
+        if not said and (refused := _refused_rules(upkeep)) is not None:  # a live run must not wait for its end
+            said.append(refused)
+            print(f"cclog: {refused} (exit 1 at the end)", file=sys.stderr)
 
     rows: list = []
     messages = _tee_odometry(source, args.odom_topic, rows) if args.features_out else source
@@ -447,6 +464,8 @@ def _record_run(args: argparse.Namespace, store, source, policy, upkeep: Upkeep 
             if ended:
                 upkeep.after_put(store)
             upkeep.close(finish=ended)
+            if ended:  # a short run that aged nothing still learns its rule matched no field
+                upkeep.check_rules(store)
     if upkeep is None:
         return rows, None
     store.sync()  # first: the active segment's buffered records count toward the budget too

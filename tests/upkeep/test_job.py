@@ -12,6 +12,7 @@ import cclogfs
 from cclogfs.upkeep import Policy, parse_rule
 from cclogfs.cli import main
 from cclogfs.upkeep import compact
+from cclogfs.runs import list_runs
 from cclogfs.store import check_store
 from _odom import NS, odom, sealed_store
 
@@ -218,6 +219,32 @@ def test_recorder_ages_in_the_background_within_bounds(tmp_path, capsys):
                     for u, v in zip(floats(exact), floats(json.loads(text)), strict=True):
                         assert abs(u - v) <= 1e-3 * (1 + 1e-12)
     assert not check_store(store, deep=True).errors
+
+
+@pytest.mark.parametrize("budget", [[], ["--budget", "600KiB"]], ids=["aging-never-due", "aging-due"])
+def test_recorder_refuses_an_age_error_rule_that_matches_no_field(tmp_path, capsys, budget):
+    """`record --age-error 'pose.covarience=0'` was silently ignored (the field rounded by the
+    general bound, exit 0) where `compact --error` refuses it. Now aging stops before anything
+    ages (with a budget, segments seal and aging is due during the run), the recording goes
+    on, and the run ends with the error and exit 1, every message stored exact."""
+    jsonl(tmp_path / "run.jsonl", 40_000)  # 2000 s at 20 Hz
+    store = str(tmp_path / "s")
+    rc = main(["record", str(tmp_path / "run.jsonl"), "--store", store, "--chunk", "100", *budget,
+               "--age-older-than", "600s", "--age-error", "1e-3", "--age-error", "pose.covarience=0"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert rc == 1, err
+    assert err.strip().endswith(
+        "cclog: error: --age-error 'pose.covarience=0' matches no number field of the windows to age (field patterns "
+        "start inside msg: 'pose.covariance', not 'msg.pose.covariance'); nothing was aged (no value rounded) and the "
+        "recording went on; age the store with `cclog compact --error` and the right field."), err  # fmt: skip
+    assert "0 windows aged" in err and "Traceback" not in err
+    with cclogfs.open_store(store, readonly=True) as s:
+        windows = list(s.query("/odom"))
+        assert all(w.aged is None for w in windows)
+        texts = [t for w in windows for _, t in w.messages()]
+        assert texts[-1] == odom(39_999) and (budget or len(texts) == 40_000)
+        if not budget:  # (with one, retention may drop the segment of the run's start record)
+            assert [(r.status, r.kept) for r in list_runs(s)] == [("error", 40_000)]
 
 
 @pytest.mark.parametrize(
