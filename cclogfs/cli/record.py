@@ -394,6 +394,7 @@ def _run(args: argparse.Namespace) -> int:
             check.stored.update(stored_types(store))
             run = _begin_run(args, store, source)
             run_seq = store.synced_seq()  # the run's start record, synced by begin_run
+            dropped_before = _dropped_messages(store)
             stats = RecordStats()
             try:
                 rows, final_bytes = _record_run(args, store, source, policy, upkeep, progress, stats)
@@ -403,13 +404,14 @@ def _run(args: argparse.Namespace) -> int:
                     raise _store_failed(store, err, run_seq, stats) from err
                 raise
             refused = _refused_rules(upkeep)
+            retention = _retention(store, run_seq, stats, upkeep, dropped_before)
             _end_run(run, source, stats, received, refused)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     if args.features_out:
         _write_dataset(args, rows)
-    _print_summary(args, source, stats, upkeep, final_bytes)
+    _print_summary(args, source, stats, upkeep, final_bytes, retention)
     if refused is not None:
         raise refused
     status = _exit_status(args, source, stats, policy, read_topics, received)
@@ -502,13 +504,42 @@ def _refused_types(source) -> dict[str, int]:
     return getattr(types, "refused", None) or {}
 
 
-def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep: Upkeep | None, final_bytes: int | None) -> None:
+def _dropped_messages(store) -> int:
+    """Messages retention has dropped from the store so far (the runs' bookkeeping aside)."""
+    from ..runs import hidden_by_default
+
+    return sum(st.get("messages", 0) for name, st in store.dropped().get("streams", {}).items()
+               if not hidden_by_default(name))  # fmt: skip
+
+
+def _retention(store, run_seq: int | None, stats: RecordStats, upkeep: Upkeep | None,
+               dropped_before: int) -> tuple[int, int, int] | None:  # fmt: skip
+    """With --budget: (this run's messages still stored, this run's messages retention dropped,
+    earlier runs' messages it dropped). None without a budget, or when the store cannot say."""
+    if upkeep is None or upkeep.budget is None:
+        return None
+    windows = _run_windows(store, run_seq, store.synced_seq(written=True))
+    if windows is None:
+        return None
+    held = sum(n for _, n in windows)
+    mine = max(0, stats.messages_kept - upkeep.messages_thinned - held)
+    return held, mine, max(0, _dropped_messages(store) - dropped_before - mine)
+
+
+def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep: Upkeep | None, final_bytes: int | None,
+                   retention: tuple[int, int, int] | None = None) -> None:  # fmt: skip
     mode = "smart logging" if args.model else "every message"
     kept = stats.json_bytes_kept / stats.json_bytes_in if stats.json_bytes_in else 0.0
+    said = f"{stats.messages_kept:,} kept ({100 * kept:.1f} % of {human_bytes(stats.json_bytes_in)} JSON)"
+    if retention is not None and retention[1]:  # what the store holds of this run, not what it stored once
+        said = (f"{retention[0]:,} kept ({stats.messages_kept:,} stored, then retention DROPPED the oldest "
+                f"{retention[1]:,} to stay within --budget)")  # fmt: skip
     print(f"{'interrupted: ' if stats.interrupted else ''}recorded {args.source} into {args.store} ({mode}): "
-          f"{stats.messages_in:,} messages in, {stats.messages_kept:,} kept ({100 * kept:.1f} % of "
-          f"{human_bytes(stats.json_bytes_in)} JSON) in {stats.windows:,} windows, {stats.seconds:.1f} s "
+          f"{stats.messages_in:,} messages in, {said} in {stats.windows:,} windows, {stats.seconds:.1f} s "
           f"({stats.messages_in / max(stats.seconds, 1e-9):,.0f} msg/s)", file=sys.stderr)  # fmt: skip
+    if retention is not None and retention[2]:
+        print(f"{args.store}: retention also dropped {retention[2]:,} messages of earlier runs to stay within "
+              "--budget", file=sys.stderr)  # fmt: skip
     skipped = getattr(getattr(args, "skips", None), "count", 0)
     if skipped:
         print(f"{args.source}: {skipped:,} bad lines skipped (--on-error skip), not recorded", file=sys.stderr)

@@ -64,6 +64,7 @@ class Upkeep:
         self.active_seen: int | None = None  # the active segment's first seq at the last put
         self.runs = self.dropped_segments = self.aged_windows = 0
         self.bytes_before = self.bytes_after = 0  # stored bytes of the segments aged, before and after
+        self.messages_thinned = 0  # messages aging left out (max rate)
         self.errors: list[str] = []  # what failed in the background (the first MAX_ERRORS)
         self.done: set[int] = set()  # first seqs of segments with nothing left to age
         self.seen: dict[int, dict] = {}  # first seq -> the cutoffs it was last aged at
@@ -242,6 +243,7 @@ class Upkeep:
                 self.aged_windows += a["windows"]
                 self.bytes_before += a["bytes_before"]
                 self.bytes_after += a["bytes_after"]
+                self.messages_thinned += a["messages_before"] - a["messages_after"]
             mine = self._mine(seg, cutoff)
             self.seen[seg.first_seq] = mine
             if all(seg.streams[name]["end_ns"] < limit for name, limit in mine.items() if limit is not None):

@@ -183,6 +183,36 @@ def test_recorder_keeps_to_its_budget_as_it_goes(tmp_path, capsys):
     assert not check_store(store, deep=True).errors
 
 
+def test_recorder_summary_counts_what_retention_left_not_what_it_stored(tmp_path, capsys):
+    """Found by attack: `record --budget` said "40,000 kept" when retention had dropped most of
+    them to stay within the budget. Now it says what the store holds of the run, what
+    retention dropped of it, and what it dropped of earlier runs."""
+    import re
+
+    jsonl(tmp_path / "run.jsonl", 40_000)
+    jsonl(tmp_path / "run2.jsonl", 20_000, hz=40)  # other content, so not refused as recorded already
+    store = str(tmp_path / "s")
+
+    def held():
+        with cclogfs.open_store(store, readonly=True) as s:
+            return s.streams()["/odom"]["messages"]
+
+    assert main(["record", str(tmp_path / "run.jsonl"), "--store", store, "--budget", "256KiB", "--chunk", "100"]) == 0
+    err = capsys.readouterr().err
+    kept = held()
+    assert 0 < kept < 40_000
+    assert (f"40,000 messages in, {kept:,} kept (40,000 stored, then retention DROPPED the oldest {40_000 - kept:,} "
+            "to stay within --budget)") in err, err  # fmt: skip
+    assert "of earlier runs" not in err
+    assert main(["record", str(tmp_path / "run2.jsonl"), "--store", store, "--budget", "256KiB", "--chunk", "100"]) == 0
+    err = capsys.readouterr().err
+    m = re.search(r"20,000 messages in, ([\d,]+) kept \(20,000 stored, then retention DROPPED the oldest ([\d,]+) ", err)
+    assert m is not None, err
+    mine, dropped = (int(g.replace(",", "")) for g in m.groups())
+    assert mine + dropped == 20_000 and held() == mine  # every earlier message gone: this run alone fills the budget
+    assert f"{store}: retention also dropped {kept:,} messages of earlier runs to stay within --budget" in err
+
+
 def test_recorder_over_its_budget_at_the_end_exits_3_as_compact_does(tmp_path, capsys):
     """A budget smaller than the segment being written cannot be met: stderr said NOT met,
     but the exit status was 0, so a script took it for met (found by attack)."""
