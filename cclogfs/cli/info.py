@@ -98,6 +98,8 @@ def runs_table(runs: list[dict]) -> str:
     rows = []
     for r in runs:
         status = STATUS.get(r["status"], r["status"])
+        if r.get("store_failed"):  # written on reopening the store after the failure (`record`)
+            status += ": ended on a store failure (disk full or failing)"
         if r.get("signal"):
             status += f" ({r['signal']})"
         took = f"{(r['end_ns'] - r['start_ns']) / 1e9:.1f} s" if r["end_ns"] is not None else "-"

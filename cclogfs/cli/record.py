@@ -326,23 +326,56 @@ def _end_run(run, source, stats: RecordStats, received: list[int], error: BaseEx
             raise
 
 
-def _store_failed(store, err: CclogError, run_seq: int | None, stats: RecordStats) -> CclogError:
-    """The store's failure, saying what of this run is stored: its windows fsynced before
-    the failure (kept whatever happens), those handed to the OS but not fsynced (a reopen
-    keeps them unless power is lost too), and that the rest was lost. The run's end record
-    cannot be written once the store has failed."""
-    from ..errors import StoreFailedError
+class _StoreFailed(Exception):
+    """The store failed mid-run (disk full, I/O error): carried out of the open store, so that
+    the run's end record is tried once the store is closed (`_end_after_failure`)."""
 
+    def __init__(self, err: CclogError, said: str, run, run_seq: int | None, stats: RecordStats) -> None:
+        super().__init__(str(err))
+        self.err, self.said, self.run, self.run_seq, self.stats = err, said, run, run_seq, stats
+
+
+def _stored_when_failed(store, run_seq: int | None) -> str:
+    """What of this run the failed store holds: its windows fsynced before the failure (kept
+    whatever happens), and those handed to the OS but not fsynced (a reopen keeps them
+    unless power is lost too)."""
     synced, written = store.synced_seq(), store.synced_seq(written=True)
     kept = _run_windows(store, run_seq, written)
     said = f"synced up to seq {synced}: {_counted(kept, synced)}" if synced is not None else "nothing synced"
     if written is not None and written != synced:
         said += (f"; written but not yet fsynced up to seq {written} or further: at least {_counted(kept, written)} "
                  "(a reopen keeps them unless power was lost too)")  # fmt: skip
-    return StoreFailedError(
-        f"{err}. This run's messages stored: {said}; the rest of the {stats.messages_in:,} messages it read was "
-        "lost, and its end record could not be written. Reopening the store (any cclog command) keeps what is "
-        "stored; free space, then record the rest again (--append)")  # fmt: skip
+    return said
+
+
+def _end_after_failure(path: str, failed: _StoreFailed) -> CclogError:
+    """The store's failure, saying what of this run is stored and that the rest was lost.
+    The failed store refuses writes, so the run's end record is written after it closed, by
+    reopening it: the recovery any cclog command runs (what is whole is kept, a torn tail
+    cut), then one small record, status error with `store_failed`, counting what the store
+    keeps of the run. When that fails too (the disk still full), the run stays without an
+    end, as a killed run, and the error says so."""
+    from ..errors import StoreFailedError
+    from ..runs import Run
+    from ..store import open_store
+
+    said = (f"{failed.err}. This run's messages stored: {failed.said}; the rest of the "
+            f"{failed.stats.messages_in:,} messages it read was lost")  # fmt: skip
+    try:
+        with open_store(path) as store:
+            kept = _run_windows(store, failed.run_seq, store.synced_seq(written=True))
+            if kept is None:
+                raise StoreFailedError("its windows cannot be counted")
+            n = sum(count for _, count in kept)
+            Run(store, failed.run.number, failed.run.id).end(
+                "error", messages_in=failed.stats.messages_in, messages_kept=n, windows=len(kept),
+                error=str(failed.err), store_failed=True)  # fmt: skip
+    except (CclogError, OSError):
+        return StoreFailedError(f"{said}, and its end record could not be written. Reopening the store (any cclog "
+                                "command) keeps what is stored; free space, then record the rest again (--append)")
+    return StoreFailedError(f"{said}. Reopened, the store keeps {n:,} messages of this run in {len(kept):,} windows "
+                            "and its end record (`cclog info`: ended on a store failure); free space, then record "
+                            "the rest again (--append)")  # fmt: skip
 
 
 def _run_windows(store, run_seq: int | None, upto: int | None) -> list[tuple[int, int]] | None:
@@ -401,11 +434,13 @@ def _run(args: argparse.Namespace) -> int:
             except BaseException as err:
                 _end_run(run, source, stats, received, err)
                 if store.failed is not None and isinstance(err, CclogError):  # disk full, I/O error
-                    raise _store_failed(store, err, run_seq, stats) from err
+                    raise _StoreFailed(err, _stored_when_failed(store, run_seq), run, run_seq, stats) from err
                 raise
             refused = _refused_rules(upkeep)
             retention = _retention(store, run_seq, stats, upkeep, dropped_before)
             _end_run(run, source, stats, received, refused)
+    except _StoreFailed as failed:  # the store is closed now: its end record may be written yet
+        raise _end_after_failure(args.store, failed) from failed.err
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
