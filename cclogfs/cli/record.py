@@ -94,8 +94,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--codec", default="columnar",
                    help="codec for new records: columnar (default, smallest), zstd (fastest), lzma, none")
     p.add_argument("--on-error", choices=["stop", "skip"], default="stop",
-                   help="a malformed JSONL line, or a message of another type than its topic's first, stops "
-                        "the run (default) or is reported and skipped")
+                   help="a malformed JSONL line, or a message its stream cannot take (another type than the "
+                        "topic's first or the store's stream has, a topic the recording writes itself such as "
+                        "/cclog/runs), stops the run (default) or is reported and skipped")
     p.add_argument("--sync-ms", type=float, default=200, help="group commit interval (default 200 ms)")
     p.add_argument("--no-summary", action="store_true", help="with --model: no per-minute summary stream")
     p.add_argument("--features-out", metavar="DIR",
