@@ -24,7 +24,7 @@ from .classifier.summary import SUMMARY_TOPIC
 from .classifier.windows import PendingWindow
 from .errors import InvalidInputError, StoreError
 from .jsontext.check import text_error
-from .jsontext.rostypes import StreamTypes
+from .jsontext.rostypes import StreamTypes, reserved_refusal
 from .runs import RUNS_STREAM
 from .store import Store, open_store
 from .upkeep import Upkeep
@@ -165,9 +165,8 @@ def check_message(topic: str, stamp_ns: Any, text: Any, *, check_json: bool = Tr
     (a window refused later would lose the good messages it holds too). The store's own
     check (`text_error`); `check_json=False` skips only the JSON parse. `reserved`: topics
     the recording writes itself (`reserved_topics`)."""
-    if topic in reserved:
-        raise InvalidInputError(f"the source has a message on {topic} (at {stamp_ns}), the stream this recording "
-                                "writes itself; leave that topic out with --topic")  # fmt: skip
+    if topic in reserved:  # a backstop: the sources refuse it first, naming the line (`TypeCheck`)
+        raise InvalidInputError(f"message at {stamp_ns}: {reserved_refusal(topic)}")
     if (why := text_error(text, check_json=check_json)) is not None:
         raise InvalidInputError(f"message on {topic!r} at {stamp_ns} {why}")
 

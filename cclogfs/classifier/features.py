@@ -104,7 +104,8 @@ _ODOM_TEXT = re.compile(
 
 def _pose_fields(msg: dict) -> tuple[dict, dict, dict, dict | None]:
     """(stamp, position, orientation, twist or None) of an Odometry, PoseWithCovarianceStamped,
-    PoseStamped, TransformStamped, or a TFMessage holding one transform."""
+    PoseStamped, TransformStamped, or a TFMessage holding one transform. `_pose_fields_checked`
+    walks the same fields naming the one that is not an object."""
     if "transforms" in msg and "header" not in msg:
         if len(msg["transforms"]) != 1:
             raise KeyError(f"transforms holds {len(msg['transforms'])} frames, not 1")
@@ -117,6 +118,67 @@ def _pose_fields(msg: dict) -> tuple[dict, dict, dict, dict | None]:
     pose = pose["pose"] if "pose" in pose else pose
     twist = msg["twist"]["twist"] if "twist" in msg else None
     return stamp, pose["position"], pose["orientation"], twist
+
+
+def _pose_fields_checked(msg: Any) -> None:
+    """`_pose_fields`' walk, a ValueError naming the path of the first field that is not an
+    object (null...): run once `_pose_fields` failed, so good messages pay nothing for it.
+    Python's own words ("argument of type 'NoneType' is not iterable") named no field."""
+    msg = _obj(msg, "the message")
+    if "transforms" in msg and "header" not in msg:
+        if not isinstance(msg["transforms"], list):
+            raise ValueError(f"transforms is {_kind(msg['transforms'])}, not an array")
+        if len(msg["transforms"]) == 1:
+            msg = _obj(msg["transforms"][0], "transforms[0]")
+    if "header" in msg:
+        header = _obj(msg["header"], "header")
+        if "stamp" in header:
+            _obj(header["stamp"], "header.stamp")
+    for parent, keys in (("transform", ("translation", "rotation")), ("pose", ("pose", "position", "orientation")),
+                         ("twist", ("twist",))):  # fmt: skip
+        if parent in msg:
+            _children(_obj(msg[parent], parent), parent, keys)
+    if "twist" in msg and isinstance(msg["twist"], dict) and "twist" in msg["twist"]:
+        _children(msg["twist"]["twist"], "twist.twist", ("linear", "angular"))
+    if "pose" in msg and isinstance(msg["pose"].get("pose"), dict):
+        _children(msg["pose"]["pose"], "pose.pose", ("position", "orientation"))
+
+
+def _children(obj: dict, path: str, keys: tuple[str, ...]) -> None:
+    for key in keys:
+        if key in obj:
+            _obj(obj[key], f"{path}.{key}")
+
+
+def _obj(value: Any, path: str) -> dict:
+    """`value` when it is a JSON object, else a ValueError naming its field path."""
+    if isinstance(value, dict):
+        return value
+    raise ValueError(f"{path} is {_kind(value)}, not an object")
+
+
+def _kind(value: Any) -> str:
+    """A JSON value's kind, as an error names it."""
+    if value is None or isinstance(value, bool):
+        return json.dumps(value)
+    if isinstance(value, (int, float)):
+        return "a number"
+    return "a string" if isinstance(value, str) else "an array" if isinstance(value, list) else "an object"
+
+
+def _stamp_parts(stamp: dict) -> tuple[int, int]:
+    """header.stamp's (seconds, nanoseconds), ROS 2 or ROS 1 names, when either is not an
+    int: a whole float is taken, anything else is an error naming the field."""
+    out = []
+    for names in (("sec", "secs"), ("nanosec", "nsecs")):
+        name = names[0] if names[0] in stamp else names[1]
+        value = stamp[name]
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        if type(value) is not int:
+            raise ValueError(f"header.stamp.{name} is {json.dumps(value)[:40]}, not an integer")
+        out.append(value)
+    return out[0], out[1]
 
 
 # The compiled reader of _ODOM_TEXT (classifier/_odomtext.c, built by setup.py where a C
@@ -164,11 +226,17 @@ def _odom_row_parsed(msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
         stamp, p, q, twist = _pose_fields(msg)
         sec = stamp["sec"] if "sec" in stamp else stamp["secs"]
         nsec = stamp["nanosec"] if "nanosec" in stamp else stamp["nsecs"]
+        sec, nsec = (sec, nsec) if type(sec) is type(nsec) is int else _stamp_parts(stamp)
         v, w = (twist["linear"], twist["angular"]) if twist is not None else (_NAN_XYZ, _NAN_XYZ)
         row = _numbers((p["x"], p["y"], p["z"], q["x"], q["y"], q["z"], q["w"],
                         v["x"], v["y"], v["z"], w["x"], w["y"], w["z"]))  # fmt: skip
         return int(sec) * NS + int(nsec), row if twist is not None else PoseOnly(row)
     except (KeyError, TypeError, ValueError) as err:
+        if isinstance(err, TypeError):  # a field that is not an object (null...): name it
+            try:
+                _pose_fields_checked(msg)
+            except ValueError as named:
+                err = named
         raise InvalidInputError(
             "The message is not a nav_msgs/Odometry, PoseStamped, PoseWithCovarianceStamped or "
             f"TransformStamped in rosbridge JSON (missing or bad field: {err})."

@@ -166,6 +166,34 @@ def selected_windows(store, args: argparse.Namespace, skipped: Skipped | None = 
         yield w
 
 
+def newest_window(store, name: str, end_ns: int):
+    """The newest intact window of stream `name` (whose last message is at `end_ns`), None
+    when there is none: what `info` shows a stream's codec and type from."""
+    last = None
+    for last in store.query(name, start_ns=end_ns, end_ns=end_ns, skip_damaged=True):
+        pass
+    return last
+
+
+def stored_types(store) -> dict[str, str]:
+    """Stream -> the message type its newest window names, for the streams that name one
+    (the type a recording into the store must keep: `jsontext.rostypes.TypeCheck`)."""
+    out = {}
+    for name, st in store.streams().items():
+        last = newest_window(store, name, st["end_ns"])
+        if last is not None and (msgtype := (last.meta or {}).get("msgtype")):
+            out[name] = msgtype
+    return out
+
+
+def unmatched_rules_error(flag: str, rules, what: str) -> InvalidInputError:
+    """The error for aging rules (`upkeep.Rule`) that match no number field: `compact --error`
+    and `record --age-error` refuse them alike. `what`: what became of the data."""
+    said = ", ".join(f"'{r.pattern}={r.bound:g}'" for r in rules)
+    return InvalidInputError(f"{flag} {said} matches no number field of the windows to age (field patterns start "
+                             f"inside msg: 'pose.covariance', not 'msg.pose.covariance'); {what}.")  # fmt: skip
+
+
 def load_labels(path: str | None):
     """The labelled events of a run from a JSON file (None without a path)."""
     if path is None:

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import InvalidInputError, StoreLockedError
 from ..times import parse_duration, parse_time
-from .common import human_bytes, iso_ns, parse_size, table
+from .common import human_bytes, iso_ns, parse_size, table, unmatched_rules_error
 
 if TYPE_CHECKING:  # the policy module loads only when aging is asked for
     from ..upkeep.policy import Policy
@@ -119,9 +119,7 @@ def _check_selection(store, options: dict) -> None:
     unmatched = unmatched_rules(store, policy, before_ns=options["before_ns"], older_than_ns=options["older_than_ns"],
                                 streams=options["streams"])  # fmt: skip
     if unmatched:
-        said = ", ".join(f"'{r.pattern}={r.bound:g}'" for r in unmatched)
-        raise InvalidInputError(f"--error {said} matches no number field of the windows to age (field patterns "
-                                "start inside msg: 'pose.covariance', not 'msg.pose.covariance'); nothing was aged.")
+        raise unmatched_rules_error("--error", unmatched, "nothing was aged")
 
 
 def _aging_line(policy: Policy, args: argparse.Namespace) -> str:

@@ -21,7 +21,8 @@ examples:
   duckdb -c "SELECT robot, count(*), avg(\\"twist.twist.linear.x\\")
              FROM read_parquet('lake/**/*.parquet', hive_partitioning=true) GROUP BY robot"
 
-Whole windows are exported: --start/--end choose the windows that overlap the range.
+--start/--end export the messages in the range, both ends included, as `cclog cat` prints
+them: a window reaching past an end is cut to it (its MCAP window metadata gives the cut span).
 MCAP: a stream whose ROS type rosbags knows (ROS 2 types; a ROS 1 type by its ROS 2 name)
 is written as `ros2 bag record` writes it (CDR, ros2msg schema); any other stream as JSON,
 said on stderr. ROS 1 shapes are mapped and counted on stderr (header.seq left out,
@@ -65,12 +66,13 @@ def run(args: argparse.Namespace) -> int:
     else:
         check_output(args.parquet, [args.store], force=True, directory=True)
     # Imported here, not at the top: `cclog --help` imports every subcommand module.
-    from ..export import export_mcap, export_parquet, export_rosbag2
+    from ..export import Clip, export_mcap, export_parquet, export_rosbag2
     from ..store import open_store
 
     with open_store(args.store, readonly=True) as store, Progress("export") as progress:
         skipped = Skipped(store, args)
-        windows = selected_windows(store, args, skipped)
+        clip = Clip(args.start, args.end)
+        windows = clip(selected_windows(store, args, skipped))
         first = next(windows, None)
         if first is None and not (skipped.stretches or skipped.windows):
             raise nothing_matched(store, args)
@@ -86,11 +88,9 @@ def run(args: argparse.Namespace) -> int:
             stats = export_parquet(
                 windows, args.parquet, robot=robot, replace=args.force, progress=progress
             )
-    print(
-        f"exported {stats.windows} windows, {stats.messages} messages of "
-        f"{len(stats.streams)} streams to {len(stats.files)} files",
-        file=sys.stderr,
-    )
+    cut = f" ({clip.cut} cut to --start/--end: {clip.left_out:,} messages outside left out)" if clip.left_out else ""
+    print(f"exported {stats.windows} windows{cut}, {stats.messages} messages of {len(stats.streams)} streams to "
+          f"{len(stats.files)} files", file=sys.stderr)  # fmt: skip
     if args.mcap or args.rosbag2:
         _report_mcap(stats)
     return skipped.report()

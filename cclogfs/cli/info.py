@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from .common import EXIT_SKIPPED, human_bytes, iso_ns, table
+from .common import EXIT_SKIPPED, human_bytes, iso_ns, newest_window, table
 
 EXAMPLES = """examples:
   cclog info out/demo/store
@@ -41,9 +41,7 @@ def store_info(path: str) -> dict:
         for name, st in streams.items():
             # A window over the record limit is stored as several records; count it once.
             st["records"], st["windows"] = st["windows"], st["windows"] - parts.get(name, 0)
-            last = None
-            for last in store.query(name, start_ns=st["end_ns"], end_ns=st["end_ns"], skip_damaged=True):
-                pass
+            last = newest_window(store, name, st["end_ns"])
             st["codec"] = last.codec_config if last is not None else None
             st["msgtype"] = (last.meta or {}).get("msgtype", "") if last is not None else ""
             st["ratio"] = st["stored_bytes"] / st["json_bytes"] if st["json_bytes"] else None
@@ -100,6 +98,8 @@ def runs_table(runs: list[dict]) -> str:
     rows = []
     for r in runs:
         status = STATUS.get(r["status"], r["status"])
+        if r.get("store_failed"):  # written on reopening the store after the failure (`record`)
+            status += ": ended on a store failure (disk full or failing)"
         if r.get("signal"):
             status += f" ({r['signal']})"
         took = f"{(r['end_ns'] - r['start_ns']) / 1e9:.1f} s" if r["end_ns"] is not None else "-"

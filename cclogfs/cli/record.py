@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 from ..errors import CclogError, InvalidInputError
 from ..times import parse_duration
 from .common import (Progress, check_topics_exist, damaged_exit, human_bytes, iso_ns, load_labels, model_fits,
-                     no_source_message, parse_size)
+                     no_source_message, parse_size, stored_types, unmatched_rules_error)
 
 # The engine, sources and classifier are imported where they are used, not here:
 # `cclog --help` imports every subcommand module.
@@ -94,8 +94,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--codec", default="columnar",
                    help="codec for new records: columnar (default, smallest), zstd (fastest), lzma, none")
     p.add_argument("--on-error", choices=["stop", "skip"], default="stop",
-                   help="a malformed JSONL line, or a message of another type than its topic's first, stops "
-                        "the run (default) or is reported and skipped")
+                   help="a malformed JSONL line, or a message its stream cannot take (another type than the "
+                        "topic's first or the store's stream has, a topic the recording writes itself such as "
+                        "/cclog/runs), stops the run (default) or is reported and skipped")
     p.add_argument("--sync-ms", type=float, default=200, help="group commit interval (default 200 ms)")
     p.add_argument("--no-summary", action="store_true", help="with --model: no per-minute summary stream")
     p.add_argument("--features-out", metavar="DIR",
@@ -177,20 +178,27 @@ class _Skips:
         print(f"cclog: skipped: {err}", file=sys.stderr)
 
 
-def _open(args: argparse.Namespace, topics: list[str] | None):
-    """The source: a file, stdin, or live ROS 1 topics (ros1://)."""
+def _open(args: argparse.Namespace, topics: list[str] | None, policy):
+    """The source: a file, stdin, or live ROS 1 topics (ros1://); and the check of each
+    message's topic and type it makes (`TypeCheck`: the streams the recording writes itself
+    are refused there, naming the line, and the store's types once it is open)."""
+    from ..jsontext.rostypes import TypeCheck
+    from ..pipeline import reserved_topics
+
     if args.source.startswith("ros1://"):
         from ..ingest.ros1live import Ros1LiveSource
 
-        return Ros1LiveSource(args.source, topics=topics, exclude=args.exclude, clock=args.clock)
+        source = Ros1LiveSource(args.source, topics=topics, exclude=args.exclude, clock=args.clock)
+        return source, source.types
     from ..ingest import open_source
     from ..store.format import MAX_MESSAGE_TEXT
 
     if args.exclude:
         raise InvalidInputError("--exclude goes with a live source (ros1://); name the topics to read with --topic")
     args.skips = _Skips()
+    check = TypeCheck(reserved=reserved_topics(policy))
     return open_source(args.source, topics=topics, on_error=args.on_error, report=args.skips, clock=args.clock,
-                       max_text_bytes=MAX_MESSAGE_TEXT)  # fmt: skip
+                       max_text_bytes=MAX_MESSAGE_TEXT, types=check), check  # fmt: skip
 
 
 def _logging_policy(args: argparse.Namespace):
@@ -319,23 +327,56 @@ def _end_run(run, source, stats: RecordStats, received: list[int], error: BaseEx
             raise
 
 
-def _store_failed(store, err: CclogError, run_seq: int | None, stats: RecordStats) -> CclogError:
-    """The store's failure, saying what of this run is stored: its windows fsynced before
-    the failure (kept whatever happens), those handed to the OS but not fsynced (a reopen
-    keeps them unless power is lost too), and that the rest was lost. The run's end record
-    cannot be written once the store has failed."""
-    from ..errors import StoreFailedError
+class _StoreFailed(Exception):
+    """The store failed mid-run (disk full, I/O error): carried out of the open store, so that
+    the run's end record is tried once the store is closed (`_end_after_failure`)."""
 
+    def __init__(self, err: CclogError, said: str, run, run_seq: int | None, stats: RecordStats) -> None:
+        super().__init__(str(err))
+        self.err, self.said, self.run, self.run_seq, self.stats = err, said, run, run_seq, stats
+
+
+def _stored_when_failed(store, run_seq: int | None) -> str:
+    """What of this run the failed store holds: its windows fsynced before the failure (kept
+    whatever happens), and those handed to the OS but not fsynced (a reopen keeps them
+    unless power is lost too)."""
     synced, written = store.synced_seq(), store.synced_seq(written=True)
     kept = _run_windows(store, run_seq, written)
     said = f"synced up to seq {synced}: {_counted(kept, synced)}" if synced is not None else "nothing synced"
     if written is not None and written != synced:
         said += (f"; written but not yet fsynced up to seq {written} or further: at least {_counted(kept, written)} "
                  "(a reopen keeps them unless power was lost too)")  # fmt: skip
-    return StoreFailedError(
-        f"{err}. This run's messages stored: {said}; the rest of the {stats.messages_in:,} messages it read was "
-        "lost, and its end record could not be written. Reopening the store (any cclog command) keeps what is "
-        "stored; free space, then record the rest again (--append)")  # fmt: skip
+    return said
+
+
+def _end_after_failure(path: str, failed: _StoreFailed) -> CclogError:
+    """The store's failure, saying what of this run is stored and that the rest was lost.
+    The failed store refuses writes, so the run's end record is written after it closed, by
+    reopening it: the recovery any cclog command runs (what is whole is kept, a torn tail
+    cut), then one small record, status error with `store_failed`, counting what the store
+    keeps of the run. When that fails too (the disk still full), the run stays without an
+    end, as a killed run, and the error says so."""
+    from ..errors import StoreFailedError
+    from ..runs import Run
+    from ..store import open_store
+
+    said = (f"{failed.err}. This run's messages stored: {failed.said}; the rest of the "
+            f"{failed.stats.messages_in:,} messages it read was lost")  # fmt: skip
+    try:
+        with open_store(path) as store:
+            kept = _run_windows(store, failed.run_seq, store.synced_seq(written=True))
+            if kept is None:
+                raise StoreFailedError("its windows cannot be counted")
+            n = sum(count for _, count in kept)
+            Run(store, failed.run.number, failed.run.id).end(
+                "error", messages_in=failed.stats.messages_in, messages_kept=n, windows=len(kept),
+                error=str(failed.err), store_failed=True)  # fmt: skip
+    except (CclogError, OSError):
+        return StoreFailedError(f"{said}, and its end record could not be written. Reopening the store (any cclog "
+                                "command) keeps what is stored; free space, then record the rest again (--append)")
+    return StoreFailedError(f"{said}. Reopened, the store keeps {n:,} messages of this run in {len(kept):,} windows "
+                            "and its end record (`cclog info`: ended on a store failure); free space, then record "
+                            "the rest again (--append)")  # fmt: skip
 
 
 def _run_windows(store, run_seq: int | None, upto: int | None) -> list[tuple[int, int]] | None:
@@ -367,7 +408,7 @@ def _run(args: argparse.Namespace) -> int:
     if not args.window_max_s > 0:
         raise InvalidInputError(f"--window-max-s must be positive, not {args.window_max_s}")
     store_options = upkeep.store_options() if upkeep is not None else {}
-    source = _open(args, read_topics)
+    source, check = _open(args, read_topics, policy)
     if not args.source.startswith("ros1://"):
         check_topics_exist(source, args.source, read_topics)
     handler = getattr(source, "signal_handler", interrupt_handler)  # live: the first signal ends the input
@@ -383,27 +424,46 @@ def _run(args: argparse.Namespace) -> int:
                                 **store_options) as store, \
                 Progress("recording", total=getattr(source, "message_count", None)) as progress:  # fmt: skip
             _warn_damage(store)
+            # A stream keeps one type, also across runs (--append, or another source).
+            check.stored.update(stored_types(store))
             run = _begin_run(args, store, source)
             run_seq = store.synced_seq()  # the run's start record, synced by begin_run
+            dropped_before = _dropped_messages(store)
             stats = RecordStats()
             try:
                 rows, final_bytes = _record_run(args, store, source, policy, upkeep, progress, stats)
             except BaseException as err:
                 _end_run(run, source, stats, received, err)
                 if store.failed is not None and isinstance(err, CclogError):  # disk full, I/O error
-                    raise _store_failed(store, err, run_seq, stats) from err
+                    raise _StoreFailed(err, _stored_when_failed(store, run_seq), run, run_seq, stats) from err
                 raise
-            _end_run(run, source, stats, received, None)
+            refused = _refused_rules(upkeep)
+            retention = _retention(store, run_seq, stats, upkeep, dropped_before)
+            _end_run(run, source, stats, received, refused)
+    except _StoreFailed as failed:  # the store is closed now: its end record may be written yet
+        raise _end_after_failure(args.store, failed) from failed.err
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     if args.features_out:
         _write_dataset(args, rows)
-    _print_summary(args, source, stats, upkeep, final_bytes)
+    _print_summary(args, source, stats, upkeep, final_bytes, retention)
+    if refused is not None:
+        raise refused
     status = _exit_status(args, source, stats, policy, read_topics, received)
     if status == 0 and upkeep is not None and upkeep.budget is not None and final_bytes > upkeep.budget:
         return OVER_BUDGET  # said on stderr as "NOT met"; a script must not take it for met
     return status
+
+
+def _refused_rules(upkeep: Upkeep | None) -> InvalidInputError | None:
+    """The error for --age-error rules that matched no number field (`Upkeep.check_rules`):
+    aging stopped, but the recording went on (nothing lost, nothing to record again, which
+    --append would store twice)."""
+    if upkeep is None or not upkeep.unmatched:
+        return None
+    return unmatched_rules_error("--age-error", upkeep.unmatched, "nothing was aged (no value rounded) and the "
+                                 "recording went on; age the store with `cclog compact --error` and the right field")  # fmt: skip
 
 
 def _record_run(args: argparse.Namespace, store, source, policy, upkeep: Upkeep | None, progress,
@@ -415,10 +475,14 @@ def _record_run(args: argparse.Namespace, store, source, policy, upkeep: Upkeep 
     from ..upkeep import compact
 
     last = [0]
+    said = []
 
     def tick(stats):
         progress(stats.messages_in - last[0])
         last[0] = stats.messages_in
+        if not said and (refused := _refused_rules(upkeep)) is not None:  # a live run must not wait for its end
+            said.append(refused)
+            print(f"cclog: {refused} (exit 1 at the end)", file=sys.stderr)
 
     rows: list = []
     messages = _tee_odometry(source, args.odom_topic, rows) if args.features_out else source
@@ -438,6 +502,8 @@ def _record_run(args: argparse.Namespace, store, source, policy, upkeep: Upkeep 
             if ended:
                 upkeep.after_put(store)
             upkeep.close(finish=ended)
+            if ended:  # a short run that aged nothing still learns its rule matched no field
+                upkeep.check_rules(store)
     if upkeep is None:
         return rows, None
     store.sync()  # first: the active segment's buffered records count toward the budget too
@@ -474,13 +540,42 @@ def _refused_types(source) -> dict[str, int]:
     return getattr(types, "refused", None) or {}
 
 
-def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep: Upkeep | None, final_bytes: int | None) -> None:
+def _dropped_messages(store) -> int:
+    """Messages retention has dropped from the store so far (the runs' bookkeeping aside)."""
+    from ..runs import hidden_by_default
+
+    return sum(st.get("messages", 0) for name, st in store.dropped().get("streams", {}).items()
+               if not hidden_by_default(name))  # fmt: skip
+
+
+def _retention(store, run_seq: int | None, stats: RecordStats, upkeep: Upkeep | None,
+               dropped_before: int) -> tuple[int, int, int] | None:  # fmt: skip
+    """With --budget: (this run's messages still stored, this run's messages retention dropped,
+    earlier runs' messages it dropped). None without a budget, or when the store cannot say."""
+    if upkeep is None or upkeep.budget is None:
+        return None
+    windows = _run_windows(store, run_seq, store.synced_seq(written=True))
+    if windows is None:
+        return None
+    held = sum(n for _, n in windows)
+    mine = max(0, stats.messages_kept - upkeep.messages_thinned - held)
+    return held, mine, max(0, _dropped_messages(store) - dropped_before - mine)
+
+
+def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep: Upkeep | None, final_bytes: int | None,
+                   retention: tuple[int, int, int] | None = None) -> None:  # fmt: skip
     mode = "smart logging" if args.model else "every message"
     kept = stats.json_bytes_kept / stats.json_bytes_in if stats.json_bytes_in else 0.0
+    said = f"{stats.messages_kept:,} kept ({100 * kept:.1f} % of {human_bytes(stats.json_bytes_in)} JSON)"
+    if retention is not None and retention[1]:  # what the store holds of this run, not what it stored once
+        said = (f"{retention[0]:,} kept ({stats.messages_kept:,} stored, then retention DROPPED the oldest "
+                f"{retention[1]:,} to stay within --budget)")  # fmt: skip
     print(f"{'interrupted: ' if stats.interrupted else ''}recorded {args.source} into {args.store} ({mode}): "
-          f"{stats.messages_in:,} messages in, {stats.messages_kept:,} kept ({100 * kept:.1f} % of "
-          f"{human_bytes(stats.json_bytes_in)} JSON) in {stats.windows:,} windows, {stats.seconds:.1f} s "
+          f"{stats.messages_in:,} messages in, {said} in {stats.windows:,} windows, {stats.seconds:.1f} s "
           f"({stats.messages_in / max(stats.seconds, 1e-9):,.0f} msg/s)", file=sys.stderr)  # fmt: skip
+    if retention is not None and retention[2]:
+        print(f"{args.store}: retention also dropped {retention[2]:,} messages of earlier runs to stay within "
+              "--budget", file=sys.stderr)  # fmt: skip
     skipped = getattr(getattr(args, "skips", None), "count", 0)
     if skipped:
         print(f"{args.source}: {skipped:,} bad lines skipped (--on-error skip), not recorded", file=sys.stderr)

@@ -14,6 +14,7 @@ from importlib import import_module
 
 # name -> the module of this package that defines it
 _MODULES = {
+    "Clip": "base",
     "ExportStats": "base",
     "Progress": "base",
     "StoredWindow": "base",

@@ -37,3 +37,48 @@ class ExportStats:
     messages: int = 0
     streams: set[str] = dataclasses.field(default_factory=set)
     files: list[str] = dataclasses.field(default_factory=list)
+
+
+@dataclasses.dataclass(frozen=True)
+class ClippedWindow:
+    """A stored window cut to a time range: the messages of it that `cat --start/--end` prints."""
+
+    name: str
+    seq: int
+    start_ns: int
+    end_ns: int
+    meta: dict[str, Any]
+    held: list[tuple[int, str]]
+
+    def messages(self) -> Iterator[tuple[int, str]]:
+        return iter(self.held)
+
+
+@dataclasses.dataclass
+class Clip:
+    """Windows cut to [start_ns, end_ns] (either None: open), both ends included as in `cat`.
+
+    A window wholly inside passes as it is (its messages are not read here); one that
+    reaches past an end keeps its messages in the range (`ClippedWindow`), and is left out
+    when none is. `cut` counts the windows cut and kept, `left_out` the messages outside
+    the range that the windows selected held."""
+
+    start_ns: int | None
+    end_ns: int | None
+    cut: int = 0
+    left_out: int = 0
+
+    def __call__(self, windows: Iterator[StoredWindow]) -> Iterator[StoredWindow]:
+        lo = -(1 << 63) if self.start_ns is None else self.start_ns
+        hi = (1 << 63) if self.end_ns is None else self.end_ns
+        for w in windows:
+            if lo <= w.start_ns and w.end_ns <= hi:
+                yield w
+                continue
+            every = list(w.messages())
+            held = [m for m in every if lo <= m[0] <= hi]
+            self.left_out += len(every) - len(held)
+            if held:
+                self.cut += 1
+                stamps = [s for s, _ in held]  # a split window's stamps go back: min/max, not ends
+                yield ClippedWindow(w.name, w.seq, min(stamps), max(stamps), w.meta, held)

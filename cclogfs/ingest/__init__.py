@@ -13,6 +13,7 @@ from pathlib import Path
 
 from ..errors import SourceError
 from ..jsontext.lines import format_line, parse_line
+from ..jsontext.rostypes import TypeCheck
 from .base import OnError, Source, SourceMessage, check_clock
 from .jsonl import JsonlSource
 
@@ -126,12 +127,15 @@ def open_source(
     report: Callable[[SourceError], None] | None = None,
     clock: str = "log",
     max_text_bytes: int | None = None,
+    types: TypeCheck | None = None,
 ) -> Source:
     """Open a log for reading, choosing the reader by file type (or by `format`). `clock`:
     the time of a bag's messages, "log" or "header" (JSONL lines and JSON MCAP carry their
     own times, so for them only "log" is accepted). `max_text_bytes`: a JSONL line whose
     message is longer is a bad line (named, or skipped with on_error="skip"), as is a message of
-    another type than its topic's first in any source (a stream keeps one type)."""
+    another type than its topic's first in any source (a stream keeps one type). `types`:
+    the check of each message's topic and type (`TypeCheck`), to refuse reserved topics and
+    types other than a store's (the salvage readers of damaged files do not take it)."""
     fmt = format or detect_format(path)
     if fmt not in _READERS:
         raise SourceError(
@@ -140,7 +144,8 @@ def open_source(
     check_clock(clock)
     if fmt == "jsonl":
         _log_clock_only(path, clock)
-        return JsonlSource(path, topics=topics, on_error=on_error, report=report, max_text_bytes=max_text_bytes)
+        return JsonlSource(path, topics=topics, on_error=on_error, report=report, max_text_bytes=max_text_bytes,
+                          types=types)
     if not Path(path).exists():
         raise SourceError(f"{path} does not exist.")
     cls = _reader(fmt)  # imported only now: rosbags and mcap are slow to import
@@ -148,14 +153,14 @@ def open_source(
         try:
             if fmt == "rosbag2" and _db3_cut_short(Path(path)):
                 raise SourceError("its database is cut short")  # the bag reader would fail midway
-            return cls(path, topics=topics, clock=clock, on_error=on_error, report=report)
+            return cls(path, topics=topics, clock=clock, on_error=on_error, report=report, types=types)
         except SourceError as err:
             salvage = _salvage_class(fmt, Path(path))
             if salvage is None:
                 raise
             return salvage(path, topics=topics, clock=clock, why=str(err))
     _log_clock_only(path, clock)
-    return cls(path, topics=topics, on_error=on_error, report=report)
+    return cls(path, topics=topics, on_error=on_error, report=report, types=types)
 
 
 def _salvage_class(fmt: str, p: Path):

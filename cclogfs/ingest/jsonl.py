@@ -81,7 +81,9 @@ class JsonlSource:
 
     A malformed line is an error naming the file and line (`on_error="stop"`, the
     default), or is skipped, counted in `skipped` and passed to `report`. So is a message
-    whose text is over `max_text_bytes` (what a store can hold, when recording into one).
+    whose text is over `max_text_bytes` (what a store can hold, when recording into one),
+    and one `types` refuses (`jsontext.rostypes.TypeCheck`: a topic of two types, a reserved
+    topic, another type than the store's stream has).
     """
 
     def __init__(
@@ -92,12 +94,14 @@ class JsonlSource:
         on_error: OnError = "stop",
         report: Callable[[SourceError], None] | None = None,
         max_text_bytes: int | None = None,
+        types: TypeCheck | None = None,
     ) -> None:
         self._bad = BadMessages(on_error, report)
         self._wanted = topic_filter(topics)
         self._max_text = max_text_bytes
         self._names_ok: set[str] = set()
-        self._types = TypeCheck()  # lines naming a type go the slow way, which checks it
+        # Lines naming a type, or on a reserved topic (`_bad_names`), go the slow way, which checks them.
+        self._types = types if types is not None else TypeCheck()
         self._owned = str(path) != "-"
         self._file: BinaryIO | Iterator[list[bytes]]
         if self._owned:
@@ -173,10 +177,11 @@ class JsonlSource:
 
     def _bad_names(self, messages: list[SourceMessage | None]) -> set[str]:
         """Topics of the fast path's messages the store would refuse as stream names (a
-        C1 control character, over 1024 bytes): the fast layout already keeps out escapes
-        and C0 controls. Each name is checked once per source."""
+        C1 control character, over 1024 bytes), or that are reserved (`TypeCheck`): the
+        fast layout already keeps out escapes and C0 controls. Each name is checked once per source."""
         new = {m.topic for m in messages if m is not None}.difference(self._names_ok)
-        bad = {name for name in new if name_error(name) is not None}
+        reserved = self._types.reserved
+        bad = {name for name in new if name in reserved or name_error(name) is not None}
         self._names_ok.update(new - bad)
         return bad
 

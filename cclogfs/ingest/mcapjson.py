@@ -42,9 +42,10 @@ class McapJsonSource:
     """
 
     def __init__(self, path: str | Path, *, topics: Iterable[str] | None = None, on_error: OnError = "stop",
-                 report: Callable[[SourceError], None] | None = None) -> None:  # fmt: skip
+                 report: Callable[[SourceError], None] | None = None, types: TypeCheck | None = None) -> None:  # fmt: skip
         self.name = str(path)
-        self._bad = BadMessages(on_error, report)  # a message of another type than its topic's first
+        self._bad = BadMessages(on_error, report)  # a message `types` refuses (another type than its topic's first...)
+        self._types = types
         self._wanted = topic_filter(topics)
         try:
             self._file: BinaryIO = open(path, "rb")
@@ -79,7 +80,7 @@ class McapJsonSource:
     def __iter__(self) -> Iterator[SourceMessage]:
         self._file.seek(0)
         topics = None if self._wanted is None else sorted(self._wanted)
-        types = TypeCheck()
+        types = self._types if self._types is not None else TypeCheck()
         try:
             for index, (schema, channel, message) in enumerate(make_reader(self._file).iter_messages(topics=topics), 1):
                 if channel.message_encoding != "json":

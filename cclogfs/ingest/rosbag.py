@@ -35,9 +35,11 @@ class RosbagSource:
     """
 
     def __init__(self, path: str | Path, *, topics: Iterable[str] | None = None, clock: str = "log",
-                 on_error: OnError = "stop", report: Callable[[SourceError], None] | None = None) -> None:  # fmt: skip
+                 on_error: OnError = "stop", report: Callable[[SourceError], None] | None = None,
+                 types: TypeCheck | None = None) -> None:  # fmt: skip
         self.name = str(path)
-        self._bad = BadMessages(on_error, report)  # a message of another type than its topic's first
+        self._bad = BadMessages(on_error, report)  # a message `types` refuses (another type than its topic's first...)
+        self._types = types
         self._header_clock = check_clock(clock) == "header"
         self._wanted = topic_filter(topics)
         self._converter: MessageConverter | None = None
@@ -99,8 +101,8 @@ class RosbagSource:
         # SourceMessage(...) runs the named tuple's Python-level __new__; tuple.__new__
         # builds the same object in C, 0.5 us less per message (issue 14).
         make = tuple.__new__
-        mixed = self._mixed_types()
-        types = TypeCheck()
+        types = self._types if self._types is not None else TypeCheck()
+        mixed = self._mixed_types(types)
         index = 0
         try:
             for con, logtime, raw in self._raw_messages():
@@ -122,13 +124,14 @@ class RosbagSource:
         except Exception as err:
             raise SourceError(f"{self.name}: reading the bag failed: {err}") from err
 
-    def _mixed_types(self) -> set[Any]:
-        """The ids of the connections whose topic has connections of more than one type:
-        only their messages need checking against the stream's type."""
+    def _mixed_types(self, types: TypeCheck) -> set[Any]:
+        """The ids of the connections whose topic has connections of more than one type,
+        or that `types` watches (reserved, typed in the store): only their messages need
+        checking against the stream's type."""
         by_topic: dict[str, set[str]] = {}
         for c in self._connections:
             by_topic.setdefault(c.topic, set()).add(c.msgtype)
-        return {c.id for c in self._connections if len(by_topic[c.topic]) > 1}
+        return {c.id for c in self._connections if len(by_topic[c.topic]) > 1 or types.watches(c.topic)}
 
     def _raw_messages(self) -> Iterator[tuple[Any, int, bytes]]:
         """(connection, log time, bytes) of the selected topics, in log-time order. A ROS 1

@@ -12,7 +12,7 @@ rosbags ships (ROS 1 Noetic) when the window holding it was dropped.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 from ..errors import InvalidInputError
@@ -37,19 +37,48 @@ def type_mismatch(types: dict[str, str], topic: str, msgtype: str) -> str | None
             "message's); a stream keeps one type, so record this topic's other type into another store")
 
 
-class TypeCheck:
-    """For a source: topic -> its stream's type, and the messages refused for another type."""
+def reserved_refusal(topic: str) -> str:
+    """Why a source message on `topic`, a stream the recording writes itself (its runs, its
+    summary), is refused: stored there, `cat` would leave it out as bookkeeping and
+    `cclog info` read it as a run. One wording for the sources and the pipeline's backstop."""
+    return f"the message is on {topic}, the stream this recording writes itself; leave that topic out with --topic"
 
-    def __init__(self) -> None:
+
+class TypeCheck:
+    """For a source: topic -> its stream's type, and the messages refused for another type.
+
+    The one check of a message's topic before it is stored, so that the source names the
+    line (or skips it with --on-error skip): `reserved`, the streams the recording writes
+    itself (`reserved_refusal`), and `stored`, topic -> the type its stream has in the store
+    recorded into (an earlier run's), which a message of another type may not join either."""
+
+    def __init__(self, *, reserved: Iterable[str] = (), stored: Mapping[str, str] | None = None) -> None:
         self.types: dict[str, str] = {}
+        self.reserved = frozenset(reserved)
+        self.stored: dict[str, str] = dict(stored or {})
         self.refused: dict[str, int] = {}  # topic -> messages refused
 
+    def watches(self, topic: str) -> bool:
+        """Whether a message on `topic` may be refused whatever the source's other types."""
+        return topic in self.reserved or topic in self.stored
+
     def mismatch(self, topic: str, msgtype: str) -> str | None:
-        """`type_mismatch`, counting each refused message."""
-        why = type_mismatch(self.types, topic, msgtype)
+        """Why a message of `msgtype` on `topic` cannot be stored (None: it can), counting
+        each refused message: a reserved topic, then the store's type, then `type_mismatch`."""
+        why = self._why(topic, msgtype)
         if why is not None:
             self.refused[topic] = self.refused.get(topic, 0) + 1
         return why
+
+    def _why(self, topic: str, msgtype: str) -> str | None:
+        if topic in self.reserved:
+            return reserved_refusal(topic)
+        stored = self.stored.get(topic)
+        if msgtype and stored and stored != msgtype:
+            return (f"the message on {topic} is a {msgtype}, but the stream {topic} has type {stored} in the store "
+                    "(recorded by an earlier run); a stream keeps one type, so record this topic's other type "
+                    "into another store")  # fmt: skip
+        return type_mismatch(self.types, topic, msgtype)
 
 
 class StreamTypes:

@@ -10,8 +10,9 @@ from typing import Sequence
 from .._signals import signals_deferred
 from ..errors import CorruptionError, InvalidInputError, StoreFailedError
 from ..store import SealedSegment, Store
-from .job import CompactReport, Stopped, age_segments, candidate_segments, compact, room_to_age, selected
-from .policy import Policy
+from .job import (CompactReport, Stopped, age_segments, candidate_segments, compact, room_to_age, selected,
+                  unmatched_rules)
+from .policy import Policy, Rule
 
 __all__ = ["Upkeep"]
 
@@ -63,10 +64,15 @@ class Upkeep:
         self.active_seen: int | None = None  # the active segment's first seq at the last put
         self.runs = self.dropped_segments = self.aged_windows = 0
         self.bytes_before = self.bytes_after = 0  # stored bytes of the segments aged, before and after
+        self.messages_thinned = 0  # messages aging left out (max rate)
         self.errors: list[str] = []  # what failed in the background (the first MAX_ERRORS)
         self.done: set[int] = set()  # first seqs of segments with nothing left to age
         self.seen: dict[int, dict] = {}  # first seq -> the cutoffs it was last aged at
         self.broken: set[int] = set()  # segments that failed their checks: not retried
+        # Rules matching no number field of the data (`check_rules`): a misspelt field, which
+        # the other rules would round for good. Once found, nothing ages for the rest of the run.
+        self.unmatched: list[Rule] = []
+        self._rules_checked = False
         self._wake, self._stop, self._exited = threading.Event(), threading.Event(), threading.Event()
         self._finish = False
         self._thread: threading.Thread | None = None
@@ -118,6 +124,21 @@ class Upkeep:
             with signals_deferred():
                 self._exited.wait()
             raise
+
+    def check_rules(self, store: Store) -> None:
+        """Refuse the policy's rules that match no number field of the first window of any
+        stream aging applies to (`unmatched_rules`, as `compact` checks): run before anything
+        ages, and by the recorder at the end of its input. Fields are known only once data
+        is stored, and a rule may name a stream that comes later, so the check waits for the
+        first aging, the last moment before a misspelt rule does harm. Refused rules go to
+        `unmatched` and aging stops; retention and the recording go on."""
+        if self._rules_checked or self.policy is None or not self.policy.rules:
+            return
+        names = [name for name in store.streams() if selected(name, self.streams)]
+        if not names:
+            return  # no data to check against yet
+        self.unmatched = unmatched_rules(store, self.policy, streams=self.streams)
+        self._rules_checked = True
 
     def _retain(self, store: Store, *, pending: bool = True) -> int:
         """Drop the oldest segments while over the budget; how many were dropped. With
@@ -199,7 +220,12 @@ class Upkeep:
         first. When the disk has no room for the next rewrite, retention runs first. A
         segment is read again only once the cutoffs of its streams have moved."""
         cutoff = _cutoffs_sealed(store, self.older_than_ns)
-        for seg in reversed(self._due(store, cutoff)):
+        due = self._due(store, cutoff)
+        if due:
+            self.check_rules(store)
+        if self.unmatched:
+            return
+        for seg in reversed(due):
             if self._stop.is_set():
                 return
             if not room_to_age(store) and self._retain(store, pending=False):
@@ -217,6 +243,7 @@ class Upkeep:
                 self.aged_windows += a["windows"]
                 self.bytes_before += a["bytes_before"]
                 self.bytes_after += a["bytes_after"]
+                self.messages_thinned += a["messages_before"] - a["messages_after"]
             mine = self._mine(seg, cutoff)
             self.seen[seg.first_seq] = mine
             if all(seg.streams[name]["end_ns"] < limit for name, limit in mine.items() if limit is not None):

@@ -128,6 +128,38 @@ def test_a_message_that_is_no_odometry_is_named_with_file_topic_and_number_from_
     assert "(missing or bad field: 'angular')" in err
 
 
+def _null(path):
+    def edit(i, m):
+        if i == 10:
+            parent = m
+            for key in path[:-1]:
+                parent = parent[key]
+            parent[path[-1]] = None
+
+    return edit
+
+
+@pytest.mark.parametrize("cmd", ["train", "record", "eval"])
+@pytest.mark.parametrize("path, said", [
+    (("header", "stamp"), "header.stamp is null, not an object"),
+    (("pose", "pose"), "pose.pose is null, not an object"),
+    (("pose",), "pose is null, not an object"),
+    (("twist", "twist", "linear"), "twist.twist.linear is null, not an object"),
+    (("header", "stamp", "sec"), "header.stamp.sec is null, not an integer"),
+])  # fmt: skip
+def test_a_null_object_field_is_named_by_its_path(tmp_path, capsys, odom, model, cmd, path, said):
+    """Found by attack: a null header.stamp or pose said "argument of type 'NoneType' is not
+    iterable" (or "'NoneType' object is not subscriptable"), Python's words, naming no field."""
+    src = write(tmp_path / "null.jsonl", odom, _null(path))
+    args = {"train": ["--out", str(tmp_path / "m")], "record": ["--model", model, "--store", str(tmp_path / "s")],
+            "eval": ["--model", model, "--labels", str(tmp_path / "labels.json")]}[cmd]  # fmt: skip
+    (tmp_path / "labels.json").write_text('{"events": []}')
+    assert main([cmd, src, *args]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "NoneType" not in err, err
+    assert f"{src}, topic /odom: Odometry message 11: " in err and f"(missing or bad field: {said})." in err, err
+
+
 def test_usable_messages_without_a_feature_vector_say_why(tmp_path, capsys, odom):
     """Found by attack: NaN in 97 of every 100 messages said '18 of 600 /odom messages
     usable: ...; no feature vector is left to train on' without saying why 18 give none."""

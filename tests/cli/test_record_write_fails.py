@@ -1,7 +1,9 @@
 """`cclog record` when the store's disk fills (RLIMIT_FSIZE stands in for a full disk: the
 write fails with EFBIG as it would with ENOSPC): the error says what of the run is stored,
-up to which seq, and that the rest was lost; `cclog info` does not claim the run was only
-killed or cut by a power loss."""
+up to which seq, and that the rest was lost; the run's end record is written once the failed
+store is closed, by reopening it (when the disk has room for it again: here recovery cut the
+torn tail, which leaves room), so `cclog info` says the run ended on a store failure and
+what it kept, not that it was killed or cut by a power loss."""
 
 from __future__ import annotations
 
@@ -41,12 +43,18 @@ def test_a_full_disk_says_what_was_synced_and_info_does_not_blame_a_kill(tmp_pat
     assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     said = re.search(r"This run's messages stored: synced up to seq (\d+): ([\d,]+) messages in (\d+) windows;", r.stderr)
     assert said, r.stderr
-    read = re.search(r"the rest of the ([\d,]+) messages it read was lost, and its end record could not be written",
+    read = re.search(r"the rest of the ([\d,]+) messages it read was lost\. Reopened, the store keeps ([\d,]+) messages "
+                     r"of this run in (\d+) windows and its end record \(`cclog info`: ended on a store failure\)",
                      r.stderr)  # fmt: skip
     assert read, r.stderr
     assert "written but not yet fsynced" not in r.stderr  # --sync-ms 0: every window fsynced as written
     synced = int(said[2].replace(",", ""))
     assert 0 < synced < int(read[1].replace(",", "")) <= 40000 and int(said[3]) == synced // 100
+    assert int(read[2].replace(",", "")) == synced and int(read[3]) == synced // 100
     assert _stored(store) == synced  # exactly what the error said is what the store keeps
     info = subprocess.run([*CCLOG, "info", str(store)], capture_output=True, text=True)
-    assert "no end record (killed, power lost, disk full, or still recording)" in info.stdout, info.stdout
+    assert "no end record" not in info.stdout, info.stdout
+    assert "error: ended on a store failure (disk full or failing)" in info.stdout, info.stdout
+    assert f"{synced:,} of {int(read[1].replace(',', '')):,}" in info.stdout, info.stdout
+    fsck = subprocess.run([*CCLOG, "fsck", str(store)], capture_output=True, text=True)
+    assert fsck.returncode == 0, fsck.stdout + fsck.stderr

@@ -64,3 +64,32 @@ def test_export_commands(shared_data, tmp_path, capsys):
         "hive_partitioning=true, union_by_name=true) GROUP BY ALL ORDER BY ALL"
     ).fetchall()
     assert counts == [("tb3", "/amcl_pose", 135), ("tb3", "/odom", 2639)]
+
+
+def test_export_start_end_exports_what_cat_prints(shared_data, tmp_path, capsys):
+    """Export took whole windows for --start/--end (up to a window's worth of messages
+    either side, unsaid in its summary) where `cat` prints the range exactly: now both
+    give the same messages, and the summary says how many outside the range were left out."""
+    data = read_topics(shared_data("nav2_turtlebot.mcap"), ["/odom", "/amcl_pose"])
+    store = fill_store(tmp_path / "tb3", data)
+    stamps = [s for s, _ in data["/odom"]]
+    lo, hi = stamps[150], stamps[420]  # inside windows, not at their ends
+    rng = ["--start", f"{lo}ns", "--end", f"{hi}ns"]
+    capsys.readouterr()
+    assert main(["cat", str(store), *rng]) == 0
+    want = sorted((json.loads(line)["topic"], json.loads(line)["stamp_ns"]) for line in capsys.readouterr().out.splitlines())
+    assert min(s for _, s in want) == lo and max(s for _, s in want) == hi
+    out = tmp_path / "x.mcap"
+    assert main(["export", str(store), "--mcap", str(out), *rng]) == 0
+    err = capsys.readouterr().err
+    with open(out, "rb") as f:
+        got = sorted((c.topic, m.log_time) for _, c, m in make_reader(f).iter_messages())
+    assert got == want
+    in_windows = sum(1 for name in data for s, _ in data[name] if s < lo or s > hi)  # upper bound
+    assert "cut to --start/--end: " in err and f", {len(want)} messages of 2 streams" in err, err
+    left_out = int(err.split("cut to --start/--end: ")[1].split(" messages")[0].replace(",", ""))
+    assert 0 < left_out < in_windows
+    lake = tmp_path / "lake"
+    assert main(["export", str(store), "--parquet", str(lake), *rng]) == 0
+    n = duckdb.sql(f"SELECT count(*) FROM read_parquet('{lake}/**/*.parquet', union_by_name=true)").fetchall()[0][0]
+    assert n == len(want)

@@ -99,3 +99,46 @@ def test_a_second_connection_of_another_type_in_a_ros1_bag_is_named(tmp_path):
     assert (f"{path}, message 2 of the bag (logged at 2 ns): the message on /t is a std_msgs/msg/Int32, but the "
             "stream /t has type std_msgs/msg/String") in r.stderr  # fmt: skip
     assert stored(tmp_path / "s") == [("std_msgs/msg/String", ['{"data": "hi"}'])]
+
+
+def test_a_type_other_than_the_stores_is_refused_across_runs(tmp_path):
+    """The check was per input: a later run (--append, or another file) stored /t as Int32
+    into a store whose /t was String, and export then read all of /t as one type."""
+    first, second = tmp_path / "first.jsonl", tmp_path / "second.jsonl"
+    first.write_text(line(1, {"data": "hi"}, "std_msgs/msg/String"))
+    second.write_text(line(2, {"data": "ho"}, "std_msgs/msg/String") + line(3, {"data": 5}, "std_msgs/msg/Int32")
+                      + line(4, {"data": "hu"}, "std_msgs/msg/String"))  # fmt: skip
+    assert record(first, "--store", tmp_path / "s").returncode == 0
+    second_only = tmp_path / "second_only.jsonl"
+    second_only.write_text(line(3, {"data": 5}, "std_msgs/msg/Int32"))
+    for extra in ((), ("--append",)):
+        r = record(second_only, "--store", tmp_path / "s", *extra)
+        assert r.returncode == 1, r.stderr
+        assert (f"cclog: error: {second_only}, line 1: the message on /t is a std_msgs/msg/Int32, but the stream /t "
+                "has type std_msgs/msg/String in the store (recorded by an earlier run)") in r.stderr  # fmt: skip
+        assert "Traceback" not in r.stderr
+    r = record(second, "--store", tmp_path / "s", "--on-error", "skip")
+    assert r.returncode == 0, r.stderr
+    assert f"cclog: skipped: {second}, line 2: the message on /t is a std_msgs/msg/Int32" in r.stderr
+    texts = [t for _, ts in stored(tmp_path / "s") for t in ts]
+    assert texts == ['{"data": "hi"}', '{"data": "ho"}', '{"data": "hu"}']
+    assert {t for t, _ in stored(tmp_path / "s")} == {"std_msgs/msg/String"}
+
+
+def test_a_bag_of_another_type_than_the_stores_stream_is_named(tmp_path):
+    from rosbags.rosbag1 import Writer as BagWriter
+    from rosbags.typesys import Stores, get_typestore
+
+    src = tmp_path / "first.jsonl"
+    src.write_text(line(1, {"data": "hi"}, "std_msgs/msg/String"))
+    assert record(src, "--store", tmp_path / "s").returncode == 0
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    path = tmp_path / "int.bag"
+    with BagWriter(path) as bag:
+        i = bag.add_connection("/t", "std_msgs/msg/Int32", typestore=ts)
+        bag.write(i, 2, bytes(ts.serialize_ros1(ts.types["std_msgs/msg/Int32"](data=5), "std_msgs/msg/Int32")))
+    r = record(path, "--store", tmp_path / "s")
+    assert r.returncode == 1, r.stderr
+    assert (f"{path}, message 1 of the bag (logged at 2 ns): the message on /t is a std_msgs/msg/Int32, but the "
+            "stream /t has type std_msgs/msg/String in the store") in r.stderr  # fmt: skip
+    assert stored(tmp_path / "s") == [("std_msgs/msg/String", ['{"data": "hi"}'])]

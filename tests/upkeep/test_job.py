@@ -12,6 +12,7 @@ import cclogfs
 from cclogfs.upkeep import Policy, parse_rule
 from cclogfs.cli import main
 from cclogfs.upkeep import compact
+from cclogfs.runs import list_runs
 from cclogfs.store import check_store
 from _odom import NS, odom, sealed_store
 
@@ -182,6 +183,36 @@ def test_recorder_keeps_to_its_budget_as_it_goes(tmp_path, capsys):
     assert not check_store(store, deep=True).errors
 
 
+def test_recorder_summary_counts_what_retention_left_not_what_it_stored(tmp_path, capsys):
+    """Found by attack: `record --budget` said "40,000 kept" when retention had dropped most of
+    them to stay within the budget. Now it says what the store holds of the run, what
+    retention dropped of it, and what it dropped of earlier runs."""
+    import re
+
+    jsonl(tmp_path / "run.jsonl", 40_000)
+    jsonl(tmp_path / "run2.jsonl", 20_000, hz=40)  # other content, so not refused as recorded already
+    store = str(tmp_path / "s")
+
+    def held():
+        with cclogfs.open_store(store, readonly=True) as s:
+            return s.streams()["/odom"]["messages"]
+
+    assert main(["record", str(tmp_path / "run.jsonl"), "--store", store, "--budget", "256KiB", "--chunk", "100"]) == 0
+    err = capsys.readouterr().err
+    kept = held()
+    assert 0 < kept < 40_000
+    assert (f"40,000 messages in, {kept:,} kept (40,000 stored, then retention DROPPED the oldest {40_000 - kept:,} "
+            "to stay within --budget)") in err, err  # fmt: skip
+    assert "of earlier runs" not in err
+    assert main(["record", str(tmp_path / "run2.jsonl"), "--store", store, "--budget", "256KiB", "--chunk", "100"]) == 0
+    err = capsys.readouterr().err
+    m = re.search(r"20,000 messages in, ([\d,]+) kept \(20,000 stored, then retention DROPPED the oldest ([\d,]+) ", err)
+    assert m is not None, err
+    mine, dropped = (int(g.replace(",", "")) for g in m.groups())
+    assert mine + dropped == 20_000 and held() == mine  # every earlier message gone: this run alone fills the budget
+    assert f"{store}: retention also dropped {kept:,} messages of earlier runs to stay within --budget" in err
+
+
 def test_recorder_over_its_budget_at_the_end_exits_3_as_compact_does(tmp_path, capsys):
     """A budget smaller than the segment being written cannot be met: stderr said NOT met,
     but the exit status was 0, so a script took it for met (found by attack)."""
@@ -218,6 +249,32 @@ def test_recorder_ages_in_the_background_within_bounds(tmp_path, capsys):
                     for u, v in zip(floats(exact), floats(json.loads(text)), strict=True):
                         assert abs(u - v) <= 1e-3 * (1 + 1e-12)
     assert not check_store(store, deep=True).errors
+
+
+@pytest.mark.parametrize("budget", [[], ["--budget", "600KiB"]], ids=["aging-never-due", "aging-due"])
+def test_recorder_refuses_an_age_error_rule_that_matches_no_field(tmp_path, capsys, budget):
+    """`record --age-error 'pose.covarience=0'` was silently ignored (the field rounded by the
+    general bound, exit 0) where `compact --error` refuses it. Now aging stops before anything
+    ages (with a budget, segments seal and aging is due during the run), the recording goes
+    on, and the run ends with the error and exit 1, every message stored exact."""
+    jsonl(tmp_path / "run.jsonl", 40_000)  # 2000 s at 20 Hz
+    store = str(tmp_path / "s")
+    rc = main(["record", str(tmp_path / "run.jsonl"), "--store", store, "--chunk", "100", *budget,
+               "--age-older-than", "600s", "--age-error", "1e-3", "--age-error", "pose.covarience=0"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert rc == 1, err
+    assert err.strip().endswith(
+        "cclog: error: --age-error 'pose.covarience=0' matches no number field of the windows to age (field patterns "
+        "start inside msg: 'pose.covariance', not 'msg.pose.covariance'); nothing was aged (no value rounded) and the "
+        "recording went on; age the store with `cclog compact --error` and the right field."), err  # fmt: skip
+    assert "0 windows aged" in err and "Traceback" not in err
+    with cclogfs.open_store(store, readonly=True) as s:
+        windows = list(s.query("/odom"))
+        assert all(w.aged is None for w in windows)
+        texts = [t for w in windows for _, t in w.messages()]
+        assert texts[-1] == odom(39_999) and (budget or len(texts) == 40_000)
+        if not budget:  # (with one, retention may drop the segment of the run's start record)
+            assert [(r.status, r.kept) for r in list_runs(s)] == [("error", 40_000)]
 
 
 @pytest.mark.parametrize(
