@@ -28,10 +28,11 @@ except ImportError:
 
 _STRING = r'"[^"\\]*(?:\\.[^"\\]*)*"'
 _NUMBER = r"[-+.0-9A-Za-z]++"  # numbers, true/false/null, NaN, Infinity
+# The text between two values: punctuation, whitespace and keys.
+_BETWEEN = r"(?:[\s{}\[\],:]++|" + _STRING + r"\s*+:)*+"
 # Possessive quantifiers: a text that does not tokenize fails fast instead of backtracking.
-_TOKEN = re.compile(
-    r"((?:[\s{}\[\],:]++|" + _STRING + r"\s*+:)*+)(" + _STRING + "|" + _NUMBER + ")", re.S
-)
+_TOKEN = re.compile("(" + _BETWEEN + ")(" + _STRING + "|" + _NUMBER + ")", re.S)
+_LITERAL = re.compile(_BETWEEN, re.S)
 # Shapes with more value slots than this have no matcher (their texts are grouped by
 # split_text alone).
 _MAX_MATCHER_SLOTS = 4096
@@ -54,10 +55,32 @@ def split_text(text: str) -> tuple[tuple[str, ...], list[str]] | None:
     joined = "".join(chain.from_iterable(pairs))
     # findall silently skips characters no token matches; then the pieces fall short.
     if not text.startswith(joined):
-        return None
+        return _split_keyed_tail(text)
     # map/itemgetter, not generators: ~3x faster on a message of 80,000 values.
     literals = tuple(map(itemgetter(0), pairs)) + (text[len(joined) :],)
     return literals, list(map(itemgetter(1), pairs))
+
+
+def _split_keyed_tail(text: str) -> tuple[tuple[str, ...], list[str]] | None:
+    """split_text of a text whose last value is followed by a key, as in
+    `{"ranges": [1.5], "intensities": []}`, or of a text with keys but no value at all.
+
+    Such a tail is literal text, but no token ends it, so findall goes on searching inside
+    it and cuts the key's letters as a number: the pieces skip the key's opening quote and
+    fall short. Here tokens are taken only while each starts where the last ended, and
+    the rest must be literal text alone (punctuation, whitespace, keys).
+    """
+    literals, values, at = [], [], 0
+    for match in _TOKEN.finditer(text):
+        if match.start() != at:
+            break
+        literals.append(match[1])
+        values.append(match[2])
+        at = match.end()
+    if _LITERAL.fullmatch(text, at) is None:
+        return None
+    literals.append(text[at:])
+    return tuple(literals), values
 
 
 def _kinds(values: Sequence[str]) -> tuple[bool, ...]:

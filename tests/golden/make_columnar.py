@@ -8,7 +8,9 @@ To add a version, copy the input folders to v<N>-<name> with "version": N in con
 and run this once. Never re-run it with --overwrite to make a failing golden test pass.
 Inputs of v4-aged-odom are those of v3-odom with every float rounded to 3 places
 (bench/codec_columnar.py's age_text); v4-decimal-kinds was written by hand to hold
-DECIMAL columns of several digit counts beside columns that must fall back.
+DECIMAL columns of several digit counts beside columns that must fall back;
+v4-keyed-tail holds scans whose last key is `"intensities": []` and texts with no value
+(docs/CODEC_COLUMNAR.md, "Which texts have a group"), none of them raw.
 """
 
 import argparse
