@@ -102,7 +102,8 @@ class SummaryBuilder:
         when one that can comes (or at `flush`, or past MAX_HELD): `_update_steady` of a
         period's samples is 2x faster than `update` of each, of 64 no faster (issue 14)."""
         newest = self._newest_bucket()
-        if stamps and newest is not None and min(stamps) // self.period == newest == max(stamps) // self.period:
+        period = self.period
+        if stamps and newest is not None and min(stamps) // period == newest == max(stamps) // period:
             # The usual list: all in the newest sample's period (floor division keeps the
             # order), so none ends it; one division each costs ~0.3 us a sample (ints of
             # three digits).
@@ -184,7 +185,8 @@ class SummaryBuilder:
         self.last_ns = int(t[-1])
         x, y = np.array(xs, dtype=np.float64), np.array(ys, dtype=np.float64)
         dx, dy = np.diff(x, prepend=x0).tolist(), np.diff(y, prepend=y0).tolist()
-        s["distance_m"] = reduce(add, filter(math.isfinite, map(math.hypot, dx, dy)), s["distance_m"])
+        steps = filter(math.isfinite, map(math.hypot, dx, dy))
+        s["distance_m"] = reduce(add, steps, s["distance_m"])
         moving = fast > self.moving_speed
         s["moving_s"] = reduce(add, (np.diff(t)[moving] / NS).tolist(), s["moving_s"])
         self._accelerations(t[1:], v)

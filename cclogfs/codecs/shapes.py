@@ -285,8 +285,8 @@ class ShapeMatcher:
         pattern = self._compiled.get(key, False)
         if pattern is False:
             pattern = _matcher(literals, values)
-            if isinstance(pattern, _LongShape) and not pattern.short:  # cheap to make; the cache would hold its text
-                return pattern
+            if isinstance(pattern, _LongShape) and not pattern.short:
+                return pattern  # cheap to make; the cache would hold its long text
             self._compiled[key] = pattern
             if len(self._compiled) > self._capacity:
                 self._compiled.popitem(last=False)

@@ -95,7 +95,9 @@ INSERTS = st.sampled_from(["", '"', "\\", "\\\\", '\\"', "x", "-", " ", ",", "\u
 
 def _regex(literals, values):
     """`shapes._matcher`'s regex even for a shape it would match as a _LongShape."""
-    return None if len(values) > shapes._MAX_MATCHER_SLOTS else shapes._regex(literals, shapes._kinds(values))
+    if len(values) > shapes._MAX_MATCHER_SLOTS:
+        return None
+    return shapes._regex(literals, shapes._kinds(values))
 
 
 def _matcher_without_the_row_finder(literals, values):
@@ -120,7 +122,7 @@ def test_a_long_shape_matches_what_the_regex_matches(row_path, text, edits):
     if regex is None or isinstance(regex, shapes._LongShape):
         return
     long_shape = shapes._LongShape(literals, kinds)
-    long_shape.short = False  # read as a long shape is (token by token, or the row finder), not by its regex
+    long_shape.short = False  # read as a long shape is (row finder or token by token), no regex
     candidates = [text]
     for at, cut, insert in edits:  # the text damaged: characters replaced, removed, added
         at %= len(text) + 1
