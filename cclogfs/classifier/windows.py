@@ -343,14 +343,18 @@ class WindowBuilder:
     def _trim_ring(self, now_ns: int) -> None:
         """Keep the newest message and the `before` messages (or seconds, plus the
         longest lookback) before it."""
+        ring = self.ring
         if self.before_ns is None:
-            while len(self.ring) > self.before + 1:
-                self.ring.popleft()
+            while len(ring) > self.before + 1:
+                ring.popleft()
         else:
-            while self.ring and self.ring[0][0] < now_ns - self.before_ns - self.lookback_max_ns:
-                self.ring.popleft()
-            while len(self.ring) > self.max_ring:
-                self.ring.popleft()
+            # The bound once, not per message dropped: subtracting stamps (ints of 3 digits)
+            # cost ~0.2 us a message of smart logging (issue 14).
+            oldest = now_ns - self.before_ns - self.lookback_max_ns
+            while ring and ring[0][0] < oldest:
+                ring.popleft()
+            while len(ring) > self.max_ring:
+                ring.popleft()
         for topic in self.pending:
             self._trim_pending(topic)
 

@@ -89,15 +89,29 @@ def _kinds(values: Sequence[str]) -> tuple[bool, ...]:
 
 
 def _matcher(literals: tuple[str, ...], values: list[str]) -> re.Pattern[str] | _LongShape | None:
-    """A regex that matches exactly the texts of this shape, one group per value."""
+    """What matches exactly the texts of this shape, one group per value.
+
+    Where the compiled row finder is built, a _LongShape for every shape: it reads the
+    values without compiling anything, where a regex costs ~1.3 us a literal character to
+    compile (smart logging stores a window of its own shape nearly every time: 458 regexes
+    of ~0.55 ms for the 300k-line speed bench, 4.5 % of `record --model`; issue 14)."""
     if len(values) > _MAX_MATCHER_SLOTS:
         return None
-    if len(values) > _MAX_REGEX_SLOTS or sum(map(len, literals)) > _MAX_REGEX_LITERALS:
+    if _match_rows_c is not None or not _regex_is_cheap(literals, len(values)):
         return _LongShape(literals, _kinds(values))
+    return _regex(literals, _kinds(values))
+
+
+def _regex_is_cheap(literals: tuple[str, ...], slots: int) -> bool:
+    return slots <= _MAX_REGEX_SLOTS and sum(map(len, literals)) <= _MAX_REGEX_LITERALS
+
+
+def _regex(literals: tuple[str, ...], kinds: tuple[bool, ...]) -> re.Pattern[str]:
+    """The regex of a shape (kinds: whether each value slot holds a string)."""
     parts = []
-    for lit, val in zip(literals, values):
+    for lit, is_string in zip(literals, kinds):
         parts.append(re.escape(lit))
-        parts.append("(" + (_STRING if val.startswith('"') else _NUMBER) + ")")
+        parts.append("(" + (_STRING if is_string else _NUMBER) + ")")
     parts.append(re.escape(literals[-1]))
     return re.compile("".join(parts), re.S)
 
@@ -135,8 +149,9 @@ class _Found:
 
 
 class _LongShape:
-    """`_matcher`'s regex for a shape with long literals or many value slots: the same
-    matches, linear cost, nothing compiled.
+    """`_regex` of a shape without compiling it: the same matches, linear cost. For every
+    shape where the compiled row finder is built; else for a shape with long literals or
+    many value slots (named for those, the first use).
 
     A text is read literal by literal and value by value: literals fix where each value
     starts, and each value token can end in one place only (a string at its first
@@ -149,12 +164,20 @@ class _LongShape:
         self._literals = literals
         self._kinds = kinds
         self._tokens = [_STRING_AT.match if is_string else _NUMBER_AT.match for is_string in kinds]
+        # A short shape's regex, compiled the first time a text is one the compiled row
+        # finder declines (a character beyond Latin-1): faster than a token at a time.
+        self.short = _regex_is_cheap(literals, len(kinds))
+        self._compiled: re.Pattern[str] | None = None
 
-    def fullmatch(self, text: str) -> _Found | None:
+    def fullmatch(self, text: str) -> _Found | re.Match[str] | None:
         if _match_rows_c is not None:
             rows = _match_rows_c(self._literals, self._kinds, [text])
             if rows is not NotImplemented:
                 return None if rows[0] is None else _Found(rows[0])
+        if self.short:
+            if self._compiled is None:
+                self._compiled = _regex(self._literals, self._kinds)
+            return self._compiled.fullmatch(text)
         values, at = [], 0
         for lit, token in zip(self._literals, self._tokens):
             if not text.startswith(lit, at):
@@ -285,8 +308,8 @@ class ShapeMatcher:
         pattern = self._compiled.get(key, False)
         if pattern is False:
             pattern = _matcher(literals, values)
-            if isinstance(pattern, _LongShape):  # cheap to make; the cache would hold its text
-                return pattern
+            if isinstance(pattern, _LongShape) and not pattern.short:
+                return pattern  # cheap to make; the cache would hold its long text
             self._compiled[key] = pattern
             if len(self._compiled) > self._capacity:
                 self._compiled.popitem(last=False)

@@ -39,11 +39,13 @@ sample = st.tuples(st.sampled_from([100, 100, 100, 37, 0, -40, 1500, 9000]),
 
 
 @settings(max_examples=300, deadline=None)
-@given(samples=st.lists(sample, max_size=150), size=st.integers(1, 70), held=st.sampled_from([3, 1024]))
-def test_update_many_is_update_of_each(samples, size, held):
+@given(samples=st.lists(sample, max_size=150), size=st.integers(1, 70), held=st.sampled_from([3, 1024]),
+       start=st.sampled_from([0, 1_732_000_000_123_456_789, -3_000_000_001]))  # fmt: skip
+def test_update_many_is_update_of_each(samples, size, held, start):
     """Lists of `size` samples: the same records from the same samples, bit for bit, and
-    the same state after (with at most `held` samples held)."""
-    stamps, rows, speeds, flags, t, x = [], [], [], [], 0, 0.0
+    the same state after (with at most `held` samples held). Stamps from 0 or a real
+    clock's (numpy's int64 path, issue 14)."""
+    stamps, rows, speeds, flags, t, x = [], [], [], [], start, 0.0
     for k, (step, speed, dx) in enumerate(samples):
         t, x = t + step * MS, x + dx
         stamps.append(t)

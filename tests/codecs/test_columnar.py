@@ -259,7 +259,7 @@ def test_literals_of_equal_length_but_other_text_are_not_skipped_over():
     rows = [("0.5", "1"), ("0.5", "1")]
     assert shapes._rebuilds(literals, rows, [good, good])
     assert not shapes._rebuilds(literals, rows, [good, other])
-    shape = (literals, shapes._matcher(literals, ["0.5", "1"]), skipper, kinds)
+    shape = (literals, shapes._regex(literals, kinds), skipper, kinds)
     assert shapes._rows(shape, [good, other, "x", good]) == [("0.5", "1"), None, None, ("0.5", "1")]
 
 

@@ -81,3 +81,41 @@ def test_compiled_shapes_are_bounded():
     for k in range(10):
         matcher.group([json.dumps({f"key{k}": 1})])
     assert len(matcher._compiled) == 3
+
+
+def _spy_compiles(monkeypatch):
+    from cclogfs.codecs import shapes
+
+    compiled = []
+
+    def spy(literals, kinds):
+        compiled.append(literals)
+        return regex(literals, kinds)
+
+    regex = shapes._regex
+    monkeypatch.setattr(shapes, "_regex", spy)
+    return compiled
+
+
+def _windows(text_of):
+    return [[text_of(w, i) for i in range(50)] for w in range(3)]
+
+
+def test_the_compiled_row_finder_reads_every_shape_without_a_regex(monkeypatch, row_path):
+    # A regex costs ~1.3 us a literal character to compile; smart logging stores a window
+    # of a new shape nearly every time (issue 14, seventh pass).
+    compiled = _spy_compiles(monkeypatch)
+    ascii_windows = _windows(lambda w, i: json.dumps({"w": w, "x": i / 7, "frame": f"map{w}"}))
+    wide_windows = _windows(lambda w, i: json.dumps({"w": w, "x": i / 7, "frame": "\u20ac"}, ensure_ascii=False))
+    for windows in (ascii_windows, wide_windows):
+        matcher, before = ShapeMatcher(), len(compiled)
+        for texts in windows:
+            groups, unshaped = matcher.group_window(texts)
+            assert unshaped == []
+            for literals, indices, columns in groups:
+                for i, row in zip(indices, zip(*columns)):
+                    assert rebuild(literals, row) == texts[i]
+        if row_path == "python" or windows is wide_windows:
+            assert len(compiled) > before  # texts the row finder declines: a regex per shape
+        else:
+            assert len(compiled) == before
