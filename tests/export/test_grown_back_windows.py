@@ -102,6 +102,7 @@ def grown_store(tmp_path_factory):
     # Each window holds the latched /tf_static (to be read alone), so both hold its message.
     logged = [m for m in kept if m[0] != "/tf_static"]
     assert len(logged) == len(set(logged)), "the policy kept a message twice"
+    assert set(kept) <= set(source())  # the source's messages, byte for byte
     return path, kept
 
 
