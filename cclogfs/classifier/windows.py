@@ -318,8 +318,7 @@ class WindowBuilder:
                 m = self.ring.popleft()
                 if self.lookback_max_ns:
                     self.back.append(m)
-        self._open(stamp_ns, out)
-        self._trigger(stamp_ns, score)
+        self._open(stamp_ns, score, out)
 
     def _reach_back(self, from_ns: int, out: list[PendingWindow]) -> None:
         """An anomaly in the open window whose evidence starts at `from_ns`: the window
@@ -373,9 +372,12 @@ class WindowBuilder:
         while q and q[0][0] < oldest:
             q.popleft()
 
-    def _open(self, stamp_ns: int, out: list[PendingWindow]) -> None:
+    def _open(self, stamp_ns: int, score: float, out: list[PendingWindow]) -> None:
         start = self.ring[0][0]
         self.window = _Open(window_id=f"w{start}", start_ns=start, last_ns=stamp_ns)
+        # The flag first: the context may fill a part at once (9 s at 2 kHz), whose meta
+        # must name it (a peak score of -inf is no JSON: the store refused the part).
+        self._trigger(stamp_ns, score)
         self._add(self.trigger_topic, list(self.ring), out)
         self.ring.clear()
         oldest = self.back[0][0] if self.back else start

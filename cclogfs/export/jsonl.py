@@ -48,6 +48,10 @@ def merged_runs(
     A window that overlaps none (most stores: one stream, windows one after another)
     goes out as one run, without the heap: nothing can come between its messages. Runs
     let the writer format and write a window at once rather than message by message.
+    Windows must come sorted by start (`store.query` gives (start, seq) order; seq order is
+    not time order where a smart-logged window grew back after a part was stored): a window
+    that starts before one given earlier raises ValueError, as messages after its start may
+    have gone out already.
     """
     lo = -(1 << 63) if start_ns is None else start_ns
     hi = (1 << 63) if end_ns is None else end_ns
@@ -56,8 +60,13 @@ def merged_runs(
     nxt = next(pending, None)
     order = 0
     parts: dict[tuple[str, int], tuple[int, int]] = {}  # (stream, seq) of a next part -> (order, part number)
+    opened = -(1 << 63)  # the start of the window opened last
     while heap or nxt is not None:
         while nxt is not None and (not heap or nxt.start_ns <= heap[0][0]):
+            if nxt.start_ns < opened:  # messages after its start may have gone out already
+                raise ValueError(f"windows must come in start order (as store.query gives them): {nxt.name} "
+                                 f"seq {nxt.seq} starts at {nxt.start_ns} ns, before a window given earlier")
+            opened = nxt.start_ns
             after = next(pending, None)
             if parts and (nxt.name, nxt.seq) in parts:
                 own, part = parts.pop((nxt.name, nxt.seq))

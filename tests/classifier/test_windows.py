@@ -1,3 +1,5 @@
+import json
+
 import pytest
 
 from cclogfs.classifier.windows import WindowBuilder
@@ -188,3 +190,21 @@ def test_a_later_flag_extends_the_window_back_with_other_topics():
     scans = [int(t[4:]) for w in out if w.topic == "/scan" for _, t in w.messages]
     assert scans == list(range(90, 210))
     assert out[-1].meta["start_ns"] == 900 * MS
+
+
+def test_a_part_that_goes_out_as_the_window_opens_names_its_flag():
+    """At 2 kHz, a slow flag (8 s of lookback) opens a window with 9 s of context: 18,000
+    messages, more than a part holds, so a part goes out as the window opens. Its meta
+    named no flag and a peak score of -inf, which the store refuses as JSON: the recording
+    stopped with "meta is not JSON-serializable" and the window was not stored."""
+    b = WindowBuilder(before_s=1.0, after_s=0.5, lookback_max_s=8.0, merge_s=4.5, hold_score=-0.3)
+    out = []
+    for k in range(30_000):  # 0.5 ms apart; the flag at 10 s
+        flag = k == 20_000
+        out += b.push("/odom", k * MS // 2, str(k), anomalous=flag, score=2.5 if flag else -1.0,
+                      lookback_ns=8000 * MS if flag else 0)  # fmt: skip
+    out += b.flush()
+    assert [len(w.messages) for w in out] == [10_000, 9_001]  # 1 s .. 10.5 s
+    for w in out:
+        assert w.meta["peak_score"] == 2.5 and w.meta["n_triggers"] == 1 and w.meta["triggers"] == [10_000 * MS]
+        json.dumps(w.meta, allow_nan=False)  # as the store encodes it: raises for -inf
