@@ -459,6 +459,10 @@ class DefaultFeatures:
         short_d, short_m = self._short + self._deriv, self._short + self._match
         self.spans_ns = np.array([self._deriv] + [short_d] * 5 + [short_m] * 2
                                  + [self._long, self._flip, self._long], dtype=np.int64)  # fmt: skip
+        # The long columns, whose evidence start is tracked (`classifier.evidence`), and
+        # how late their gates and flips may see a change: two despike steps.
+        self.counted = (8, 9, 10)
+        self.evidence_margin_ns = 2 * (self._despike or 0)
         # How far back the newest vector looks: a window plus the baseline of its oldest row.
         self.horizon_ns = max(self._short + self._deriv, self._short + self._match, self._long,
                               self._flip)  # fmt: skip
