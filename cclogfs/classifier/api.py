@@ -12,7 +12,7 @@ from typing import Iterable, Iterator, Sequence
 import numpy as np
 
 from ..errors import InvalidInputError, ModelError
-from .evidence import EvidenceTracker, evidence_back
+from .evidence import EvidenceHistory, evidence_back
 from .features import OdomArrays, TwistFromPoses, make_features, odom_row, odom_rows_compiled, parse_odometry
 from .fit import robot_stats, speed_noise
 from .model import OneClassModel
@@ -195,7 +195,7 @@ class Detector:
         # The long columns, whose evidence start is tracked (`classifier.evidence`).
         self.counted = getattr(self.features, "counted", ()) if self.spans_ns is not None else ()
         self.last_vector: np.ndarray | None = None
-        self.last_back: tuple[int, ...] | None = None
+        self.last_back: np.ndarray | None = None  # the newest vector's `evidence`, if flagged
         self.reset()
 
     def reset(self) -> None:
@@ -205,16 +205,17 @@ class Detector:
         self._twist = TwistFromPoses()
         # The robot's limits now: the model's, grown live (`OneClassModel.score`).
         self.limits = None if self.model.limits_ is None else self.model.limits_.copy()
-        self._evidence = EvidenceTracker(self.counted, self.spans_ns[list(self.counted)],
-                                         self.features.evidence_margin_ns) if self.counted else None  # fmt: skip
+        # The recent valid vectors, for where the long columns' evidence starts (live).
+        self.evidence = EvidenceHistory(self.counted, self.spans_ns[list(self.counted)],
+                                        self.features.evidence_margin_ns) if self.counted else None  # fmt: skip
 
     def lookback_ns(self, X: np.ndarray, backs=None) -> np.ndarray:
         """Per vector, how long before its message the anomaly's evidence starts: the
         longest among the features that stand out most (at least half the top
         standardized deviation). A jolt seen by the 0.5 s maxima started half a second
         ago; a spin seen by its net rotation over 8 s, where that rotation began: `backs`,
-        per vector the long columns' own evidence (`classifier.evidence`; None for a
-        vector whose long columns are all 0). Without `backs`, their whole span."""
+        per vector the long columns' own evidence (`classifier.evidence`). Without
+        `backs`, their whole span."""
         X = np.atleast_2d(X)
         if self.spans_ns is None or not len(X):
             return np.zeros(len(X), dtype=np.int64)
@@ -223,7 +224,7 @@ class Detector:
         spans = np.broadcast_to(self.spans_ns, X.shape)
         if backs is not None and self.counted:
             spans = spans.copy()
-            spans[:, list(self.counted)] = [(0,) * len(self.counted) if b is None else b for b in backs]
+            spans[:, list(self.counted)] = backs
         return np.where(involved, spans, 0).max(axis=1)
 
     def score_windows(self, odom) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -248,28 +249,27 @@ class Detector:
         """(scores, anomalous) per message; NaN score and False where no vector exists."""
         return self.score_windows(odom)[:2]
 
-    def vector(self, stamp_ns: int, row) -> tuple[np.ndarray | tuple | None, tuple[int, ...] | None]:
+    def vector(self, stamp_ns: int, row) -> np.ndarray | tuple | None:
         """The newest message's feature vector, an array or a tuple of floats (None while
-        there is none or it is not valid), and its long columns' evidence (`lookback_ns`)."""
+        there is none or it is not valid). A valid one also goes to `evidence`, whose
+        `take` the caller then calls for it (SmartLogger does, a batch at a time)."""
         got = self._push_values(stamp_ns, row)
-        evidence = self._evidence
         if got is None or not got[1]:
-            if evidence is not None:
-                evidence.stamp(stamp_ns)
-            return None, None
-        return got[0], None if evidence is None else evidence.push(stamp_ns, got[0])
+            return None
+        if self.evidence is not None:
+            self.evidence.append(stamp_ns, got[0])
+        return got[0]
 
     def update_row(self, stamp_ns: int, row) -> tuple[float, bool]:
         """Score of the newest message given as (stamp, 13 raw values)."""
         got = self._stream.push(stamp_ns, row)
-        evidence = self._evidence
         if got is None or not got[1]:
-            if evidence is not None:
-                evidence.stamp(stamp_ns)
             return math.nan, False
         self.last_vector = got[0]
-        self.last_back = None if evidence is None else evidence.push(stamp_ns, got[0])
         score = self.model.score_one(got[0], self.limits)
+        if self.evidence is not None:  # the long columns' evidence, for `lookback_ns`
+            self.evidence.append(stamp_ns, got[0])
+            self.last_back = self.evidence.take(1, (0,) if score > 0 else ())
         return score, score > 0
 
     def parse(self, msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
@@ -310,7 +310,6 @@ class SmartLogger:
         self._pending: list[tuple] = []  # messages held until their odometry is scored
         self._held_other = False  # whether _pending holds a message of another topic
         self._vectors: list = []  # their feature vectors (Detector.vector)
-        self._backs: list = []  # and their long columns' evidence
         self.detector = detector
         self.odom_topic = odom_topic
         window_args.setdefault("lookback_max_s", detector.lookback_max_s)
@@ -339,12 +338,11 @@ class SmartLogger:
         if self.batch == 1:
             score, flag = self.detector.update_row(head, row)
             det = self.detector
-            back = int(det.lookback_ns(det.last_vector, [det.last_back])[0]) if flag else 0
+            back = int(det.lookback_ns(det.last_vector, det.last_back)[0]) if flag else 0
             return self._odom(stamp_ns, text, row, score, flag, back)
-        vec, ev = self.detector.vector(head, row)
+        vec = self.detector.vector(head, row)
         if vec is not None:
             self._vectors.append(vec)
-            self._backs.append(ev)
         self._pending.append((topic, stamp_ns, text, row, vec is not None))
         return self._drain() if len(self._pending) >= self.batch else []
 
@@ -378,10 +376,9 @@ class SmartLogger:
             # A row of the compiled reader has a twist (`parse` would pass it unchanged);
             # `parse` reads the others, and raises at the message a bad one is.
             head, row = next(read) or parse(text)
-            vec, ev = vector(head, row)
+            vec = vector(head, row)
             if vec is not None:
                 vectors.append(vec)
-                self._backs.append(ev)
             pending.append((topic, stamp_ns, text, row, vec is not None))
             if len(pending) >= batch:
                 out += self._drain()
@@ -391,7 +388,7 @@ class SmartLogger:
         """`push_many` of odometry messages all read by the compiled reader (`got`, the
         (stamp, row) of each): the held messages added a drain's worth at a time."""
         heads, rows = zip(*got)
-        vecs, evs = zip(*map(self.detector.vector, heads, rows))
+        vecs = list(map(self.detector.vector, heads, rows))
         held = list(zip(map(itemgetter(0), messages), map(itemgetter(1), messages), map(itemgetter(2), messages),
                         rows, map(is_not, vecs, repeat(None))))  # fmt: skip
         out: list[PendingWindow] = []
@@ -399,7 +396,6 @@ class SmartLogger:
         while i < len(held):
             j = i + self.batch - len(self._pending)
             self._vectors += [v for v in vecs[i:j] if v is not None]
-            self._backs += [e for v, e in zip(vecs[i:j], evs[i:j]) if v is not None]
             self._pending += held[i:j]
             if len(self._pending) >= self.batch:
                 out += self._drain()
@@ -417,8 +413,13 @@ class SmartLogger:
         s = self._scores(V)
         flagged = s > 0
         back = np.zeros(len(s), dtype=np.int64)
+        evidence = self.detector.evidence
         if flagged.any():
-            back[flagged] = self.detector.lookback_ns(V[flagged], [self._backs[i] for i in np.nonzero(flagged)[0]])
+            at = np.nonzero(flagged)[0]
+            backs = None if evidence is None else evidence.take(len(s), at)
+            back[flagged] = self.detector.lookback_ns(V[flagged], backs)
+        elif evidence is not None:
+            evidence.take(len(s))
         held, scores, backs = self._pending, s.tolist(), back.tolist()
         if len(scores) < len(held) or self._held_other:  # some without a score, or of another topic
             found = iter(zip(scores, backs))
@@ -440,7 +441,6 @@ class SmartLogger:
             i = j
         self._pending.clear()
         self._vectors.clear()
-        self._backs.clear()
         self._held_other = False
         return out
 

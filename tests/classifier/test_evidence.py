@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cclogfs.classifier import Detector, SmartLogger, parse_odometry, train, window_spans
-from cclogfs.classifier.evidence import EvidenceTracker, evidence_back
+from cclogfs.classifier.evidence import EvidenceHistory, evidence_back
 from cclogfs.classifier.features import NS
 from cclogfs.classifier.testing import inject, odom_texts, read_odometry
 
@@ -20,8 +20,22 @@ message = st.tuples(st.sampled_from([100, 100, 100, 0, 30, 1200, -50]), st.boole
 
 
 @settings(max_examples=300, deadline=None)
-@given(steps=st.lists(message, max_size=150), margin=st.sampled_from([0, 200 * MS]))
-def test_live_evidence_equals_whole_run(steps, margin):
+@given(steps=st.lists(message, max_size=1500), chunks=st.lists(st.integers(1, 70), min_size=1),
+       margin=st.sampled_from([0, 200 * MS]))  # fmt: skip
+def test_live_evidence_equals_whole_run(steps, chunks, margin):
+    """Vectors appended one by one and taken a chunk at a time (every other row flagged)
+    give the whole run's numbers."""
+    check_live_equals_whole_run(steps, chunks, margin)
+
+
+def test_live_evidence_equals_whole_run_after_dropping_old_rows():
+    rng = np.random.default_rng(7)
+    steps = [(int(rng.choice([100, 100, 0, 30, 1200, -50])), bool(rng.random() < 0.9),
+              float(rng.choice([0.0, 0.0, 1.0, np.nan])), float(rng.choice([0.0, 0.5]))) for _ in range(5000)]  # fmt: skip
+    check_live_equals_whole_run(steps, [64, 1, 17], 200 * MS, dropped=True)
+
+
+def check_live_equals_whole_run(steps, chunks, margin, dropped=False):
     spans = (1000 * MS, 400 * MS)
     t, V, valid = [], [], []
     now = 5 * NS
@@ -31,19 +45,21 @@ def test_live_evidence_equals_whole_run(steps, margin):
         V.append((a, b))
         valid.append(ok)
     t, V, valid = np.array(t, dtype=np.int64), np.array(V).reshape(-1, 2), np.array(valid, dtype=bool)
-    want = evidence_back(t, V, valid, spans, margin)
-    live = EvidenceTracker((0, 1), spans, margin)
-    for k in range(len(t)):
-        if not valid[k]:
-            live.stamp(int(t[k]))
-            assert not want[k].any()
-            continue
-        got = live.push(int(t[k]), V[k])
-        assert (want[k].tolist() == [0, 0]) if got is None else (list(got) == want[k].tolist())
-        for c in range(2):  # never more than the span, nonzero only where the column is
-            assert want[k, c] <= spans[c]
-            if V[k, c] > 0:
-                assert want[k, c] >= margin
+    want = evidence_back(t, V, valid, spans, margin)[valid]
+    assert (want <= np.array(spans)).all()
+    assert (want[np.nan_to_num(V[valid]) > 0] >= margin).all()
+    live = EvidenceHistory((0, 1), spans, margin)
+    for k in np.nonzero(valid)[0]:
+        live.append(int(t[k]), V[k])
+    got, done, c = [], 0, 0
+    while done < len(want):
+        n = min(chunks[c % len(chunks)], len(want) - done)
+        flagged = np.arange(c % 2, n, 2)
+        got.append((done + flagged, live.take(n, flagged)))
+        done, c = done + n, c + 1
+    for rows, backs in got:
+        assert backs.tolist() == want[rows].tolist()
+    assert not dropped or len(live.stamps) < len(want) // 2
 
 
 def test_a_reversal_reaches_back_to_its_first_flip_not_8_s():
