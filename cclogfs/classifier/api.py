@@ -222,9 +222,14 @@ class Detector:
         Z = np.nan_to_num(np.abs(self.model.transform(X)))
         involved = (Z > 0) & (Z >= 0.5 * Z.max(axis=1, keepdims=True))
         spans = np.broadcast_to(self.spans_ns, X.shape)
-        if backs is not None and self.counted:
-            spans = spans.copy()
-            spans[:, list(self.counted)] = backs
+        if backs is None or not self.counted:
+            return np.where(involved, spans, 0).max(axis=1)
+        # A slow anomaly shows in several long columns, not all standing out as much: its
+        # evidence starts where the earliest of them began.
+        longs = list(self.counted)
+        spans = spans.copy()
+        spans[:, longs] = np.where(involved[:, longs].any(axis=1, keepdims=True),
+                                   np.max(backs, axis=1, keepdims=True), 0)
         return np.where(involved, spans, 0).max(axis=1)
 
     def score_windows(self, odom) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

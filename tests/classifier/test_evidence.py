@@ -104,3 +104,21 @@ def test_live_push_many_and_replay_give_the_same_windows(halves):
     got_many = many.push_many(messages) + many.flush()
     spans = window_spans(want)
     assert spans and window_spans(got) == spans and window_spans(got_many) == spans
+
+
+def test_lookback_takes_the_earliest_long_evidence_when_a_long_column_stands_out(halves):
+    """A vector whose yaw reversals stand out reaches back as far as the earliest of the long
+    columns' evidence (a slow anomaly's start shows in the one that began first); one where
+    only a short maximum stands out reaches back that maximum's span, whatever the backs."""
+    det = Detector(train([halves[0]]))
+    longs = list(det.counted)
+    base = np.zeros(det.features.dim)
+    slow, quick = base.copy(), base.copy()
+    slow[9] = 50.0  # yaw reversals
+    quick[1] = 50.0  # accel_max
+    backs = np.zeros((2, len(longs)), dtype=np.int64)
+    backs[:, longs.index(10)] = 3 * NS  # direction reversals began 3 s ago
+    backs[:, longs.index(9)] = 1 * NS
+    got = det.lookback_ns(np.array([slow, quick]), backs)
+    assert got.tolist() == [3 * NS, int(det.spans_ns[1])]
+    assert det.lookback_ns(np.array([slow]))[0] == det.spans_ns[9]  # without backs: the span
