@@ -225,11 +225,11 @@ class Detector:
         if backs is None or not self.counted:
             return np.where(involved, spans, 0).max(axis=1)
         # A slow anomaly shows in several long columns, not all standing out as much: its
-        # evidence starts where the earliest of them began.
+        # evidence starts where the earliest of them began, but never further back than
+        # the column that stands out looks (its span, as before the seventh pass).
         longs = list(self.counted)
         spans = spans.copy()
-        spans[:, longs] = np.where(involved[:, longs].any(axis=1, keepdims=True),
-                                   np.max(backs, axis=1, keepdims=True), 0)
+        spans[:, longs] = np.minimum(spans[:, longs], np.max(backs, axis=1, keepdims=True))
         return np.where(involved, spans, 0).max(axis=1)
 
     def score_windows(self, odom) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

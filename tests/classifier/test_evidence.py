@@ -108,7 +108,8 @@ def test_live_push_many_and_replay_give_the_same_windows(halves):
 
 def test_lookback_takes_the_earliest_long_evidence_when_a_long_column_stands_out(halves):
     """A vector whose yaw reversals stand out reaches back as far as the earliest of the long
-    columns' evidence (a slow anomaly's start shows in the one that began first); one where
+    columns' evidence (a slow anomaly's start shows in the one that began first), at most
+    the yaw reversals' span; one where
     only a short maximum stands out reaches back that maximum's span, whatever the backs."""
     det = Detector(train([halves[0]]))
     longs = list(det.counted)
@@ -121,4 +122,6 @@ def test_lookback_takes_the_earliest_long_evidence_when_a_long_column_stands_out
     backs[:, longs.index(9)] = 1 * NS
     got = det.lookback_ns(np.array([slow, quick]), backs)
     assert got.tolist() == [3 * NS, int(det.spans_ns[1])]
+    backs[:, longs.index(10)] = 6 * NS  # but never beyond the standing-out column's span
+    assert det.lookback_ns(np.array([slow]), backs[:1])[0] == det.spans_ns[9] == 4 * NS
     assert det.lookback_ns(np.array([slow]))[0] == det.spans_ns[9]  # without backs: the span
