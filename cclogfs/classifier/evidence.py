@@ -10,17 +10,18 @@ starts: the first run of nonzero values of that column with a message inside the
 plus `margin_ns` for the despike's lag (the gates and flips use the twist despiked, which
 follows a change up to two despike steps late), and never more than the span.
 
-`evidence_back` computes it for a whole run; `EvidenceHistory` keeps the recent vectors
-of a live run and computes it, by the same function, only for the vectors that need it
-(flagged ones), so that a message costs two list appends (tests/classifier/test_evidence.py
-holds the two to the same numbers). Stamps are the running maximum of the valid vectors'
+`evidence_back` computes it for a whole run; `EvidenceHistory` for a live run, from the
+stamps where each column's runs of nonzero values begin and end, answering only for the
+vectors that need it (flagged ones): a message costs a list append and a comparison of
+three booleans (tests/classifier/test_evidence.py holds the two to the same numbers). Stamps are the running maximum of the valid vectors'
 header stamps, as the features take a message whose stamp does not advance as a repeat of
 the previous one.
 """
 
 from __future__ import annotations
 
-from bisect import bisect_left
+from collections import deque
+from operator import gt, itemgetter
 
 import numpy as np
 
@@ -54,52 +55,77 @@ _NONE = np.zeros((0, 0), dtype=np.int64)  # `take`'s answer for no row
 
 class EvidenceHistory:
     """`evidence_back` over a live run. The valid vectors are appended as they come
-    (`append(stamp, vector)`: the running maximum stamp and the vector, two list appends);
-    `take(n, flagged)` then answers for the oldest `n` not yet taken, at the positions
-    `flagged` among them, and drops what no later answer needs."""
+    (`append(stamp, vector)`: the stamp, and per tracked column only where a run of nonzero
+    values begins or ends); `take(n, flagged)` then answers for the oldest `n` not yet
+    taken, at the positions `flagged` among them (from the runs: the first one ending within
+    the span), and drops what no later answer needs. The same numbers as `evidence_back`,
+    whatever came after the rows asked for (tests/classifier/test_evidence.py)."""
 
     def __init__(self, cols, spans_ns, margin_ns: int):
-        self.cols = list(cols)
-        self.spans = np.asarray(spans_ns, dtype=np.int64)
-        self.longest = int(self.spans.max())
+        self.spans = tuple(int(s) for s in spans_ns)
+        self.longest = max(self.spans)
         self.margin = int(margin_ns)
-        self.stamps: list[int] = []  # running maximum, so sorted
-        self.vectors: list = []
-        self.taken = 0  # rows answered for (or passed) so far, from the lists' start
-        self.newest = None
+        self._values = itemgetter(*cols) if len(cols) > 1 else lambda v, c=cols[0]: (v[c],)
+        self._zeros = (0.0,) * len(self.spans)
+        self.open = (False,) * len(self.spans)  # whether each column is nonzero now
+        self.any_open = False
+        # Per column: [start stamp, last stamp (None while open), row it starts at]; the row
+        # tells runs apart from a later one whose stamp did not advance.
+        self.runs = tuple(deque() for _ in self.spans)
+        self.stamps: list[int] = []  # of the rows not yet taken (running maximum)
+        self.base = 0  # row number of stamps[0]
+        self.taken = 0
+        self.newest = -(1 << 63)  # the running maximum stamp
 
     def append(self, stamp_ns: int, vector) -> None:
-        if self.newest is not None and stamp_ns < self.newest:
-            stamp_ns = self.newest
-        self.newest = stamp_ns
+        newest = self.newest
+        if stamp_ns < newest:
+            stamp_ns = newest
         self.stamps.append(stamp_ns)
-        self.vectors.append(vector)
+        values = self._values(vector)
+        if values == self._zeros and not self.any_open:  # most messages: nothing counted
+            self.newest = stamp_ns
+            return
+        now = tuple(map(gt, values, self._zeros))  # NaN: False, as 0
+        if now != self.open:
+            row = self.base + len(self.stamps) - 1
+            for runs, was, is_on in zip(self.runs, self.open, now):
+                if is_on and not was:
+                    runs.append([stamp_ns, None, row])
+                elif was and not is_on:
+                    runs[-1][1] = newest
+            self.open = now
+            self.any_open = any(now)
+        self.newest = stamp_ns
 
     def take(self, n: int, flagged=()) -> np.ndarray:
         """The backs of rows `flagged` (ascending positions among the next `n` rows)."""
         first = self.taken
         self.taken += n
-        if not len(flagged):  # most messages: nothing to compute
-            if self.taken >= 1024:
-                self._trim()
-            return _NONE
-        rows = first + np.asarray(flagged, dtype=np.int64)
-        # From the last row older than the first asked's longest span: a run through
-        # it reaches back the whole span whatever came before (the answer is the same).
-        lo = max(bisect_left(self.stamps, self.stamps[rows[0]] - self.longest, 0, int(rows[0])) - 1, 0)
-        end = int(rows[-1]) + 1
-        V = np.array([[v[c] for c in self.cols] for v in self.vectors[lo:end]], dtype=np.float64)
-        t = np.array(self.stamps[lo:end], dtype=np.int64)
-        out = evidence_back(t, V, np.ones(end - lo, dtype=bool), self.spans, self.margin)[rows - lo]
-        self._trim()
+        out = _NONE
+        if len(flagged):
+            rows = [first + int(r) for r in flagged]
+            out = np.array([[self._back(k, self.stamps[i], self.base + i) for k in range(len(self.spans))]
+                            for i in rows], dtype=np.int64)  # fmt: skip
+        if self.taken >= 256:
+            self._trim()
         return out
 
+    def _back(self, k: int, t: int, row: int) -> int:
+        span = self.spans[k]
+        for start, last, begins in self.runs[k]:
+            if begins > row:
+                break
+            if last is None or last >= t - span:
+                return min(span, t - start + self.margin)
+        return 0
+
     def _trim(self) -> None:
-        """Drop rows no later answer reads (by `take`'s rule), a few hundred at a time."""
-        if self.taken < 512 or self.taken > len(self.stamps):
-            return
-        cut = bisect_left(self.stamps, self.stamps[self.taken - 1] - self.longest, 0, self.taken) - 1
-        if cut >= 256:
-            del self.stamps[:cut]
-            del self.vectors[:cut]
-            self.taken -= cut
+        """Drop the taken stamps, and the runs that ended before any later answer's span."""
+        edge = self.stamps[self.taken - 1] - self.longest
+        del self.stamps[: self.taken]
+        self.base += self.taken
+        self.taken = 0
+        for runs in self.runs:
+            while runs and runs[0][1] is not None and runs[0][1] < edge:
+                runs.popleft()
