@@ -205,7 +205,7 @@ class Detector:
         self._twist = TwistFromPoses()
         # The robot's limits now: the model's, grown live (`OneClassModel.score`).
         self.limits = None if self.model.limits_ is None else self.model.limits_.copy()
-        # The recent valid vectors, for where the long columns' evidence starts (live).
+        # Where the long columns' evidence starts, live (runs of nonzero values per column).
         self.evidence = EvidenceHistory(self.counted, self.spans_ns[list(self.counted)],
                                         self.features.evidence_margin_ns) if self.counted else None  # fmt: skip
 

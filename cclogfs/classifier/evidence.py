@@ -7,15 +7,16 @@ them used to reach back the feature's whole span, 8 s, though a single reversal'
 evidence is a second old. Now it reaches back to where the column's current evidence
 starts: the first run of nonzero values of that column with a message inside the span
 (a count that rises from 0 at the first flip it counts is nonzero from that flip on),
-plus `margin_ns` for the despike's lag (the gates and flips use the twist despiked, which
-follows a change up to two despike steps late), and never more than the span.
+plus `margin_ns` (`DefaultFeatures.evidence_margin_ns`: the lead-in that the gated counts do
+not see, such as the slowing into a spin, and the despike's lag), never more than the span.
+`Detector.lookback_ns` then takes the earliest of the long columns.
 
 `evidence_back` computes it for a whole run; `EvidenceHistory` for a live run, from the
 stamps where each column's runs of nonzero values begin and end, answering only for the
-vectors that need it (flagged ones): a message costs a list append and a comparison of
-three booleans (tests/classifier/test_evidence.py holds the two to the same numbers). Stamps are the running maximum of the valid vectors'
-header stamps, as the features take a message whose stamp does not advance as a repeat of
-the previous one.
+vectors that need it (flagged ones): a message whose long columns are 0 costs a list
+append and a tuple compare (tests/classifier/test_evidence.py holds the two to the same
+numbers). Stamps are the running maximum of the valid vectors' header stamps, as the
+features take a message whose stamp does not advance as a repeat of the previous one.
 """
 
 from __future__ import annotations
