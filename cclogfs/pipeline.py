@@ -32,9 +32,11 @@ from .upkeep import Upkeep
 # Default logging-window extents, in seconds so they mean the same at any odometry rate.
 # The window starts `before` ahead of where the anomaly's evidence starts, not of the first
 # flagged message: a feature seen over an 8 s window (a spin's net rotation, a stuck robot's
-# reversals) makes the window reach 8 s further back (WindowBuilder lookback), also when it
-# flags after a quicker feature opened the window, so the slow anomalies recognised seconds
-# after they start keep their start without 8 s of context around every jolt. 0.5 s after,
+# reversals) makes the window reach back to where that feature's evidence starts, at most
+# 8 s (WindowBuilder lookback, classifier.evidence; issue 15's seventh pass: no longer its
+# whole span), also when it flags after a quicker feature opened the window, so the slow
+# anomalies recognised seconds after they start keep their start without 8 s of context
+# around every jolt. 0.5 s after,
 # with hysteresis and a 4.5 s merge gap (classifier.api HOLD_SCORE, MERGE_S): the window
 # closes soon after the score falls, and the flagged stretches of one event stay one window.
 # Issue 15's sixth pass halved both (2 s and 1 s before): the short features look 0.55 s

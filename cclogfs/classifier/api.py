@@ -12,6 +12,7 @@ from typing import Iterable, Iterator, Sequence
 import numpy as np
 
 from ..errors import InvalidInputError, ModelError
+from .evidence import EvidenceHistory, evidence_back
 from .features import OdomArrays, TwistFromPoses, make_features, odom_row, odom_rows_compiled, parse_odometry
 from .fit import robot_stats, speed_noise
 from .model import OneClassModel
@@ -191,7 +192,10 @@ class Detector:
         # Per feature column, how far back its evidence reaches (None: not known).
         self.spans_ns = getattr(self.features, "spans_ns", None)
         self.lookback_max_s = 0.0 if self.spans_ns is None else float(self.spans_ns.max()) / 1e9
+        # The long columns, whose evidence start is tracked (`classifier.evidence`).
+        self.counted = getattr(self.features, "counted", ()) if self.spans_ns is not None else ()
         self.last_vector: np.ndarray | None = None
+        self.last_back: np.ndarray | None = None  # the newest vector's `evidence`, if flagged
         self.reset()
 
     def reset(self) -> None:
@@ -201,18 +205,32 @@ class Detector:
         self._twist = TwistFromPoses()
         # The robot's limits now: the model's, grown live (`OneClassModel.score`).
         self.limits = None if self.model.limits_ is None else self.model.limits_.copy()
+        # Where the long columns' evidence starts, live (runs of nonzero values per column).
+        self.evidence = EvidenceHistory(self.counted, self.spans_ns[list(self.counted)],
+                                        self.features.evidence_margin_ns) if self.counted else None  # fmt: skip
 
-    def lookback_ns(self, X: np.ndarray) -> np.ndarray:
+    def lookback_ns(self, X: np.ndarray, backs=None) -> np.ndarray:
         """Per vector, how long before its message the anomaly's evidence starts: the
-        longest window among the features that stand out most (at least half the top
-        standardized deviation). A spin seen by its net rotation over 8 s started up to
-        8 s ago; a jolt seen by the 0.5 s maxima, half a second ago."""
+        longest among the features that stand out most (at least half the top
+        standardized deviation). A jolt seen by the 0.5 s maxima started half a second
+        ago; a spin seen by its net rotation over 8 s, where that rotation began: `backs`,
+        per vector the long columns' own evidence (`classifier.evidence`). Without
+        `backs`, their whole span."""
         X = np.atleast_2d(X)
         if self.spans_ns is None or not len(X):
             return np.zeros(len(X), dtype=np.int64)
         Z = np.nan_to_num(np.abs(self.model.transform(X)))
         involved = (Z > 0) & (Z >= 0.5 * Z.max(axis=1, keepdims=True))
-        return np.where(involved, self.spans_ns, 0).max(axis=1)
+        spans = np.broadcast_to(self.spans_ns, X.shape)
+        if backs is None or not self.counted:
+            return np.where(involved, spans, 0).max(axis=1)
+        # A slow anomaly shows in several long columns, not all standing out as much: its
+        # evidence starts where the earliest of them began, but never further back than
+        # the column that stands out looks (its span, as before the seventh pass).
+        longs = list(self.counted)
+        spans = spans.copy()
+        spans[:, longs] = np.minimum(spans[:, longs], np.max(backs, axis=1, keepdims=True))
+        return np.where(involved, spans, 0).max(axis=1)
 
     def score_windows(self, odom) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(scores, anomalous, lookback_ns) per message, for a whole run."""
@@ -224,7 +242,12 @@ class Detector:
             scores[valid] = self.model.score(X[valid], fresh)
         flags = np.nan_to_num(scores, nan=-np.inf) > 0
         lookback = np.zeros(len(odom), dtype=np.int64)
-        lookback[flags] = self.lookback_ns(X[flags])
+        backs = None
+        if self.counted and flags.any():
+            cols = list(self.counted)
+            backs = evidence_back(odom.stamp_ns, X[:, cols], valid, self.spans_ns[cols],
+                                  self.features.evidence_margin_ns)[flags]  # fmt: skip
+        lookback[flags] = self.lookback_ns(X[flags], backs)
         return scores, flags, lookback
 
     def score_batch(self, odom) -> tuple[np.ndarray, np.ndarray]:
@@ -233,9 +256,14 @@ class Detector:
 
     def vector(self, stamp_ns: int, row) -> np.ndarray | tuple | None:
         """The newest message's feature vector, an array or a tuple of floats (None while
-        there is none or it is not valid)."""
+        there is none or it is not valid). A valid one also goes to `evidence`, whose
+        `take` the caller then calls for it (SmartLogger does, a batch at a time)."""
         got = self._push_values(stamp_ns, row)
-        return got[0] if got is not None and got[1] else None
+        if got is None or not got[1]:
+            return None
+        if self.evidence is not None:
+            self.evidence.append(stamp_ns, got[0])
+        return got[0]
 
     def update_row(self, stamp_ns: int, row) -> tuple[float, bool]:
         """Score of the newest message given as (stamp, 13 raw values)."""
@@ -244,6 +272,9 @@ class Detector:
             return math.nan, False
         self.last_vector = got[0]
         score = self.model.score_one(got[0], self.limits)
+        if self.evidence is not None:  # the long columns' evidence, for `lookback_ns`
+            self.evidence.append(stamp_ns, got[0])
+            self.last_back = self.evidence.take(1, (0,) if score > 0 else ())
         return score, score > 0
 
     def parse(self, msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
@@ -311,7 +342,8 @@ class SmartLogger:
         head, row = self.detector.parse(text)
         if self.batch == 1:
             score, flag = self.detector.update_row(head, row)
-            back = int(self.detector.lookback_ns(self.detector.last_vector)[0]) if flag else 0
+            det = self.detector
+            back = int(det.lookback_ns(det.last_vector, det.last_back)[0]) if flag else 0
             return self._odom(stamp_ns, text, row, score, flag, back)
         vec = self.detector.vector(head, row)
         if vec is not None:
@@ -386,8 +418,13 @@ class SmartLogger:
         s = self._scores(V)
         flagged = s > 0
         back = np.zeros(len(s), dtype=np.int64)
+        evidence = self.detector.evidence
         if flagged.any():
-            back[flagged] = self.detector.lookback_ns(V[flagged])
+            at = np.nonzero(flagged)[0]
+            backs = None if evidence is None else evidence.take(len(s), at)
+            back[flagged] = self.detector.lookback_ns(V[flagged], backs)
+        elif evidence is not None:
+            evidence.take(len(s))
         held, scores, backs = self._pending, s.tolist(), back.tolist()
         if len(scores) < len(held) or self._held_other:  # some without a score, or of another topic
             found = iter(zip(scores, backs))

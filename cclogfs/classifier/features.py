@@ -410,6 +410,11 @@ DEFAULT_NAMES = (
 )
 # Columns of the short-window maxima (instantaneous values of each message).
 _SHORT = slice(1, 8)
+# A slow anomaly's lead-in that its gated long columns do not count: the robot slowing into
+# a turn in place or a reversal, a stuck robot's stop before its first nudge. On the
+# simulator's tuning seeds 1.5 s lost 6 of 144 events that the whole 8 s span kept, 2 s none
+# (issue 15, seventh pass, docs/CLASSIFIER.md).
+EVIDENCE_LEAD_S = 2.0
 # How a pose may have been integrated from the twist (version 6 takes the pose/twist
 # mismatch under the scheme that fits best over the window): the mean of the two messages'
 # twists (wheel odometry sampled at each stamp), the previous message's (the TUC robot's
@@ -527,6 +532,12 @@ class DefaultFeatures:
         short_d, short_m = self._short + self._deriv, self._short + self._match
         self.spans_ns = np.array([self._deriv] + [short_d] * 5 + [short_m] * 2
                                  + [self._long, self._flip, self._long], dtype=np.int64)  # fmt: skip
+        # The long columns, whose evidence start is tracked (`classifier.evidence`), and
+        # how much earlier than their counts it may start: the lead-in that the gated
+        # counts do not see (EVIDENCE_LEAD_S) and two despike steps (the gates and flips
+        # follow a change that late).
+        self.counted = (8, 9, 10)
+        self.evidence_margin_ns = int(EVIDENCE_LEAD_S * NS) + 2 * (self._despike or 0)
         # How far back the newest vector looks: a window plus the baseline of its oldest row.
         self.horizon_ns = max(self._short + self._deriv, self._short + self._match, self._long,
                               self._flip)  # fmt: skip
