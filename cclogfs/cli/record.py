@@ -425,13 +425,14 @@ def _run(args: argparse.Namespace) -> int:
                 Progress("recording", total=getattr(source, "message_count", None)) as progress:  # fmt: skip
             _warn_damage(store)
             # A stream keeps one type, also across runs (--append, or another source).
-            check.stored.update(stored_types(store))
+            stored = stored_types(store)
+            check.stored.update(stored)
             run = _begin_run(args, store, source)
             run_seq = store.synced_seq()  # the run's start record, synced by begin_run
             dropped_before = _dropped_messages(store)
             stats = RecordStats()
             try:
-                rows, final_bytes = _record_run(args, store, source, policy, upkeep, progress, stats)
+                rows, final_bytes = _record_run(args, store, source, policy, upkeep, progress, stats, stored)
             except BaseException as err:
                 _end_run(run, source, stats, received, err)
                 if store.failed is not None and isinstance(err, CclogError):  # disk full, I/O error
@@ -467,9 +468,10 @@ def _refused_rules(upkeep: Upkeep | None) -> InvalidInputError | None:
 
 
 def _record_run(args: argparse.Namespace, store, source, policy, upkeep: Upkeep | None, progress,
-                stats: RecordStats) -> tuple[list, int | None]:  # fmt: skip
+                stats: RecordStats, stored: dict[str, str]) -> tuple[list, int | None]:  # fmt: skip
     """Record the source into the open store, counting into `stats`; the odometry rows kept
-    for --features-out and the store's size once upkeep is done (None without upkeep)."""
+    for --features-out and the store's size once upkeep is done (None without upkeep).
+    `stored`: the types the store's streams have (`stored_types`)."""
     from ..jsontext.rostypes import StreamTypes
     from ..pipeline import record
     from ..upkeep import compact
@@ -489,7 +491,7 @@ def _record_run(args: argparse.Namespace, store, source, policy, upkeep: Upkeep 
     ended = False  # the input ran out, with no error or interrupt
     try:
         record(messages, store, policy, check_json=False, progress=tick, stats=stats, upkeep=upkeep,
-               types=StreamTypes(getattr(source, "describe", None)), window_s=args.window_max_s)
+               types=StreamTypes(getattr(source, "describe", None), stored), window_s=args.window_max_s)
         ended = not stats.interrupted
         tick(stats)  # the last count (progress is told every 4,096 messages)
     except KeyboardInterrupt:  # arrived once the input had ended: all was stored
