@@ -49,11 +49,14 @@ def _cut_cases(path):
     return {"by 1": (1, [7]), "by 3": (3, [7]), "most of the last record": (last_len - 2, [7]),
             "in the middle": (size - off[5][0] - 5, [5, 6, 7]),
             # The bytes lost outnumber those left (the manifest check once refused such a
-            # stretch, so that repair's own MANIFEST made every command fail).
-            "at the second record": (size - off[5][0], [5, 6, 7])}
+            # stretch, so that repair's own MANIFEST made every command fail), and a cut into
+            # the segment header or to nothing (a size under the header's once failed that check).
+            "at the second record": (size - off[5][0], [5, 6, 7]),
+            "into the header": (size - 20, [4, 5, 6, 7]), "to nothing": (size, [4, 5, 6, 7])}
 
 
-@pytest.mark.parametrize("case", ["by 1", "by 3", "most of the last record", "in the middle", "at the second record"])
+@pytest.mark.parametrize("case", ["by 1", "by 3", "most of the last record", "in the middle", "at the second record",
+                                  "into the header", "to nothing"])
 @pytest.mark.parametrize("header", [False, True])
 def test_cut_sealed_segment_is_read_and_repaired(store, capsys, case, header):
     code, whole, _ = _cli(capsys, "cat", str(store))
@@ -116,3 +119,27 @@ def test_failure_while_repair_commits_leaves_it_repairable(store, capsys, monkey
     assert code == 1 and "seq 7" in out + err
     code, _, _ = _cli(capsys, "fsck", str(store))
     assert code == 0
+
+
+def test_a_crash_while_a_header_cut_segment_gets_its_header_back_is_repaired_again(store, capsys, monkeypatch):
+    """The manifest states the header's size before the file grows to it: a failure between
+    the two leaves the segment cut short again, which the next repair names and drops."""
+    _cut_by(store, (store / SEG).stat().st_size - 20)
+    assert _cli(capsys, "fsck", str(store), "--repair")[0] == 4
+    from cclogfs.store.fs import FileSystem
+
+    def fail(self, *args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(FileSystem, "copy_range_atomic", fail)
+    code, out, err = _cli(capsys, "fsck", str(store), "--repair", "--discard-damaged")
+    assert code == 8, out + err
+    monkeypatch.undo()
+    code, out, err = _cli(capsys, "fsck", str(store), "--repair", "--discard-damaged")
+    assert code == 1, out + err
+    code, out, err = _cli(capsys, "fsck", str(store))
+    assert code == 0, out + err
+    with cclogfs.open_store(store) as s:
+        s.put_window("/a", [(99000, json.dumps({"w": 99}))])
+    code, out, _ = _cli(capsys, "cat", str(store))
+    assert code == 0 and len(out.splitlines()) == 3 * 6 + 1
