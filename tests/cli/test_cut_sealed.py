@@ -143,3 +143,26 @@ def test_a_crash_while_a_header_cut_segment_gets_its_header_back_is_repaired_aga
         s.put_window("/a", [(99000, json.dumps({"w": 99}))])
     code, out, _ = _cli(capsys, "cat", str(store))
     assert code == 0 and len(out.splitlines()) == 3 * 6 + 1
+
+
+def test_active_segment_cut_at_a_record_boundary_below_the_checkpoint_is_damage(store, capsys):
+    """Found by attack: the active segment cut at a record boundary below the last clean
+    close's synced point ends cleanly, so no scan named what the cut took: fsck said clean,
+    cat exited 0 without seq 9, and the writer gave seq 9 to its next record."""
+    active = store / "00000000000000000008.seg"  # seqs 8 and 9, closed cleanly (checkpoint)
+    with cclogfs.open_store(store, readonly=True) as s:
+        offset = next(w._offset for w in s.query() if w.seq == 9)
+    code, whole, _ = _cli(capsys, "cat", str(store))
+    os.truncate(active, offset)
+    code, out, err = _cli(capsys, "cat", str(store))
+    assert code == 1 and out == "" and "00000000000000000008.seg" in err and "seq 9" in err, err
+    code, out, err = _cli(capsys, "cat", str(store), "--skip-damaged")
+    assert code == 3 and out.splitlines() == whole.splitlines()[:-3]
+    assert _cli(capsys, "fsck", str(store))[0] == 1
+    code, out, err = _cli(capsys, "fsck", str(store), "--repair")
+    assert code == 4 and "seq 9" in out + err
+    assert _cli(capsys, "fsck", str(store), "--repair", "--discard-damaged")[0] == 1
+    code, out, err = _cli(capsys, "fsck", str(store))
+    assert code == 0, out + err
+    with cclogfs.open_store(store) as s:
+        assert s.put_window("/a", [(99000, json.dumps({"w": 99}))]).seq == 10  # seq 9 is never given again
