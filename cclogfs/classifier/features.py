@@ -237,6 +237,8 @@ def _odom_row_parsed(msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
                 _pose_fields_checked(msg)
             except ValueError as named:
                 err = named
+        if isinstance(err, _NotANumber):  # named by its path in this message, not the row's name
+            err = ValueError(f"{_message_path(msg, RAW_NAMES[err.index])} is {err.value}, not a number")
         raise InvalidInputError(
             "The message is not a nav_msgs/Odometry, PoseStamped, PoseWithCovarianceStamped or "
             f"TransformStamped in rosbridge JSON (missing or bad field: {err})."
@@ -246,6 +248,14 @@ def _odom_row_parsed(msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
 _NAN_XYZ = {"x": float("nan"), "y": float("nan"), "z": float("nan")}
 
 
+class _NotANumber(ValueError):
+    """Row value `index` (of RAW_NAMES) is `value` (JSON, shortened), not a number."""
+
+    def __init__(self, index: int, value: str) -> None:
+        super().__init__(f"{RAW_NAMES[index]} is {value}, not a number")
+        self.index, self.value = index, value
+
+
 def _numbers(row: tuple) -> tuple[float, ...]:
     """The row as floats: null is NaN (rosbridge writes NaN so); a string or a list is an
     error naming its field (it was a ValueError traceback when the rows became an array)."""
@@ -253,7 +263,20 @@ def _numbers(row: tuple) -> tuple[float, ...]:
         return tuple(float("nan") if v is None else float(v) for v in row)
     except (TypeError, ValueError):
         i = next(i for i, v in enumerate(row) if v is not None and not _is_number(v))
-        raise ValueError(f"{RAW_NAMES[i]} is {json.dumps(row[i])[:40]}, not a number") from None
+        raise _NotANumber(i, json.dumps(row[i])[:40]) from None
+
+
+def _message_path(msg: dict, name: str) -> str:
+    """RAW_NAMES' `name` (pose.position.x, twist.angular.z) as the path of that value in
+    `msg`, walked as `_pose_fields` walks it: an Odometry's x is pose.pose.position.x."""
+    prefix = ""
+    if "transforms" in msg and "header" not in msg:
+        prefix, msg = "transforms[0].", msg["transforms"][0]
+    part, group, key = name.split(".")
+    if "transform" in msg:
+        return f"{prefix}transform.{'translation' if group == 'position' else 'rotation'}.{key}"
+    nested = part == "twist" or "pose" in msg["pose"]
+    return f"{prefix}{part}.{part + '.' if nested else ''}{group}.{key}"
 
 
 def _is_number(v) -> bool:

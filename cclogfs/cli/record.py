@@ -241,37 +241,44 @@ def run(args: argparse.Namespace) -> int:
     existed = os.path.exists(args.store)
     try:
         return _run(args)
-    except BaseException:
-        if not existed:
-            _remove_if_empty(args.store)
+    except BaseException as err:
+        if not existed and _remove_if_empty(args.store) and getattr(err, "store_failed", None):
+            # The error told of the reopened store and its end record: both are gone now.
+            from ..errors import StoreFailedError
+
+            raise StoreFailedError(f"{err.store_failed}; nothing of this run was stored, so the store it created was "
+                                   "removed: free space, then record again") from err  # fmt: skip
         raise
 
 
-def _remove_if_empty(path: str) -> None:
+def _remove_if_empty(path: str) -> bool:
+    """Remove the store at `path` when it holds no message (the run's own records aside);
+    True when removed."""
     from ..runs import hidden_by_default
     from ..store import open_store
     from ..store.format import LOCK
     from ..store.fs import FileSystem
 
     if not os.path.isdir(path):
-        return
+        return False
     # Under the writer lock: a store another process created meanwhile, and is writing to,
     # is that process's, not this failed run's (two runs creating one store at once).
     fs = FileSystem()
     try:
         lock = fs.lock(os.path.join(path, LOCK))
     except OSError:
-        return
+        return False
     if lock is None:
-        return
+        return False
     try:
         try:
             with open_store(path, readonly=True) as store:
                 if any(not hidden_by_default(name) for name in store.streams()):
-                    return  # messages were stored (the run's own start record does not count)
+                    return False  # messages were stored (the run's own start record does not count)
         except CclogError:
-            return  # not a store we can read: leave it for the user to look at
+            return False  # not a store we can read: leave it for the user to look at
         shutil.rmtree(path, ignore_errors=True)
+        return not os.path.exists(path)
     finally:
         fs.unlock(lock)
 
@@ -372,11 +379,14 @@ def _end_after_failure(path: str, failed: _StoreFailed) -> CclogError:
                 "error", messages_in=failed.stats.messages_in, messages_kept=n, windows=len(kept),
                 error=str(failed.err), store_failed=True)  # fmt: skip
     except (CclogError, OSError):
-        return StoreFailedError(f"{said}, and its end record could not be written. Reopening the store (any cclog "
-                                "command) keeps what is stored; free space, then record the rest again (--append)")
-    return StoreFailedError(f"{said}. Reopened, the store keeps {n:,} messages of this run in {len(kept):,} windows "
-                            "and its end record (`cclog info`: ended on a store failure); free space, then record "
-                            "the rest again (--append)")  # fmt: skip
+        error = StoreFailedError(f"{said}, and its end record could not be written. Reopening the store (any cclog "
+                                 "command) keeps what is stored; free space, then record the rest again (--append)")
+    else:
+        error = StoreFailedError(f"{said}. Reopened, the store keeps {n:,} messages of this run in {len(kept):,} "
+                                 "windows and its end record (`cclog info`: ended on a store failure); free space, "
+                                 "then record the rest again (--append)")  # fmt: skip
+    error.store_failed = said  # what to say instead when the store turns out empty and is removed (`run`)
+    return error
 
 
 def _run_windows(store, run_seq: int | None, upto: int | None) -> list[tuple[int, int]] | None:
@@ -425,13 +435,14 @@ def _run(args: argparse.Namespace) -> int:
                 Progress("recording", total=getattr(source, "message_count", None)) as progress:  # fmt: skip
             _warn_damage(store)
             # A stream keeps one type, also across runs (--append, or another source).
-            check.stored.update(stored_types(store))
+            stored = stored_types(store)
+            check.stored.update(stored)
             run = _begin_run(args, store, source)
             run_seq = store.synced_seq()  # the run's start record, synced by begin_run
             dropped_before = _dropped_messages(store)
             stats = RecordStats()
             try:
-                rows, final_bytes = _record_run(args, store, source, policy, upkeep, progress, stats)
+                rows, final_bytes = _record_run(args, store, source, policy, upkeep, progress, stats, stored)
             except BaseException as err:
                 _end_run(run, source, stats, received, err)
                 if store.failed is not None and isinstance(err, CclogError):  # disk full, I/O error
@@ -467,9 +478,10 @@ def _refused_rules(upkeep: Upkeep | None) -> InvalidInputError | None:
 
 
 def _record_run(args: argparse.Namespace, store, source, policy, upkeep: Upkeep | None, progress,
-                stats: RecordStats) -> tuple[list, int | None]:  # fmt: skip
+                stats: RecordStats, stored: dict[str, str]) -> tuple[list, int | None]:  # fmt: skip
     """Record the source into the open store, counting into `stats`; the odometry rows kept
-    for --features-out and the store's size once upkeep is done (None without upkeep)."""
+    for --features-out and the store's size once upkeep is done (None without upkeep).
+    `stored`: the types the store's streams have (`stored_types`)."""
     from ..jsontext.rostypes import StreamTypes
     from ..pipeline import record
     from ..upkeep import compact
@@ -489,7 +501,7 @@ def _record_run(args: argparse.Namespace, store, source, policy, upkeep: Upkeep 
     ended = False  # the input ran out, with no error or interrupt
     try:
         record(messages, store, policy, check_json=False, progress=tick, stats=stats, upkeep=upkeep,
-               types=StreamTypes(getattr(source, "describe", None)), window_s=args.window_max_s)
+               types=StreamTypes(getattr(source, "describe", None), stored), window_s=args.window_max_s)
         ended = not stats.interrupted
         tick(stats)  # the last count (progress is told every 4,096 messages)
     except KeyboardInterrupt:  # arrived once the input had ended: all was stored

@@ -82,10 +82,14 @@ class TypeCheck:
 
 
 class StreamTypes:
-    """Topic -> message type as messages come in; adds them to window metadata."""
+    """Topic -> message type as messages come in; adds them to window metadata.
 
-    def __init__(self, describe: Describe | None = None) -> None:
-        self.types: dict[str, str] = {}
+    `stored`: topic -> the type its stream has in the store recorded into, which a window
+    of untyped messages (JSONL without msgtype) names too, as after a typed line of the
+    same input: a window naming no type would hide the stream's type from the next run."""
+
+    def __init__(self, describe: Describe | None = None, stored: Mapping[str, str] | None = None) -> None:
+        self.types: dict[str, str] = dict(stored or {})
         self._describe = describe
         self._described: set[str] = set()
 

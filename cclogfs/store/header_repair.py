@@ -43,6 +43,8 @@ def rebuild_headers(store: Store, actions: list[str], unproven: list[str], *, di
         if why:
             unproven.append(f"{name}: segment header kept as it is, not rebuilt ({fault}): {why}")
             continue
+        if seg.size < SEGMENT_HEADER_SIZE:
+            _grow_to_header(store, seg)
         _rewrite(store, seg, _new_header(store, seg))
         if _header_entries(info):
             _forget_header_damage(store, seg, info)
@@ -100,6 +102,18 @@ def _new_header(store: Store, seg: Segment) -> bytes:
     head = store.fs.pread(seg.fd, SEGMENT_HEADER_SIZE, 0)
     created_ns, gen = SEGMENT_HEADER.unpack_from(head)[4:6] if len(head) == SEGMENT_HEADER_SIZE else (0, 0)
     return pack_segment_header(seg.first_seq, created_ns, min(gen, store.manifest.generation))
+
+
+def _grow_to_header(store: Store, seg: Segment) -> None:
+    """A segment cut into its header (all its records discarded) gets a whole header back,
+    so its file grows to the header's size: the manifest states that size first. Were the
+    new size committed after the rename, a crash between them would leave a segment larger
+    than the manifest says, which nothing may trust; this way a crash leaves it cut short
+    again, which the next repair names and discards again."""
+    info = next(i for i in store.manifest.segments if i["first_seq"] == seg.first_seq)
+    store.commit_manifest(store.manifest.with_damage(seg.first_seq, info.get("damaged", []), info["streams"],
+                                                     info.get("aged", {}), size=SEGMENT_HEADER_SIZE))  # fmt: skip
+    seg.sealed_size = seg.size = SEGMENT_HEADER_SIZE
 
 
 def _rewrite(store: Store, seg: Segment, header: bytes) -> None:

@@ -60,11 +60,14 @@ def check_stats(stats: Any, field: str) -> None:
 
 
 def _check_damage(entries: Any, field: str, size: int) -> None:
+    # A segment cut short since sealing (FORMAT.md) states its size now, and its cut is a
+    # stretch from the end of its last intact record (the header's end when the cut took
+    # the header) over the bytes it lost: past the file, as long as they were.
     for i, d in enumerate(_list(entries, field)):
         where = f"{field}[{i}]"
         d = _dict(d, where)
-        _int(d, "offset", f"{where}.offset", 0, size)
-        _int(d, "length", f"{where}.length", 0, size)
+        _int(d, "offset", f"{where}.offset", 0, max(size, SEGMENT_HEADER_SIZE))
+        _int(d, "length", f"{where}.length", 0, MAX_NS)
         first = _int(d, "first_seq", f"{where}.first_seq", 0, U64_END)
         _int(d, "end_seq", f"{where}.end_seq", first, U64_END)
         if not isinstance(d.get("reason"), str):
@@ -79,7 +82,7 @@ def _check_segment(info: Any, i: int, expect_first: int | None) -> int:
     if expect_first is not None and first != expect_first:
         raise _fail(f"{where}.first_seq", first, f"{expect_first}, where the segment before it ends")
     end = _int(info, "end_seq", f"{where}.end_seq", first, U64_END - 1)
-    size = _int(info, "size", f"{where}.size", SEGMENT_HEADER_SIZE, MAX_NS)
+    size = _int(info, "size", f"{where}.size", 0, MAX_NS)  # a cut segment may have lost its header
     _int(info, "gen", f"{where}.gen", 0, MAX_GEN, default=0)
     check_stats(info.get("streams"), f"{where}.streams")
     for name, n in _dict(info.get("aged", {}), f"{where}.aged").items():

@@ -351,9 +351,11 @@ class SegmentOpener:
         if "torn-tail" in planted.BUGS:
             seg.synced = SEGMENT_HEADER_SIZE
         problems = [*result.damage, *([result.problem] if result.problem else [])]
+        ours = checkpoint if checkpoint.get("first_seq") == seg.first_seq else {}
+        if ours and result.problem is None and result.end < ours["synced"] and result.next_seq < ours["next_seq"]:
+            problems.append(_cut_below_checkpoint(seg, result, ours))
         cut = next((p for p in problems if p.offset >= seg.synced), None)
         seg.damage = [p for p in problems if p.offset < seg.synced]
-        ours = checkpoint if checkpoint.get("first_seq") == seg.first_seq else {}
         _name_lost_seqs(seg.damage, result.next_seq, ours.get("next_seq", 0))
         self.recovery.damage.extend(seg.damage)
         end = cut.offset if cut is not None else seg.size  # the size scanned, never a later one
@@ -476,6 +478,16 @@ class SegmentOpener:
             self.fs.unlink(seg.path)
             self.fs.fsync_dir(self.path)
             self.recovery.removed_files.append(os.path.basename(seg.path))
+
+
+def _cut_below_checkpoint(seg: Segment, result: ScanResult, checkpoint: dict) -> Problem:
+    """An active segment cut short at a record boundary below the last clean close's synced
+    point: its records end cleanly, so no scan problem names what the cut took. Damage below
+    the synced point, as a torn record there is; before, the records past the cut were lost
+    without a word (fsck clean, cat exit 0) and the writer gave their seqs to new records."""
+    return Problem(seg.path, result.end, Reason.TORN,
+                   f"the file ends at {seg.size} bytes, the last clean close synced {checkpoint['synced']}",
+                   checkpoint["synced"] - result.end, seqs=(result.next_seq, checkpoint["next_seq"]))  # fmt: skip
 
 
 def _name_lost_seqs(damage: list[Problem], next_seq: int, checkpoint_next: int) -> None:

@@ -304,6 +304,10 @@ class Store:
             self.recovery.sealed_on_open.append(os.path.basename(seg.path))
         tail = opener.tail[keep:]
         self.active = tail[0] if tail else self._new_segment(self.manifest.end_seq)
+        if not tail and self.manifest.checkpoint.get("first_seq") == self.active.first_seq:
+            # The checkpoint's segment was dropped (repair: its header lost, its records named):
+            # the close states the new one, else the old synced point would read as a cut.
+            self._dirty = True
 
     def _make_durable(self, seg: Segment) -> None:
         """Write again, and fsync, what recovery kept but cannot prove durable: a crash may

@@ -185,4 +185,23 @@ def test_a_value_that_is_no_number_is_named_not_a_traceback(tmp_path, capsys, od
     assert main([cmd, src, *args]) == 1
     err = capsys.readouterr().err
     assert "Traceback" not in err and f"{src}, topic /odom: Odometry message 6: " in err, err
-    assert f"pose.position.x is {said}, not a number" in err, err
+    assert f"(missing or bad field: pose.pose.position.x is {said}, not a number)" in err, err
+
+
+@pytest.mark.parametrize("field, path", [(("twist", "twist", "angular", "z"), "twist.twist.angular.z"),
+                                         (("pose", "pose", "orientation", "w"), "pose.pose.orientation.w")])
+def test_a_value_that_is_no_number_is_named_by_its_path_in_the_message(tmp_path, capsys, odom, field, path):
+    """Found by attack: an Odometry's twist.twist.angular.z "x" was named 'twist.angular.z',
+    the feature's name, a path the message does not have."""
+
+    def bad(i, m):
+        if i == 5:
+            obj = m
+            for key in field[:-1]:
+                obj = obj[key]
+            obj[field[-1]] = "x"
+
+    src = write(tmp_path / "bad.jsonl", odom, bad)
+    assert main(["train", src, "--out", str(tmp_path / "m")]) == 1
+    err = capsys.readouterr().err
+    assert f"(missing or bad field: {path} is \"x\", not a number)" in err, err

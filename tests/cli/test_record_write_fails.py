@@ -58,3 +58,19 @@ def test_a_full_disk_says_what_was_synced_and_info_does_not_blame_a_kill(tmp_pat
     assert f"{synced:,} of {int(read[1].replace(',', '')):,}" in info.stdout, info.stdout
     fsck = subprocess.run([*CCLOG, "fsck", str(store)], capture_output=True, text=True)
     assert fsck.returncode == 0, fsck.stdout + fsck.stderr
+
+
+def test_a_full_disk_before_anything_is_stored_says_the_new_store_is_removed(tmp_path):
+    """A run that stores nothing leaves no store it created, also when the disk filled: the
+    error said the reopened store kept the run's end record (`cclog info`), and then the
+    store was removed, so `cclog info` found none (found by attack on a full tmpfs)."""
+    src, store = tmp_path / "odom.jsonl", tmp_path / "s"
+    _odom(src)
+    r = subprocess.run([*CCLOG, "record", str(src), "--store", str(store), "--codec", "none", "--chunk", "40000"],
+                       capture_output=True, text=True, preexec_fn=_limit_file_size)  # fmt: skip
+    assert r.returncode == 1, r.stderr
+    assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert not store.exists()
+    assert "end record" not in r.stderr, r.stderr
+    assert ("the rest of the 40,000 messages it read was lost; nothing of this run was stored, so the store it "
+            "created was removed") in r.stderr, r.stderr

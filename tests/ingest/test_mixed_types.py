@@ -142,3 +142,23 @@ def test_a_bag_of_another_type_than_the_stores_stream_is_named(tmp_path):
     assert (f"{path}, message 1 of the bag (logged at 2 ns): the message on /t is a std_msgs/msg/Int32, but the "
             "stream /t has type std_msgs/msg/String in the store") in r.stderr  # fmt: skip
     assert stored(tmp_path / "s") == [("std_msgs/msg/String", ['{"data": "hi"}'])]
+
+
+def test_an_untyped_run_keeps_the_stores_type_so_a_later_run_cannot_change_it(tmp_path):
+    """The store's type was read from a stream's newest window: a run of untyped lines
+    (JSONL without msgtype) stored a newest window naming no type, and the next run then
+    stored another type into the stream with exit 0 (found by attack: an Odometry /odom
+    took a Twist, and export then failed on it)."""
+    typed, untyped, other = tmp_path / "typed.jsonl", tmp_path / "untyped.jsonl", tmp_path / "other.jsonl"
+    typed.write_text(line(1, {"data": "hi"}, "std_msgs/msg/String"))
+    untyped.write_text(json.dumps({"topic": "/t", "stamp_ns": 2, "msg": {"data": "ho"}}) + "\n")
+    other.write_text(line(3, {"data": 5}, "std_msgs/msg/Int32"))
+    assert record(typed, "--store", tmp_path / "s").returncode == 0
+    assert record(untyped, "--store", tmp_path / "s").returncode == 0
+    r = record(other, "--store", tmp_path / "s")
+    assert r.returncode == 1, r.stderr
+    assert (f"cclog: error: {other}, line 1: the message on /t is a std_msgs/msg/Int32, but the stream /t "
+            "has type std_msgs/msg/String in the store") in r.stderr  # fmt: skip
+    # The untyped line joined its stream's type, as it does after a typed line of one input.
+    assert stored(tmp_path / "s") == [("std_msgs/msg/String", ['{"data": "hi"}']),
+                                      ("std_msgs/msg/String", ['{"data": "ho"}'])]  # fmt: skip
