@@ -590,7 +590,8 @@ def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep:
               "--budget", file=sys.stderr)  # fmt: skip
     skipped = getattr(getattr(args, "skips", None), "count", 0)
     if skipped:
-        print(f"{args.source}: {skipped:,} bad lines skipped (--on-error skip), not recorded", file=sys.stderr)
+        unit = getattr(source, "bad_unit", "messages")  # a bag or MCAP file has no lines
+        print(f"{args.source}: {skipped:,} bad {unit} skipped (--on-error skip), not recorded", file=sys.stderr)
     if getattr(source, "stopped_by", None):
         print(f"{args.source}: stopped by {source.stopped_by}; received "
               + (", ".join(f"{t} {n:,}" for t, n in sorted(source.received.items())) or "nothing"), file=sys.stderr)

@@ -86,6 +86,8 @@ class JsonlSource:
     topic, another type than the store's stream has).
     """
 
+    bad_unit = "lines"  # what a summary calls what it skipped; other sources skip messages
+
     def __init__(
         self,
         path: str | Path,
