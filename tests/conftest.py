@@ -61,3 +61,16 @@ def split_path(request):
     jsonl._split_lines_c = compiled if request.param == "compiled" else None
     yield request.param
     jsonl._split_lines_c = compiled
+
+
+@pytest.fixture(scope="module")
+def halves():
+    """The nav2 TurtleBot's /odom cut in two at its middle: train on one, test on the other
+    (the classifier's tests)."""
+    from cclogfs.classifier import parse_odometry
+    from cclogfs.classifier.testing import read_odometry
+
+    odom = parse_odometry(read_odometry(shared_data_file("nav2_turtlebot.mcap")))
+    t = odom.stamp_ns
+    mid = t[0] + (t[-1] - t[0]) // 2
+    return odom.take(t < mid), odom.take(t >= mid)

@@ -3,21 +3,11 @@ import pytest
 
 from cclogfs.classifier import (Detector, OneClassModel, SmartLogger, collect, event_table,
                                 format_event_table, format_message_table, load_dataset,
-                                message_table, parse_odometry, train, window_spans)
+                                message_table, train, window_spans)
 from cclogfs.classifier.api import HOLD_SCORE
 from cclogfs.classifier.features import NS
-from cclogfs.classifier.testing import inject, odom_texts, read_odometry
+from cclogfs.classifier.testing import inject, odom_texts
 from cclogfs.errors import InvalidInputError, ModelError
-
-
-@pytest.fixture(scope="module")
-def halves():
-    from conftest import shared_data_file
-
-    odom = parse_odometry(read_odometry(shared_data_file("nav2_turtlebot.mcap")))
-    t = odom.stamp_ns
-    mid = t[0] + (t[-1] - t[0]) // 2
-    return odom.take(t < mid), odom.take(t >= mid)
 
 
 @pytest.fixture(scope="module")

@@ -3,14 +3,13 @@ the whole-run and the live computation agree, and a window reaches back to the s
 the long columns' evidence, not their whole span."""
 
 import numpy as np
-import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cclogfs.classifier import Detector, SmartLogger, parse_odometry, train, window_spans
+from cclogfs.classifier import Detector, SmartLogger, train, window_spans
 from cclogfs.classifier.evidence import EvidenceHistory, evidence_back
 from cclogfs.classifier.features import NS
-from cclogfs.classifier.testing import inject, odom_texts, read_odometry
+from cclogfs.classifier.testing import inject, odom_texts
 
 MS = 1_000_000
 
@@ -72,16 +71,6 @@ def test_a_reversal_reaches_back_to_its_first_flip_not_8_s():
     assert back[-1, 0] == 1400 * MS + 200 * MS
     V[:, 0] = 1.0
     assert evidence_back(t, V, np.ones(len(t), bool), (8 * NS,), 0)[-1, 0] == 8 * NS
-
-
-@pytest.fixture(scope="module")
-def halves():
-    from conftest import shared_data_file
-
-    odom = parse_odometry(read_odometry(shared_data_file("nav2_turtlebot.mcap")))
-    t = odom.stamp_ns
-    mid = t[0] + (t[-1] - t[0]) // 2
-    return odom.take(t < mid), odom.take(t >= mid)
 
 
 def test_live_push_many_and_replay_give_the_same_windows(halves):
