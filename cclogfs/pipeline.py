@@ -131,6 +131,7 @@ class RecordStats:
     messages_kept: int = 0
     json_bytes_kept: int = 0
     windows: int = 0
+    summaries: int = 0  # of `windows`, the recorder's own summaries (`/cclog/summary`), no message that came in
     records: int = 0
     seconds: float = 0.0
     topics_in: dict[str, int] = field(default_factory=dict)
@@ -197,6 +198,7 @@ def store_window(store: Store, window: PendingWindow, stats: RecordStats, types:
         stats.records += 1
     stats.windows += 1
     if window.meta.get("kind") == "summary":  # made by the recorder, not a message that came in
+        stats.summaries += 1
         return
     n = len(window.messages)
     stats.messages_kept += n

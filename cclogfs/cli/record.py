@@ -574,6 +574,17 @@ def _retention(store, run_seq: int | None, stats: RecordStats, upkeep: Upkeep | 
     return held, mine, max(0, _dropped_messages(store) - dropped_before - mine)
 
 
+def _windows(stats: RecordStats) -> str:
+    """The windows of messages kept, apart from the recorder's own summaries: "0 kept in 8
+    windows" read as a contradiction when the 8 were all `/cclog/summary` records."""
+    said = f"{stats.windows - stats.summaries:,} windows"
+    if not stats.summaries:
+        return said
+    from ..classifier.summary import SUMMARY_TOPIC
+
+    return f"{said} (and {stats.summaries:,} summaries on {SUMMARY_TOPIC})"
+
+
 def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep: Upkeep | None, final_bytes: int | None,
                    retention: tuple[int, int, int] | None = None) -> None:  # fmt: skip
     mode = "smart logging" if args.model else "every message"
@@ -583,7 +594,7 @@ def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep:
         said = (f"{retention[0]:,} kept ({stats.messages_kept:,} stored, then retention DROPPED the oldest "
                 f"{retention[1]:,} to stay within --budget)")  # fmt: skip
     print(f"{'interrupted: ' if stats.interrupted else ''}recorded {args.source} into {args.store} ({mode}): "
-          f"{stats.messages_in:,} messages in, {said} in {stats.windows:,} windows, {stats.seconds:.1f} s "
+          f"{stats.messages_in:,} messages in, {said} in {_windows(stats)}, {stats.seconds:.1f} s "
           f"({stats.messages_in / max(stats.seconds, 1e-9):,.0f} msg/s)", file=sys.stderr)  # fmt: skip
     if retention is not None and retention[2]:
         print(f"{args.store}: retention also dropped {retention[2]:,} messages of earlier runs to stay within "

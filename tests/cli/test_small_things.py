@@ -41,6 +41,10 @@ def test_messages_kept_does_not_count_the_summary_stream(shared_data, tmp_path, 
         streams = store.streams()
     assert streams["/cclog/summary"]["messages"] > 0
     assert f"{len(odom):,} messages in, {streams['/odom']['messages']:,} kept" in line
+    # nor the summary's records as windows of what was kept ("0 kept ... in 8 windows" when
+    # the 8 were summaries, found by attack)
+    odom_windows, summaries = streams["/odom"]["windows"], streams["/cclog/summary"]["windows"]
+    assert f" in {odom_windows:,} windows (and {summaries:,} summaries on /cclog/summary)" in line, line
 
 
 def test_info_shows_stream_types(shared_data, tmp_path, capsys):
