@@ -39,7 +39,10 @@ def rebuild_headers(store: Store, actions: list[str], unproven: list[str], *, di
                 actions.append(f"the segment header of {name} is intact (rebuilt by an earlier repair): "
                                "its damage entry is dropped from the manifest")  # fmt: skip
             continue
-        why = _unprovable(seg, info, seg.known_damage if discarded else set())
+        # Stretches discarded before (or sealed as discarded: records lost with their header)
+        # are gone already, so they never count against a header.
+        gone = {d["offset"] for d in info.get("discarded", ())}
+        why = _unprovable(seg, info, seg.known_damage if discarded else gone)
         if why:
             unproven.append(f"{name}: segment header kept as it is, not rebuilt ({fault}): {why}")
             continue
@@ -54,7 +57,7 @@ def rebuild_headers(store: Store, actions: list[str], unproven: list[str], *, di
 
 def _proof(info: dict, discarded: bool) -> str:
     """What vouched for the rebuilt header's first_seq, and what became of the records."""
-    gone = [d for d in info.get("discarded", ()) if d["end_seq"] > d["first_seq"]] if discarded else []
+    gone = [d for d in info.get("discarded", ()) if d["end_seq"] > d["first_seq"]]
     if not gone:
         return (f"its name, the manifest and its first record state; its {info['end_seq'] - info['first_seq']} "
                 "records kept byte for byte")  # fmt: skip

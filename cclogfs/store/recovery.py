@@ -317,6 +317,10 @@ class SegmentOpener:
                                        "--repair` to drop the segment (and name what it lost)",
                                        [lost.damage_info()], path=path, reason=reason)  # fmt: skip
                 self.recovery.damage.append(lost)
+                if not self.readonly:
+                    self._keep_lost(seg, lost, checkpoint)
+                    broken = True
+                    continue
             elif reason is not None:  # not synced: a torn tail
                 self.recovery.problems.append(Problem(path, 0, reason, "", seg.size))
             if reason is not None:
@@ -470,6 +474,19 @@ class SegmentOpener:
         name = f"{os.path.basename(seg.path)}.tail-{offset}"
         self.fs.copy_range_atomic(seg.fd, offset, seg.size, self._file(name))  # streamed: any size
         return name
+
+    def _keep_lost(self, seg: Segment, lost: Problem, checkpoint: dict) -> None:
+        """Repair's writer: an active segment whose header was lost with the records a clean
+        close synced is kept to be sealed (not dropped) with those records in `discarded`, so
+        its entry keeps their seqs and the next segment starts after them: dropping it made
+        the writer give the lost seqs to new records. Later tail segments are dropped as before."""
+        seg.first_seq, seg.next_seq, seg.synced = lost.seqs[0], lost.seqs[1], seg.size
+        # Named as a sealed segment cut to its header names its cut: from the header's end
+        # over the bytes the close synced (FORMAT.md, "Repair").
+        length = max(checkpoint.get("synced", 0), seg.size) - SEGMENT_HEADER_SIZE
+        seg.discarded = [Problem(seg.path, SEGMENT_HEADER_SIZE, lost.reason, lost.detail, max(length, 0),
+                                 seqs=lost.seqs)]  # fmt: skip
+        self.tail.append(seg)
 
     def _drop_segment(self, seg: Segment) -> None:
         self.fs.close(seg.fd)

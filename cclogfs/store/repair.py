@@ -53,9 +53,15 @@ def repair_store(path: str, *, discard_damaged: bool = False, fs: FileSystem | N
     with open_store(path, sync_every_ms=None, sync_every_bytes=None, fs=fs, drop_lost_header=True) as store:
         rec = store.recovery
         report.actions += [f"cut torn tail: {p}" for p in rec.problems]
-        for p in rec.damage:  # a segment whose header was lost is removed, not sealed (recovery)
-            removed = os.path.basename(p.path) in rec.removed_files
-            report.actions.append(f"{'removed, its records lost' if removed else 'sealed with damage named in the manifest'}: {p}")
+        # A segment whose header was lost with synced records is sealed with them discarded
+        # (recovery), its seqs kept so that no later record takes them.
+        lost = {os.path.basename(p.path) for seg in store.sealed for p in seg.discarded}
+        for p in rec.damage:
+            name = os.path.basename(p.path)
+            what = ("removed, its records lost" if name in rec.removed_files else
+                    "sealed, its records lost (named as discarded; their seqs are never reused)" if name in lost else
+                    "sealed with damage named in the manifest")  # fmt: skip
+            report.actions.append(f"{what}: {p}")
         report.actions += [f"removed {n}" for n in rec.removed_files]
         _declare_sealed_damage(store, report)
         rebuild_headers(store, report.actions, report.unproven)

@@ -111,6 +111,9 @@ class Segment:
         self.synced = 0  # bytes proven durable: the size at the last completed fsync
         self.damage: list[Problem] = []  # damage below the synced point (recovery, the manifest)
         self.known_damage: set[int] = set()  # offsets of damage the manifest names or discarded
+        # Lost stretches a writer seals straight into `discarded`: records gone with their
+        # header (repair), whose seqs the sealed entry keeps so they are never reused.
+        self.discarded: list[Problem] = []
         self.index_untrusted = False  # set when a read found a record its index entry misdescribes
         self._index: SegmentIndex | None = None
         self._prefix: Callable[[Segment], None] | None = None  # see defer_prefix

@@ -298,7 +298,8 @@ class Store:
             self._make_durable(seg)
         # The newest tail segment stays active unless it holds damage: that is sealed with
         # the damage named in the manifest, so no later write can hide it.
-        keep = len(opener.tail) - 1 if opener.tail and not opener.tail[-1].damage else len(opener.tail)
+        last = opener.tail[-1] if opener.tail else None
+        keep = len(opener.tail) - 1 if last and not (last.damage or last.discarded) else len(opener.tail)
         for seg in opener.tail[:keep]:  # a crash while sealing left it complete but unsealed
             self._seal(seg)
             self.recovery.sealed_on_open.append(os.path.basename(seg.path))
@@ -531,11 +532,13 @@ class Store:
                 "streams": index.stream_stats()}  # fmt: skip
         if seg.damage:
             info["damaged"] = [p.damage_info() for p in seg.damage]
+        if seg.discarded:  # records lost with their header (recovery, repair only)
+            info["discarded"] = [p.damage_info() for p in seg.discarded]
         self.commit_manifest(self.manifest.with_sealed(info))
         seg.sealed_size = seg.size
         # Named now, as the manifest names it to a store that opens it sealed: `fsck --repair`
         # named the damage of a segment sealed on open a second time.
-        seg.known_damage = {p.offset for p in seg.damage}
+        seg.known_damage = {p.offset for p in (*seg.damage, *seg.discarded)}
         self.sealed.append(seg)
 
     def release_reserve(self) -> None:

@@ -85,7 +85,7 @@ def test_an_active_header_cut_short_after_a_clean_close_loses_records_loudly(tmp
     capsys.readouterr()
     assert main(["fsck", "--repair", str(store)]) == 1
     out = capsys.readouterr().out
-    assert "removed, its records lost:" in out and "damaged (seqs 8..9)" in out and "torn tail" not in out
+    assert "sealed, its records lost" in out and "damaged (seqs 8..9)" in out and "torn tail" not in out
     assert main(["cat", str(store)]) == 0
     assert len(capsys.readouterr().out.splitlines()) == 24
 
