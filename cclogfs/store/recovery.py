@@ -314,7 +314,7 @@ class SegmentOpener:
                     # Dropping it here (as a torn tail) would lose those records without a word.
                     self.fs.close(seg.fd)
                     raise DamagedError(f"{self.path}: a writer cannot open the store: {lost}; run `cclog fsck "
-                                       "--repair` to drop the segment (and name what it lost)",
+                                       "--repair` to name what it lost (its seqs are kept, never reused)",
                                        [lost.damage_info()], path=path, reason=reason)  # fmt: skip
                 self.recovery.damage.append(lost)
                 if not self.readonly:

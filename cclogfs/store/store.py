@@ -306,7 +306,7 @@ class Store:
         tail = opener.tail[keep:]
         self.active = tail[0] if tail else self._new_segment(self.manifest.end_seq)
         if not tail and self.manifest.checkpoint.get("first_seq") == self.active.first_seq:
-            # The checkpoint's segment was dropped (repair: its header lost, its records named):
+            # The checkpoint's segment was dropped (a header that never reached the disk):
             # the close states the new one, else the old synced point would read as a cut.
             self._dirty = True
 

@@ -81,3 +81,28 @@ def test_seqs_lost_with_an_active_header_are_never_reused(tmp_path, capsys, monk
     with cclogfs.open_store(store) as s:  # the writer again: the next seq follows on
         assert s.put_window("/a", [(99001, "{}")]).seq == 11
     assert _seqs(store) == [*range(8), 10, 11]
+
+
+def test_a_repair_stopped_before_the_header_is_rebuilt_keeps_the_seqs(tmp_path, capsys, monkeypatch):
+    """The seal (with the loss in `discarded`) is committed before the header is written:
+    a failure between them leaves a sealed entry ending at seq 10, which the next repair
+    finishes; no writer reuses seq 8 meanwhile."""
+    store = _store(tmp_path / "s")
+    (store / segment_name(8)).write_bytes(b"")
+
+    def fail(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(header_repair, "_rewrite", fail)
+    code, out, err = _cli(capsys, "fsck", "--repair", store)
+    monkeypatch.undo()
+    assert code == 8, out + err
+    # Stopped once the manifest states the header's size: a writer refuses (it cannot reuse 8).
+    with pytest.raises(DamagedError, match=r"seqs 8\.\.9"):
+        cclogfs.open_store(store)
+    code, out, err = _cli(capsys, "fsck", "--repair", store)
+    assert code == 1 and "rebuilt the segment header of 00000000000000000008.seg" in out, out + err
+    assert _cli(capsys, "fsck", store)[0] == 0
+    with cclogfs.open_store(store) as s:
+        assert s.put_window("/a", [(99000, "{}")]).seq == 10
+    assert _seqs(store) == [*range(8), 10]
