@@ -446,7 +446,8 @@ def parse_span(text: str) -> tuple[int, float | None]:
 
 def smart_policy(model: Any, *, topics: Iterable[str] | None = None, before: str = WINDOW_BEFORE,
                  after: str = WINDOW_AFTER, summary: bool = True, odom_topic: str | None = None) -> Any:  # fmt: skip
-    """The classifier's SmartLogger for `model` (a path or a loaded OneClassModel).
+    """The classifier's SmartLogger for `model` (a path or a loaded OneClassModel), keeping
+    the odometry it cannot score (`KeepUnscored`).
 
     `topics`: the topics to log over each window (None: every topic seen); the odometry
     topic (`odom_topic`, by default the model's own) is always scored and logged.
@@ -457,9 +458,90 @@ def smart_policy(model: Any, *, topics: Iterable[str] | None = None, before: str
         model = OneClassModel.load(model)
     b_n, b_s = parse_span(before)
     a_n, a_s = parse_span(after)
-    return SmartLogger(Detector(model), odom_topic=odom_topic or model.topic, topics=topics,
-                       before=b_n, after=a_n, before_s=b_s, after_s=a_s, batch=64,
-                       summary_period_s=60.0 if summary else None)  # fmt: skip
+    return KeepUnscored(SmartLogger(Detector(model), odom_topic=odom_topic or model.topic, topics=topics,
+                                    before=b_n, after=a_n, before_s=b_s, after_s=a_s, batch=64,
+                                    summary_period_s=60.0 if summary else None))  # fmt: skip
+
+
+class KeepUnscored:
+    """Smart logging (`policy`, a SmartLogger) that keeps the odometry its model cannot judge.
+
+    The features skip an odometry message with a NaN or infinite value (`classifier.usable`):
+    it gets no score of its own, so the SmartLogger kept it only inside a window some other
+    message opened, and a run whose odometry broke (an estimator that diverged, a sensor
+    fault) lost those messages with exit 0. Here each one bypasses the classifier and is
+    kept, in windows of kind "unscored" on the odometry topic; `unscored` and `first` (stamp,
+    field) say how many and which, for the end summary. The other topics are kept as the
+    classifier's windows decide. Every other attribute is the SmartLogger's.
+    """
+
+    def __init__(self, policy: Any, *, chunk: int = 200) -> None:
+        self.policy = policy
+        self.keep = KeepAll(chunk=chunk)
+        self.unscored = 0
+        self.first: tuple[int, str] | None = None
+
+    def __getattr__(self, name: str) -> Any:  # odom_topic, scored, summary, detector, ...
+        return getattr(self.__dict__["policy"], name)
+
+    def push(self, topic: str, stamp_ns: int, text: str) -> list[PendingWindow]:
+        if topic == self.policy.odom_topic and (field := _nonfinite_field(text)) is not None:
+            return self._keep(stamp_ns, text, field)
+        return self.policy.push(topic, stamp_ns, text)
+
+    def push_many(self, messages: Sequence[Any]) -> list[PendingWindow]:
+        """`push` of each, the runs between unscored messages handed on at once."""
+        from .classifier.features import odom_rows_compiled
+
+        odom = self.policy.odom_topic
+        at = [i for i, m in enumerate(messages) if m[0] == odom]
+        rows = odom_rows_compiled([messages[i][2] for i in at])
+        bad = [i for i, got in zip(at, rows) if got is None or not _finite(got[1])]
+        bad = [(i, f) for i in bad if (f := _nonfinite_field(messages[i][2])) is not None]
+        if not bad:
+            return self.policy.push_many(messages)
+        out: list[PendingWindow] = []
+        start = 0
+        for i, field in bad:
+            out += self.policy.push_many(messages[start:i])
+            out += self._keep(messages[i][1], messages[i][2], field)
+            start = i + 1
+        return out + self.policy.push_many(messages[start:])
+
+    def _keep(self, stamp_ns: int, text: str, field: str) -> list[PendingWindow]:
+        self.unscored += 1
+        if self.first is None:
+            self.first = (stamp_ns, field)
+        return [self._mark(w) for w in self.keep.push(self.policy.odom_topic, stamp_ns, text)]
+
+    def _mark(self, window: PendingWindow) -> PendingWindow:
+        window.meta = {"kind": "unscored", "why": "NaN or infinite odometry values", "model_id": self.policy.windows.model_id}
+        return window
+
+    def cut(self) -> list[PendingWindow]:
+        return self.policy.cut() + [self._mark(w) for w in self.keep.cut()]
+
+    def flush(self) -> list[PendingWindow]:
+        return self.policy.flush() + [self._mark(w) for w in self.keep.flush()]
+
+
+def _finite(row: Sequence[float]) -> bool:
+    return math.isfinite(sum(row)) or all(map(math.isfinite, row))
+
+
+def _nonfinite_field(text: str) -> str | None:
+    """The first odometry value (`classifier.features.RAW_NAMES`) of `text` that is NaN or
+    infinite, None when the features can use them all. A pose-only message's twist is NaN
+    until the classifier fills it from the poses; a text the reader refuses is the
+    classifier's to name (None here)."""
+    from .classifier.features import RAW_NAMES, PoseOnly, odom_row
+
+    try:
+        _, row = odom_row(text)
+    except InvalidInputError:
+        return None
+    values = row[:7] if isinstance(row, PoseOnly) else row
+    return next((RAW_NAMES[k] for k, v in enumerate(values) if not math.isfinite(v)), None)
 
 
 def read_topic(path: str, topic: str) -> list[tuple[int, str]]:

@@ -42,7 +42,9 @@ can be read; stderr says what was lost and the exit code is 4. A ROS 2 bag direc
 metadata.yaml is read from its .db3 files (a note on stderr).
 With --model, odometry on the model's topic is scored; each anomaly opens a window of
 --before messages (or seconds, "4s") before it and --after after the last anomaly, over
-the odometry and the --topic topics (all topics when none is given). Ctrl-C or SIGTERM
+the odometry and the --topic topics (all topics when none is given). Odometry the model
+cannot score (NaN or infinite values) is kept, every message (windows of kind "unscored"),
+and the end summary says how many and the first. Ctrl-C or SIGTERM
 stores what was seen and closes the store cleanly.
 
 ros1:// records live from a ROS 1 master until Ctrl-C or SIGTERM (then exit 0, or 4): every topic,
@@ -458,7 +460,7 @@ def _run(args: argparse.Namespace) -> int:
             signal.signal(sig, handler)
     if args.features_out:
         _write_dataset(args, rows)
-    _print_summary(args, source, stats, upkeep, final_bytes, retention)
+    _print_summary(args, source, stats, upkeep, final_bytes, retention, policy)
     if refused is not None:
         raise refused
     status = _exit_status(args, source, stats, policy, read_topics, received)
@@ -535,7 +537,7 @@ def _exit_status(args: argparse.Namespace, source, stats: RecordStats, policy, r
         if missing := [t for t in dict.fromkeys(args.topic) if t not in stats.topics_in]:
             raise InvalidInputError(f"{args.source} has no message on {' or '.join(missing)}; the other topics "
                                     f"were recorded ({stats.messages_kept:,} messages kept).")  # fmt: skip
-    if args.model and policy.scored == 0:  # a live source or stdin, checked only now
+    if args.model and policy.scored == 0 and not policy.unscored:  # a live source or stdin, checked only now
         raise InvalidInputError(f"{args.source} sent no message on {args.odom_topic}, the odometry the model scores, "
                                 "so nothing was kept; name the odometry topic with --odom-topic T.")  # fmt: skip
     if stats.interrupted:
@@ -585,8 +587,16 @@ def _windows(stats: RecordStats) -> str:
     return f"{said} (and {stats.summaries:,} summaries on {SUMMARY_TOPIC})"
 
 
+def _unscored(args: argparse.Namespace, policy) -> str:
+    """The end summary's line on the odometry the model could not score (`KeepUnscored`)."""
+    stamp, field = policy.first
+    return (f"{args.source}: {policy.unscored:,} {policy.odom_topic} messages had NaN or infinite values (the first at "
+            f"{iso_ns(stamp)}, in {field}): the model cannot score them, so every one was kept (windows of kind "
+            "\"unscored\"); the other topics were kept around anomalies only")  # fmt: skip
+
+
 def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep: Upkeep | None, final_bytes: int | None,
-                   retention: tuple[int, int, int] | None = None) -> None:  # fmt: skip
+                   retention: tuple[int, int, int] | None = None, policy=None) -> None:  # fmt: skip
     mode = "smart logging" if args.model else "every message"
     kept = stats.json_bytes_kept / stats.json_bytes_in if stats.json_bytes_in else 0.0
     said = f"{stats.messages_kept:,} kept ({100 * kept:.1f} % of {human_bytes(stats.json_bytes_in)} JSON)"
@@ -596,6 +606,8 @@ def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep:
     print(f"{'interrupted: ' if stats.interrupted else ''}recorded {args.source} into {args.store} ({mode}): "
           f"{stats.messages_in:,} messages in, {said} in {_windows(stats)}, {stats.seconds:.1f} s "
           f"({stats.messages_in / max(stats.seconds, 1e-9):,.0f} msg/s)", file=sys.stderr)  # fmt: skip
+    if getattr(policy, "unscored", 0):
+        print(_unscored(args, policy), file=sys.stderr)
     if retention is not None and retention[2]:
         print(f"{args.store}: retention also dropped {retention[2]:,} messages of earlier runs to stay within "
               "--budget", file=sys.stderr)  # fmt: skip
