@@ -104,8 +104,18 @@ def runs_table(runs: list[dict]) -> str:
             status += f" ({r['signal']})"
         took = f"{(r['end_ns'] - r['start_ns']) / 1e9:.1f} s" if r["end_ns"] is not None else "-"
         kept = f"{r['messages_kept']:,} of {r['messages_in']:,}" if "messages_kept" in r else "-"
-        rows.append([r["run"], iso_ns(r["start_ns"]), took, status, kept, r["source"], _flags(r["options"])])
-    return table(rows, ["run", "start (UTC)", "took", "status", "messages kept", "source", "options"])
+        rows.append([r["run"], iso_ns(r["start_ns"]), took, status, kept, _run_windows(r), r["source"],
+                     _flags(r["options"])])  # fmt: skip
+    return table(rows, ["run", "start (UTC)", "took", "status", "messages kept", "windows", "source", "options"])
+
+
+def _run_windows(r: dict) -> str:
+    """A run's windows of messages kept and, apart, the recorder's own summaries, as
+    `record`'s end summary says them. End records written before the summaries were
+    counted apart hold no "summaries": their windows include them."""
+    if "windows" not in r:
+        return "-"
+    return f"{r['windows']:,}" + (f" (+{r['summaries']:,} summaries)" if r.get("summaries") else "")
 
 
 def run(args: argparse.Namespace) -> int:

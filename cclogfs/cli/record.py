@@ -319,7 +319,9 @@ def _end_run(run, source, stats: RecordStats, received: list[int], error: BaseEx
     what the user must see."""
     interrupted = stats.interrupted or isinstance(error, KeyboardInterrupt)
     status = "interrupted" if interrupted else "error" if error is not None else "done"
-    counts = {"messages_in": stats.messages_in, "messages_kept": stats.messages_kept, "windows": stats.windows,
+    # windows: of the messages kept, as the end summary says; the recorder's own summaries apart
+    counts = {"messages_in": stats.messages_in, "messages_kept": stats.messages_kept,
+              "windows": stats.windows - stats.summaries, "summaries": stats.summaries,
               "topics_kept": dict(sorted(stats.topics_kept.items()))}  # fmt: skip
     if received:
         counts["signal"] = signal.Signals(received[0]).name
@@ -379,7 +381,7 @@ def _end_after_failure(path: str, failed: _StoreFailed) -> CclogError:
             n = sum(count for _, count in kept)
             Run(store, failed.run.number, failed.run.id).end(
                 "error", messages_in=failed.stats.messages_in, messages_kept=n, windows=len(kept),
-                error=str(failed.err), store_failed=True)  # fmt: skip
+                summaries=_run_summaries(store, failed.run_seq), error=str(failed.err), store_failed=True)  # fmt: skip
     except (CclogError, OSError):
         error = StoreFailedError(f"{said}, and its end record could not be written. Reopening the store (any cclog "
                                  "command) keeps what is stored; free space, then record the rest again (--append)")
@@ -392,16 +394,37 @@ def _end_after_failure(path: str, failed: _StoreFailed) -> CclogError:
 
 
 def _run_windows(store, run_seq: int | None, upto: int | None) -> list[tuple[int, int]] | None:
-    """(seq, message count) of this run's windows up to seq `upto`; None when unreadable."""
+    """(seq, message count) of this run's windows of messages kept up to seq `upto` (the
+    recorder's own summaries apart, as `RecordStats` counts them); None when unreadable."""
+    if upto is None:
+        return []
+    try:
+        return [(w.seq, w.count) for w in _run_records(store, run_seq, upto) if not _is_summary(w)]
+    except CclogError:
+        return None
+
+
+def _run_summaries(store, run_seq: int | None) -> int:
+    """The recorder's own summary windows this run stored (0 when unreadable)."""
+    try:
+        return sum(map(_is_summary, _run_records(store, run_seq, store.synced_seq(written=True))))
+    except CclogError:
+        return 0
+
+
+def _run_records(store, run_seq: int | None, upto: int | None):
     from ..runs import hidden_by_default
 
     if upto is None:
         return []
-    try:
-        return [(w.seq, w.count) for w in store.query(skip_damaged=True)
-                if (run_seq is None or w.seq > run_seq) and w.seq <= upto and not hidden_by_default(w.name)]  # fmt: skip
-    except CclogError:
-        return None
+    return [w for w in store.query(skip_damaged=True)
+            if (run_seq is None or w.seq > run_seq) and w.seq <= upto and not hidden_by_default(w.name)]  # fmt: skip
+
+
+def _is_summary(window) -> bool:
+    """A summary the recorder made (`RecordStats.summaries`), not a message that came in: a
+    keep-all recording of a smart store's export keeps that store's summaries as messages."""
+    return (window.meta or {}).get("kind") == "summary"
 
 
 def _counted(windows: list[tuple[int, int]] | None, upto: int) -> str:

@@ -45,6 +45,13 @@ def test_messages_kept_does_not_count_the_summary_stream(shared_data, tmp_path, 
     # the 8 were summaries, found by attack)
     odom_windows, summaries = streams["/odom"]["windows"], streams["/cclog/summary"]["windows"]
     assert f" in {odom_windows:,} windows (and {summaries:,} summaries on /cclog/summary)" in line, line
+    # `info` (table and --json) agrees with the end summary: the run's windows count was
+    # the summaries' too (found by the attack of l-atk5)
+    assert main(["info", str(tmp_path / "s"), "--json"]) == 0
+    run = __import__("json").loads(capsys.readouterr().out)["runs"][0]
+    assert (run["windows"], run["summaries"]) == (odom_windows, summaries), run
+    assert main(["info", str(tmp_path / "s")]) == 0
+    assert f" {odom_windows:,} (+{summaries:,} summaries) " in capsys.readouterr().out
 
 
 def test_info_shows_stream_types(shared_data, tmp_path, capsys):
