@@ -88,8 +88,14 @@ def run(args: argparse.Namespace) -> int:
             stats = export_parquet(
                 windows, args.parquet, robot=robot, replace=args.force, progress=progress
             )
-    cut = f" ({clip.cut} cut to --start/--end: {clip.left_out:,} messages outside left out)" if clip.left_out else ""
-    print(f"exported {stats.windows} windows{cut}, {stats.messages} messages of {len(stats.streams)} streams to "
+    notes = []
+    if stats.records != stats.windows:  # as `cclog info` says it
+        notes.append(f"stored as {stats.records} records: a window over the 16 MiB record limit is split into several")
+    if clip.left_out:
+        cut = f"{clip.cut} records" if stats.records != stats.windows else clip.cut
+        notes.append(f"{cut} cut to --start/--end: {clip.left_out:,} messages outside left out")
+    said = f" ({'; '.join(notes)})" if notes else ""
+    print(f"exported {stats.windows} windows{said}, {stats.messages} messages of {len(stats.streams)} streams to "
           f"{len(stats.files)} files", file=sys.stderr)  # fmt: skip
     if args.mcap or args.rosbag2:
         _report_mcap(stats)

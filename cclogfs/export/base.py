@@ -31,12 +31,30 @@ class StoredWindow(Protocol):
 
 @dataclasses.dataclass
 class ExportStats:
-    """What an export wrote."""
+    """What an export wrote. `windows` counts a window once however many records the
+    store split it into (over the 16 MiB record limit, each part but the last flagged
+    PART: `continues`), as `cclog info` counts them; `records` counts the records."""
 
     windows: int = 0
+    records: int = 0
     messages: int = 0
     streams: set[str] = dataclasses.field(default_factory=set)
     files: list[str] = dataclasses.field(default_factory=list)
+    # (stream, seq) of the records that continue a window exported before them
+    _continued: set[tuple[str, int]] = dataclasses.field(default_factory=set, repr=False)
+
+    def wrote(self, w: StoredWindow, count: int) -> None:
+        """`count` messages of the stored record `w` were written. A record that continues
+        one written before is not a window of its own; with --start/--end only some parts
+        of a window may be written, so the first written is the one counted."""
+        self.records += 1
+        if (w.name, w.seq) not in self._continued:
+            self.windows += 1
+        self._continued.discard((w.name, w.seq))
+        if getattr(w, "continues", False):
+            self._continued.add((w.name, w.seq + 1))
+        self.messages += count
+        self.streams.add(w.name)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,6 +67,7 @@ class ClippedWindow:
     end_ns: int
     meta: dict[str, Any]
     held: list[tuple[int, str]]
+    continues: bool = False  # the stored record's: its window goes on in the next record
 
     def messages(self) -> Iterator[tuple[int, str]]:
         return iter(self.held)
@@ -81,4 +100,5 @@ class Clip:
             if held:
                 self.cut += 1
                 stamps = [s for s, _ in held]  # a split window's stamps go back: min/max, not ends
-                yield ClippedWindow(w.name, w.seq, min(stamps), max(stamps), w.meta, held)
+                yield ClippedWindow(w.name, w.seq, min(stamps), max(stamps), w.meta, held,
+                                    getattr(w, "continues", False))

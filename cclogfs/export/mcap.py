@@ -109,9 +109,7 @@ def _write(
                 )
                 count += 1
             writer.add_metadata(WINDOW_METADATA, window_metadata(w, count))
-            stats.windows += 1
-            stats.messages += count
-            stats.streams.add(w.name)
+            stats.wrote(w, count)
             if progress is not None:
                 progress(count)
         writer.finish()

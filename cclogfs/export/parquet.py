@@ -132,9 +132,7 @@ def _write_streams(windows: Iterable[StoredWindow], root: Path, rows_per_part: i
             buf.texts.append(text)
             buf.rows.append(flatten(json.loads(text)))
             count += 1
-        stats.windows += 1
-        stats.messages += count
-        stats.streams.add(w.name)
+        stats.wrote(w, count)
         if progress is not None:
             progress(count)
         if len(buf.rows) >= rows_per_part:

@@ -91,9 +91,7 @@ def _write(windows: Iterable[StoredWindow], bag: Path, ros2: Ros2Types, stats: M
                 writer.write(conn, stamp_ns, data)
                 index += 1
             counts[w.name] = index
-            stats.windows += 1
-            stats.messages += index - before
-            stats.streams.add(w.name)
+            stats.wrote(w, index - before)
             if progress is not None:
                 progress(index - before)
     except BaseException:
