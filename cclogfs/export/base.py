@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Iterator
+import heapq
+import itertools
+from collections.abc import Callable, Iterable, Iterator
+from operator import attrgetter
 from typing import Any, Protocol
 
 # Called with the number of messages just written, for progress bars.
@@ -88,6 +91,22 @@ class Clip:
     left_out: int = 0
 
     def __call__(self, windows: Iterator[StoredWindow]) -> Iterator[StoredWindow]:
+        """The windows cut, still in start order (which `merged_runs` needs): a window that
+        starts before `start_ns` starts at its first message kept once cut, maybe after
+        windows the query gives after it. Those come first (they start before all others),
+        and overlap `start_ns`, so they are few: held, then merged in by their new start."""
+        lo = -(1 << 63) if self.start_ns is None else self.start_ns
+        it = iter(windows)
+        early: list[StoredWindow] = []
+        for w in it:
+            if w.start_ns >= lo:
+                it = itertools.chain([w], it)
+                break
+            early += self._cut([w])
+        early.sort(key=attrgetter("start_ns"))
+        yield from heapq.merge(early, self._cut(it), key=attrgetter("start_ns"))
+
+    def _cut(self, windows: Iterable[StoredWindow]) -> Iterator[StoredWindow]:
         lo = -(1 << 63) if self.start_ns is None else self.start_ns
         hi = (1 << 63) if self.end_ns is None else self.end_ns
         for w in windows:

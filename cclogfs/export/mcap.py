@@ -5,7 +5,8 @@ knows is written as `ros2 bag record` writes it: `cdr` messages, a `ros2msg` sch
 after the type (`export.ros2cdr`); any other stream as `json` messages (the stored text
 unchanged) with a "jsonschema" schema, and the caller is told (`McapStats.json_streams`).
 "cdr" refuses a stream it cannot write as CDR; "json" writes every stream as JSON.
-`log_time` and `publish_time` are the stored stamps. Each window becomes a Metadata record
+`log_time` and `publish_time` are the stored stamps; messages are written in log-time order,
+each channel's `sequence` counting them from 0. Each window becomes a Metadata record
 named `cclogfs.window` (MCAP metadata values are strings, so `meta` is its JSON text).
 """
 
@@ -22,6 +23,7 @@ from mcap.writer import CompressionType, Writer
 
 from ..errors import InvalidInputError
 from .base import ExportStats, Progress, StoredWindow
+from .jsonl import continues, merged_runs
 from .jsonschema import message_schema
 from .ros2cdr import Describe, Ros2Types, message_error, stream_meta
 
@@ -82,39 +84,97 @@ def _write(
     windows: Iterable[StoredWindow], tmp: Path, comp: CompressionType, channels: _Channels,
     progress: Progress | None,
 ) -> None:
+    """The messages in log-time order, merged across windows (`merged_runs`), so that each
+    channel's sequence numbers increase over time as the MCAP spec asks ("unique per channel
+    and increasing over time"): window after window, the numbers went back wherever windows
+    of a stream overlap in time (two runs of one source, a smart window that grew back).
+    Each window's Metadata record follows, in window order."""
     stats = channels.stats
+    read = _Read(windows)
     with open(tmp, "wb") as f:
         writer = Writer(f, compression=comp)
         # The ros2 profile (what rosbag2 writes, and what rosbags requires) unless all JSON.
         writer.start(profile="" if channels.encoding == "json" else "ros2", library="cclogfs")
-        for w in windows:
-            count = 0
-            for stamp_ns, text in w.messages():
+        for name, run in merged_runs(read):
+            if not run:
+                continue
+            w = read.first[name]  # the stream's first window: its channel's type and schema
+            for stamp_ns, text in run:
                 if stamp_ns < 0:
                     raise InvalidInputError(
-                        f"The message on {w.name} at {stamp_ns} ns cannot go into MCAP, whose "
+                        f"The message on {name} at {stamp_ns} ns cannot go into MCAP, whose "
                         "times are unsigned nanoseconds; export a time range after 0 (--start 0)."
                     )
                 chan, seq, encode = channels.get(writer, w, text)
                 try:
                     data = encode(text)
                 except InvalidInputError as err:
-                    raise message_error(w.name, seq, stamp_ns, w.seq, err) from None
-                writer.add_message(
-                    chan,
-                    log_time=stamp_ns,
-                    publish_time=stamp_ns,
-                    data=data,
-                    sequence=seq & 0xFFFFFFFF,
-                )
-                count += 1
-            writer.add_metadata(WINDOW_METADATA, window_metadata(w, count))
-            stats.wrote(w, count)
+                    raise message_error(name, seq, stamp_ns, read.record_of(name, stamp_ns), err) from None
+                writer.add_message(chan, log_time=stamp_ns, publish_time=stamp_ns, data=data,
+                                   sequence=seq & 0xFFFFFFFF)  # fmt: skip
             if progress is not None:
-                progress(count)
+                progress(len(run))
+        for done in read.done:
+            writer.add_metadata(WINDOW_METADATA, window_metadata(done, done.count))
+            stats.wrote(done, done.count)
         writer.finish()
         f.flush()
         os.fsync(f.fileno())
+
+
+@dataclasses.dataclass
+class _Done:
+    """What the Metadata record and the counts need of a window whose messages were read
+    (not the window: a store window keeps its record once read)."""
+
+    name: str
+    seq: int
+    start_ns: int
+    end_ns: int
+    meta: dict
+    continues: bool
+    count: int = 0
+
+
+class _Read:
+    """The windows handed to the merge, each counted as the merge reads its messages."""
+
+    def __init__(self, windows: Iterable[StoredWindow]) -> None:
+        self.windows = windows
+        self.first: dict[str, StoredWindow] = {}
+        self.done: list[_Done] = []
+
+    def __iter__(self):
+        for w in self.windows:
+            self.first.setdefault(w.name, w)
+            yield _Counted(w, self.done)
+
+    def record_of(self, name: str, stamp_ns: int) -> int | str:
+        """The store seq of a window of `name` that holds `stamp_ns`, for an error."""
+        for w in (*self.done, *self.first.values()):
+            if w.name == name and w.start_ns <= stamp_ns <= w.end_ns:
+                return w.seq
+        return "?"
+
+
+class _Counted:
+    """A window as `merged_runs` reads it; once its messages are read, its `_Done` joins `done`."""
+
+    def __init__(self, w: StoredWindow, done: list[_Done]) -> None:
+        self.w, self.done = w, done
+        self.name, self.seq, self.start_ns, self.end_ns = w.name, w.seq, w.start_ns, w.end_ns
+
+    @property
+    def continues(self) -> bool:
+        return continues(self.w)
+
+    def messages(self):
+        w = self.w
+        entry = _Done(w.name, w.seq, w.start_ns, w.end_ns, w.meta, continues(w))
+        self.done.append(entry)
+        for m in w.messages():
+            entry.count += 1
+            yield m
 
 
 class _Channels:

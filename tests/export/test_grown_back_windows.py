@@ -187,10 +187,9 @@ def test_cat_of_some_topics_gives_their_messages_in_time_order(grown_store, caps
 @pytest.mark.parametrize("lo, hi", [(None, None), (GROWN[0], GROWN[1]), (1700 * MS, 2250 * MS)])
 def test_export_mcap_in_log_time_order(grown_store, tmp_path, lo, hi):
     """Read in log-time order (what Foxglove, `ros2 bag play` and rosbags do), the MCAP
-    holds the windows' messages once, in time order, byte for byte. In file order it
-    holds them window after window, in the order `query` gives the windows: not time
-    order wherever windows overlap in time (other topics, a grown-back part), which MCAP
-    allows (a chunk's message index gives the log-time order)."""
+    holds the windows' messages once, in time order, byte for byte. In file order too: the
+    export merges the windows by stamp (`merged_runs`), so that each channel's sequence
+    numbers increase over time (before, it wrote window after window)."""
     path, want = grown_store
     out = tmp_path / "out.mcap"
     rng = [] if lo is None else ["--start", f"{lo}ns", "--end", f"{hi}ns"]
@@ -200,12 +199,9 @@ def test_export_mcap_in_log_time_order(grown_store, tmp_path, lo, hi):
                    for _, c, m in make_reader(f).iter_messages(log_time_order=True)]  # fmt: skip
     check_once_in_time_order(by_time, want, lo, hi)
     with open(out, "rb") as f:
-        in_file = [(c.topic, m.log_time, m.data.decode())
+        in_file = [format_line(c.topic, m.log_time, m.data.decode())
                    for _, c, m in make_reader(f).iter_messages(log_time_order=False)]  # fmt: skip
-    with cclogfs.open_store(path, readonly=True) as store:
-        lo_, hi_ = (-(1 << 63), 1 << 63) if lo is None else (lo, hi)
-        windows = [(w.name, s, t) for w in store.query(start_ns=lo, end_ns=hi) for s, t in w.messages() if lo_ <= s <= hi_]
-    assert in_file == windows
+    check_once_in_time_order(in_file, want, lo, hi)
 
 
 def test_play_gives_every_message_once_in_time_order(grown_store, capsys):
@@ -236,3 +232,23 @@ def test_merged_runs_needs_windows_in_start_order(grown_store):
         by_seq = sorted(store.query(), key=lambda w: w.seq)
         with pytest.raises(ValueError, match="start order"):
             list(merged_messages(by_seq))
+
+
+@pytest.mark.parametrize("encoding", ["json", "auto"])
+def test_export_mcap_sequence_increases_with_log_time_per_channel(grown_store, tmp_path, encoding):
+    """MCAP (spec, Message): `sequence` should be "unique per channel and increasing over
+    time". Numbered in file order, window after window, a window whose parts overlap in
+    time (a grown-back part, other topics' parts) gave sequences that go back in log-time
+    order, which readers that check for drops take for lost or reordered messages."""
+    path, _ = grown_store
+    out = tmp_path / "out.mcap"
+    assert main(["export", str(path), "--mcap", str(out), "--encoding", encoding]) == 0
+    with open(out, "rb") as f:
+        read = [(c.topic, m.log_time, m.sequence) for _, c, m in make_reader(f).iter_messages(log_time_order=True)]
+    by_channel = defaultdict(list)
+    for topic, log_time, sequence in read:
+        by_channel[topic].append((log_time, sequence))
+    for topic, got in by_channel.items():
+        sequences = [s for _, s in got]
+        assert sequences == sorted(sequences), f"{topic}: sequence goes back in log-time order"
+        assert len(set(sequences)) == len(sequences), f"{topic}: a sequence given twice"
