@@ -48,6 +48,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     # The top-level parser has no options but --help, so a command comes first or not at all.
     command = argv[0] if argv and argv[0] in COMMANDS else ""
+    args = None
     try:
         # Inside the try: building the parser imports the subcommand's module, a few tenths
         # of a second in which a Ctrl-C gave a traceback instead of "interrupted".
@@ -60,7 +61,9 @@ def main(argv: list[str] | None = None) -> int:
     except CclogError as err:
         from .common import cli_words
 
-        print(f"cclog: error: {cli_words(str(err))}", file=sys.stderr)
+        # A hint to pass --skip-damaged names a flag of this command, or commands that have it
+        print(f"cclog: error: {cli_words(str(err), skip_damaged='skip_damaged' in vars(args or {}))}",
+              file=sys.stderr)  # fmt: skip
         return 1
     except KeyboardInterrupt:
         print("cclog: interrupted", file=sys.stderr)

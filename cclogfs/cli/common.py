@@ -335,6 +335,17 @@ def check_odometry(odom, feature_set, name: str, topic: str, job: str):
     return report
 
 
+def repair_hint(damage: dict) -> str:
+    """What clears one stretch of named damage (`Store.damage()`): a segment header that
+    lost no record is rebuilt by `fsck --repair`; lost records stay named (exit 4, the same
+    warning again) until `--discard-damaged` drops them. The hints said plain `--repair`
+    for both."""
+    if damage["first_seq"] == damage["end_seq"]:  # no seq lost: a header its records prove
+        return "run `cclog fsck --repair` to mend it"
+    return ("run `cclog fsck --repair --discard-damaged` to drop it, naming the lost seqs; the intact windows "
+            "stay, and plain --repair keeps it named")  # fmt: skip
+
+
 DAMAGED_EXIT = 4  # the input was damaged: what could be read was kept
 
 
@@ -359,8 +370,17 @@ _API_WORDS = {
 }
 
 
-def cli_words(message: str) -> str:
-    """A store error's text with the words of the command line for its Python API."""
+# The store's refusal to read past damage ends so; a command without the flag (play, plot)
+# named a flag it refuses ("unrecognized arguments").
+_SKIP_HINT = "or read the intact windows with --skip-damaged"
+
+
+def cli_words(message: str, *, skip_damaged: bool = True) -> str:
+    """A store error's text with the words of the command line for its Python API.
+    `skip_damaged`: whether the command has --skip-damaged; else its hint names those that do."""
     for api, cli in _API_WORDS.items():
         message = message.replace(api, cli)
+    if not skip_damaged:
+        message = message.replace(_SKIP_HINT, "or read the intact windows with `cclog cat --skip-damaged` or "
+                                              "`cclog export --skip-damaged` (this command has no --skip-damaged)")
     return message

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from .common import EXIT_SKIPPED, human_bytes, iso_ns, newest_window, table
+from .common import EXIT_SKIPPED, human_bytes, iso_ns, newest_window, repair_hint, table
 
 EXAMPLES = """examples:
   cclog info out/demo/store
@@ -35,6 +35,7 @@ def store_info(path: str) -> dict:
     from ..store.store import describe_damage
 
     with open_store(path, readonly=True) as store:
+        damage = store.damage()
         # The runs' bookkeeping is listed as runs, not counted as messages
         streams = {name: st for name, st in store.streams().items() if not hidden_by_default(name)}
         parts = store.split_parts()
@@ -58,7 +59,8 @@ def store_info(path: str) -> dict:
             "streams": streams,
             "runs": [run.as_dict() for run in list_runs(store)],
             "recovery": [str(p) for p in store.recovery.problems],
-            "damage": [describe_damage(d) for d in store.damage()],
+            "damage": [describe_damage(d) for d in damage],
+            "damage_repair": [repair_hint(d) for d in damage],  # what clears each stretch
         }
 
 
@@ -154,6 +156,6 @@ def run(args: argparse.Namespace) -> int:
               f"{iso_ns(st['start_ns'])} to {iso_ns(st['end_ns'])}")
     for line in info["recovery"]:
         print(f"note: a reader would drop a torn tail: {line}")
-    for line in info["damage"]:  # the totals above leave these windows out
-        print(f"DAMAGE (not counted above; `cclog fsck --repair`): {line}")
+    for line, fix in zip(info["damage"], info["damage_repair"]):  # the totals above leave these windows out
+        print(f"DAMAGE (not counted above; {fix}): {line}")
     return EXIT_SKIPPED if info["damage"] else 0

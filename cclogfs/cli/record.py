@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 from ..errors import CclogError, InvalidInputError
 from ..times import parse_duration
 from .common import (Progress, check_topics_exist, damaged_exit, human_bytes, iso_ns, load_labels, model_fits,
-                     no_source_message, parse_size, stored_types, unmatched_rules_error)
+                     no_source_message, parse_size, repair_hint, stored_types, unmatched_rules_error)
 
 # The engine, sources and classifier are imported where they are used, not here:
 # `cclog --help` imports every subcommand module.
@@ -230,12 +230,12 @@ def _logging_policy(args: argparse.Namespace):
 
 def _warn_damage(store) -> None:
     """Recording into a damaged store goes on, but says so each time: damage stays named
-    until `cclog fsck --repair --discard-damaged` (docs/FORMAT.md)."""
+    until fsck mends or drops it (`repair_hint`, docs/FORMAT.md)."""
     from ..store.store import describe_damage
 
     for d in store.damage():
         print(f"cclog: warning: {store.path} holds damage below the synced point, kept and not cut: "
-              f"{describe_damage(d)} (run `cclog fsck --repair`)", file=sys.stderr)  # fmt: skip
+              f"{describe_damage(d)} ({repair_hint(d)})", file=sys.stderr)  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:
@@ -360,7 +360,7 @@ def _stored_when_failed(store, run_seq: int | None) -> str:
     return said
 
 
-def _end_after_failure(path: str, failed: _StoreFailed) -> CclogError:
+def _end_after_failure(path: str, source: str, failed: _StoreFailed) -> CclogError:
     """The store's failure, saying what of this run is stored and that the rest was lost.
     The failed store refuses writes, so the run's end record is written after it closed, by
     reopening it: the recovery any cclog command runs (what is whole is kept, a torn tail
@@ -384,13 +384,22 @@ def _end_after_failure(path: str, failed: _StoreFailed) -> CclogError:
                 summaries=_run_summaries(store, failed.run_seq), error=str(failed.err), store_failed=True)  # fmt: skip
     except (CclogError, OSError):
         error = StoreFailedError(f"{said}, and its end record could not be written. Reopening the store (any cclog "
-                                 "command) keeps what is stored; free space, then record the rest again (--append)")
+                                 f"command) keeps what is stored; {_again(source, 'messages')}")  # fmt: skip
     else:
         error = StoreFailedError(f"{said}. Reopened, the store keeps {n:,} messages of this run in {len(kept):,} "
-                                 "windows and its end record (`cclog info`: ended on a store failure); free space, "
-                                 "then record the rest again (--append)")  # fmt: skip
+                                 "windows and its end record (`cclog info`: ended on a store failure); "
+                                 f"{_again(source, f'{n:,} messages')}")  # fmt: skip
     error.store_failed = said  # what to say instead when the store turns out empty and is removed (`run`)
     return error
+
+
+def _again(source: str, kept: str) -> str:
+    """What to do after a store failure. It said "record the rest again (--append)", but a
+    file is recorded whole: --append stores what this run kept a second time."""
+    if source == "-" or "://" in source:  # a live source: a new run records what comes next
+        return "free space, then record on"
+    return (f"free space, then record {source} again into another --store, or into this one with --append, which "
+            f"stores the {kept} of this run it keeps a second time")  # fmt: skip
 
 
 def _run_windows(store, run_seq: int | None, upto: int | None) -> list[tuple[int, int]] | None:
@@ -477,7 +486,7 @@ def _run(args: argparse.Namespace) -> int:
             retention = _retention(store, run_seq, stats, upkeep, dropped_before)
             _end_run(run, source, stats, received, refused)
     except _StoreFailed as failed:  # the store is closed now: its end record may be written yet
-        raise _end_after_failure(args.store, failed) from failed.err
+        raise _end_after_failure(args.store, args.source, failed) from failed.err
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)

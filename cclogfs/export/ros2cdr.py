@@ -175,11 +175,18 @@ def qos(stream: str, meta: Mapping[str, Any]) -> Any:
                never, never, QosLiveliness.AUTOMATIC, never, False)  # fmt: skip
 
 
-def message_error(stream: str, index: int, stamp_ns: int, window_seq: int, err: Exception) -> InvalidInputError:
+# What an MCAP export can do with such a stream; a rosbag2 bag is all CDR (`--encoding` is
+# refused with --rosbag2, which the hint named too).
+AS_JSON = "export it as JSON with --encoding json"
+AS_JSON_MCAP = "export it to MCAP as JSON (--mcap OUT.mcap --encoding json)"
+
+
+def message_error(stream: str, index: int, stamp_ns: int, window_seq: int | str, err: Exception, *,
+                  as_json: str = AS_JSON) -> InvalidInputError:  # fmt: skip
     """The one-line error for a stored message the ROS 2 type cannot take."""
     return InvalidInputError(
         f"{stream}, message {index} (log time {stamp_ns} ns, window {window_seq}): {err}; "
-        "export it as JSON with --encoding json, or leave the stream out with --topic."
+        f"{as_json}, or leave the stream out with --topic."
     )
 
 

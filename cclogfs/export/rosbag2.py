@@ -24,7 +24,7 @@ from typing import Any
 from ..errors import InvalidInputError
 from .base import Progress, StoredWindow
 from .mcap import McapStats
-from .ros2cdr import Describe, Encode, Ros2Types, message_error, qos, stream_meta
+from .ros2cdr import AS_JSON_MCAP, Describe, Encode, Ros2Types, message_error, qos, stream_meta
 
 
 def check_rosbag2_output(path: str | Path, *, force: bool) -> None:
@@ -87,7 +87,7 @@ def _write(windows: Iterable[StoredWindow], bag: Path, ros2: Ros2Types, stats: M
                 try:
                     data = encode(text)
                 except InvalidInputError as err:
-                    raise message_error(w.name, index, stamp_ns, w.seq, err) from None
+                    raise message_error(w.name, index, stamp_ns, w.seq, err, as_json=AS_JSON_MCAP) from None
                 writer.write(conn, stamp_ns, data)
                 index += 1
             counts[w.name] = index

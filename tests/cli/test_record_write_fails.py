@@ -58,6 +58,10 @@ def test_a_full_disk_says_what_was_synced_and_info_does_not_blame_a_kill(tmp_pat
     assert f"{synced:,} of {int(read[1].replace(',', '')):,}" in info.stdout, info.stdout
     fsck = subprocess.run([*CCLOG, "fsck", str(store)], capture_output=True, text=True)
     assert fsck.returncode == 0, fsck.stdout + fsck.stderr
+    # What to do next: a file is recorded whole, so --append stores what was kept twice (the
+    # error said "record the rest again (--append)"; found by l-left3 on a full tmpfs).
+    assert (f"free space, then record {src} again into another --store, or into this one with --append, which "
+            f"stores the {synced:,} messages of this run it keeps a second time") in r.stderr, r.stderr
 
 
 def test_a_full_disk_before_anything_is_stored_says_the_new_store_is_removed(tmp_path):
