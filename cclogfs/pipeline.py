@@ -515,7 +515,8 @@ class KeepUnscored:
         return [self._mark(w) for w in self.keep.push(self.policy.odom_topic, stamp_ns, text)]
 
     def _mark(self, window: PendingWindow) -> PendingWindow:
-        window.meta = {"kind": "unscored", "why": "NaN or infinite odometry values", "model_id": self.policy.windows.model_id}
+        window.meta = {"kind": "unscored", "why": "NaN or infinite odometry values",
+                       "model_id": self.policy.windows.model_id}
         return window
 
     def cut(self) -> list[PendingWindow]:
