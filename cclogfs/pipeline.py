@@ -20,6 +20,7 @@ from operator import itemgetter
 from typing import Any, Protocol
 
 from ._signals import signals_deferred as _signals_deferred
+from .classifier.features import RAW_NAMES, PoseOnly, odom_row, odom_rows_compiled
 from .classifier.summary import SUMMARY_TOPIC
 from .classifier.windows import PendingWindow
 from .errors import InvalidInputError, StoreError
@@ -491,8 +492,6 @@ class KeepUnscored:
 
     def push_many(self, messages: Sequence[Any]) -> list[PendingWindow]:
         """`push` of each, the runs between unscored messages handed on at once."""
-        from .classifier.features import odom_rows_compiled
-
         odom = self.policy.odom_topic
         at = [i for i, m in enumerate(messages) if m[0] == odom]
         rows = odom_rows_compiled([messages[i][2] for i in at])
@@ -535,14 +534,14 @@ def _nonfinite_field(text: str) -> str | None:
     infinite, None when the features can use them all. A pose-only message's twist is NaN
     until the classifier fills it from the poses; a text the reader refuses is the
     classifier's to name (None here)."""
-    from .classifier.features import RAW_NAMES, PoseOnly, odom_row
-
     try:
         _, row = odom_row(text)
     except InvalidInputError:
         return None
     values = row[:7] if isinstance(row, PoseOnly) else row
-    return next((RAW_NAMES[k] for k, v in enumerate(values) if not math.isfinite(v)), None)
+    if _finite(values):
+        return None
+    return next(RAW_NAMES[k] for k, v in enumerate(values) if not math.isfinite(v))
 
 
 def read_topic(path: str, topic: str) -> list[tuple[int, str]]:
