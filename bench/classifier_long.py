@@ -132,6 +132,8 @@ def smart_run(model, odom: OdomArrays, labels: dict, args) -> dict:
     if args.explain:
         explain(model, odom, spans, labels, policy.detector)
     scores, _ = policy.detector.score_batch(odom)
+    if args.confirm_curve:
+        e["confirm"] = confirm_curve(odom.stamp_ns, scores, spans, labels)
     return e | {"kept_parts": kept_parts(odom.stamp_ns, scores, spans, labels, policy.windows.hold_score),
         "kept_bytes_fraction": kept_bytes / sum(len(x) for x in texts),
         "replay_msg_per_s": len(texts) / replay_s, "missed": missed,
@@ -176,6 +178,45 @@ def kept_parts(stamp_ns: np.ndarray, scores: np.ndarray, spans: list, labels: di
 
 
 PARTS = ("before", "event", "flagged", "held", "gap", "after")
+
+# Window-level confirmations measured by `--confirm-curve` (issue 15, eighth pass): a window
+# is stored only when its peak score reaches P, or its flagged messages span D seconds
+# (first to last flag), or either. Decided when the window closes (the ring and the open
+# window hold its messages meanwhile), so the other windows and every flag stay as they are.
+CONFIRM_RULES = [("none", 0.0, 0.0)] + [(f"peak >= {p}", p, None) for p in (0.05, 0.1, 0.15, 0.2, 0.3)] \
+    + [(f"flagged >= {d} s", None, d) for d in (0.3, 0.45, 0.6, 0.9)] \
+    + [(f"peak >= {p} or flagged >= {d} s", p, d) for p, d in ((0.1, 0.6), (0.2, 0.6), (0.2, 0.9))]
+
+
+def confirm_curve(stamp_ns: np.ndarray, scores: np.ndarray, spans: list, labels: dict) -> dict:
+    """Per rule of CONFIRM_RULES: (events recalled, windows, false windows) when only the
+    windows that the rule confirms are stored."""
+    flags = np.nan_to_num(scores, nan=-np.inf) > 0
+    stats = []
+    for a, b in spans:
+        i, j = np.searchsorted(stamp_ns, a, "left"), np.searchsorted(stamp_ns, b, "right")
+        hit = np.nonzero(flags[i:j])[0] + i
+        flagged_s = (stamp_ns[hit[-1]] - stamp_ns[hit[0]]) / NS if len(hit) else 0.0
+        stats.append((float(np.nanmax(scores[i:j], initial=-np.inf)), flagged_s))
+    out = {}
+    for name, p, d in CONFIRM_RULES:
+        kept = [s for s, (peak, dur) in zip(spans, stats)
+                if (p is not None and peak >= p) or (d is not None and dur >= d)]  # fmt: skip
+        t = event_table(stamp_ns, kept, labels)
+        out[name] = (t["recalled"], t["windows"], t["false_windows"])
+    return out
+
+
+def confirm_lines(rs: list[dict]) -> list[str]:
+    """The `confirm_curve` of a row group, summed over its runs."""
+    out = []
+    nominal = sum(r["nominal_minutes"] for r in rs)
+    for name, _, _ in CONFIRM_RULES:
+        rec, win, false = (sum(r["confirm"][name][k] for r in rs) for k in range(3))
+        prec = 100 * (win - false) / win if win else float("nan")
+        out.append(f"  confirm {name:<30} recalled {rec:>3}/{sum(r['events'] for r in rs):<3} "
+                   f"precision {prec:5.1f}%  false {false:>3} ({false * 10 / nominal:.2f} / 10 min)")  # fmt: skip
+    return out
 
 
 def explain(model, odom: OdomArrays, spans: list, labels: dict, detector) -> None:
@@ -400,6 +441,9 @@ def main() -> None:
     p.add_argument("--breakdown", action="store_true",
                    help="per row group, where the kept messages go (context before, event, flagged, "
                         "held, merged gap, context after; true and false windows), in %% of all messages")
+    p.add_argument("--confirm-curve", action="store_true",
+                   help="per row group, recall and false windows if only windows whose peak score or "
+                        "flagged seconds reach a level were stored (CONFIRM_RULES)")
     p.add_argument("--plot", type=Path, default=None, help="plot the real episodes here and stop")
     p.add_argument("--param", action="append", default=[], metavar="K=V",
                    help="a training parameter (OneClassModel), e.g. false_alarm_rate=0.0005")
@@ -429,6 +473,8 @@ def main() -> None:
             if group:
                 tot = {s: total(group, s) for s in SCHEDULES}
                 print(line(f"ALL {features} {rate}", tot["80s"], tot["60s"], tot["600s"]), flush=True)
+                if args.confirm_curve:
+                    print("\n".join(confirm_lines([r["80s"] for r in group])), flush=True)
                 if args.breakdown:
                     for sched in SCHEDULES:
                         if tot[sched]:
