@@ -15,7 +15,9 @@ beside `default` at native rate, and `--sim` adds the simulator's held-out seeds
 Other rates are the run resampled, the pose integrated from the resampled twist
 (`--resample interpolate`: interpolated on its own, as before the third pass).
 `--explain` prints, per false window and missed event, the features furthest beyond
-their limits.
+their limits. `--confirm-curve` prints, per row group, recall and false windows if only the
+windows that a confirmation rule accepts (peak score, flagged seconds: CONFIRM_RULES) were
+stored (issue 15, eighth pass: none kept).
 
 Run: python3 dev.py bench classifier_long [--rates native,30,100] [--sim] [--quick] [--explain]
 """
