@@ -419,6 +419,58 @@ def _plot_hall_starts_and_stops(axes, hall: OdomArrays) -> None:
         ax.legend(fontsize=8)
 
 
+def plot_stops(runs: dict[str, OdomArrays], path: Path, seed_offset: int = 500) -> None:
+    """tuc_lecture_hall's own stop and go beside the injected `stop` on the same run (80 s
+    schedule, placements of `seed_offset`): the speed and yaw rate, and the scores of a
+    model trained on its first 2 minutes. Issue 15, eighth pass: the two are the same
+    motion in odometry, so no confirmation on it tells them apart."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from cclogfs.classifier.api import Detector
+
+    hall = runs["tuc_lecture_hall"]
+    t = hall.stamp_ns
+    model = train([hall.take(t < t[0] + 120 * NS)])
+    test = hall.take(t >= t[0] + 120 * NS)
+    run, labels = place_events(test, int(test.stamp_ns[0]), SCHEDULES["80s"],
+                               seed=zlib.crc32(b"tuc_lecture_hall") % 1000 + seed_offset)  # fmt: skip
+    scores, flags = Detector(model).score_batch(run)
+    t, v, w = run.stamp_ns, run.raw[:, 7], run.raw[:, 12]
+    events = labels["events"]
+    stop = next(e for e in events if e["kind"] == "stop")
+    # The first real standstill of 2-5 s between steady driving, away from every injected event.
+    rest = np.abs(v) < 0.03
+    edges = np.diff(rest.astype(int))
+    real = None
+    for a in np.nonzero(edges == 1)[0] + 1:
+        b = a + int(np.argmin(rest[a:])) if not rest[a:].all() else len(t) - 1
+        long_s = (t[b] - t[a]) / NS
+        clear = all(e["end_ns"] < t[a] - 10 * NS or e["start_ns"] > t[b] + 10 * NS for e in events)
+        cruise = v[max(a - 20, 0) : a - 3]  # steady before it (not the speed chatter at 514-517 s)
+        steady = len(cruise) and cruise.min() > 0.4 and np.ptp(cruise) < 0.15
+        if 2 <= long_s <= 5 and steady and v[min(b + 3, len(t) - 1)] > 0.4 and clear:
+            real = a
+            break
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4), sharey=True)
+    starts = ((real, "its own stop and go (nominal)"), (np.searchsorted(t, stop["start_ns"]), "the injected stop"))
+    for ax, (i, what) in zip(axes, starts):
+        sl = slice(max(i - 30, 0), i + 80)
+        sec = (t[sl] - t[i]) / NS
+        ax.plot(sec, v[sl], "o-", ms=3, color="k", label="twist.linear.x m/s")
+        ax.plot(sec, w[sl], color="tab:orange", label="yaw rate rad/s")
+        ax.plot(sec, scores[sl], color="tab:green", label="score (> 0: anomalous)")
+        ax.fill_between(sec, -0.6, 1.0, where=flags[sl], color="tab:red", alpha=0.15, label="flagged")
+        ax.axhline(0, color="grey", ls=":")
+        ax.set_title(f"tuc_lecture_hall, {(t[i] - t[0]) / NS + 120:.1f} s: {what}", fontsize=9)
+        ax.set_xlabel("s from the stop")
+        ax.legend(fontsize=8, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--runs", default=None, help="comma-separated run names (default all)")
@@ -446,6 +498,8 @@ def main() -> None:
     p.add_argument("--confirm-curve", action="store_true",
                    help="per row group, recall and false windows if only windows whose peak score or "
                         "flagged seconds reach a level were stored (CONFIRM_RULES)")
+    p.add_argument("--plot-stops", type=Path, default=None,
+                   help="plot tuc_lecture_hall's own stop and go beside an injected stop here and stop")
     p.add_argument("--plot", type=Path, default=None, help="plot the real episodes here and stop")
     p.add_argument("--param", action="append", default=[], metavar="K=V",
                    help="a training parameter (OneClassModel), e.g. false_alarm_rate=0.0005")
@@ -453,6 +507,10 @@ def main() -> None:
     args.param = {k: float(v) for k, v in (kv.split("=", 1) for kv in args.param)}
     args.window = {k: float(v) for k, v in (kv.split("=", 1) for kv in args.window)}
     runs = load_runs(args.runs.split(",") if args.runs else None)
+    if args.plot_stops:
+        plot_stops(runs, args.plot_stops, args.seed_offset or 500)
+        print(f"wrote {args.plot_stops}")
+        return
     if args.plot:
         plot_episodes(runs, args.plot)
         print(f"wrote {args.plot}")
