@@ -141,7 +141,8 @@ def robot_limits(X: np.ndarray, factor: float, tail_factor: float = 0.0) -> np.n
 def train(
     sources: Iterable, *, labels=None, features: dict | str | None = "default",
     limit_factor: float | None = LIMIT_FACTOR, tail_factor: float = 0.0,
-    limit_growth: float = LIMIT_GROWTH, noisy_despike_s: float = NOISY_DESPIKE_S, **params,
+    limit_growth: float = LIMIT_GROWTH, noisy_despike_s: float = NOISY_DESPIKE_S,
+    deriv_s: float | None = None, **params,
 ) -> OneClassModel:  # fmt: skip
     """A model trained on odometry runs (OdomArrays, or lists of JSON texts/dicts).
 
@@ -155,7 +156,8 @@ def train(
     sources = [_as_odom(s) for s in sources]
     feature_set = make_features(features)
     if features in ("default", None):  # calibrated to this robot; an explicit config is kept
-        feature_set = make_features(feature_set.get_config() | {"params": feature_set.params | robot_thresholds(sources, noisy_despike_s)})
+        calibrated = robot_thresholds(sources, noisy_despike_s) | ({"deriv_s": deriv_s} if deriv_s else {})
+        feature_set = make_features(feature_set.get_config() | {"params": feature_set.params | calibrated})
     per_run = labels if isinstance(labels, list) else [labels] * len(sources)
     if len(per_run) != len(sources):
         raise InvalidInputError(f"Got {len(per_run)} label sets for {len(sources)} runs.")

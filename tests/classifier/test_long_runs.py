@@ -318,3 +318,37 @@ def test_real_pose_differenced_run_live_equals_replay_and_mismatch_is_gone():
     assert [(w.topic, w.messages, w.meta) for w in live] == [(w.topic, w.messages, w.meta) for w in batch]
     spans = [(w.meta["start_ns"], w.meta["end_ns"]) for w in live if w.topic == "/odom" and w.meta.get("final")]
     assert any(a <= event["start_ns"] and event["end_ns"] <= b for a, b in spans)
+
+
+def test_derivative_baseline_is_a_training_option_and_off_by_default():
+    """`train(deriv_s=...)` (issue 15, eighth pass, measured and not kept) sets the
+    derivatives' baseline in the model's feature config; without it the calibrated config
+    is the one before the option existed."""
+    odom = manoeuvres(30.0)
+    plain = train([odom])
+    assert plain.feature_config["params"]["deriv_s"] == 0.05
+    longer = train([odom], deriv_s=0.1)
+    assert longer.feature_config["params"]["deriv_s"] == 0.1
+    rest = {k: v for k, v in longer.feature_config["params"].items() if k != "deriv_s"}
+    assert rest == {k: v for k, v in plain.feature_config["params"].items() if k != "deriv_s"}
+    assert longer.model_id_ != plain.model_id_
+
+
+def test_confirm_curve_counts_what_a_window_level_confirmation_would_keep():
+    """bench/classifier_long.py --confirm-curve: a window is kept by a rule when its peak
+    score or its flagged seconds reach the rule's level; recall is recomputed on the kept
+    windows (an event whose only window is dropped is lost)."""
+    from bench.classifier_long import confirm_curve
+
+    t = np.arange(200, dtype=np.int64) * (NS // 10)  # 20 s at 10 Hz
+    scores = np.full(200, -0.5)
+    scores[20:22] = 0.04  # a weak, short window over an event (2-2.1 s)
+    scores[100:110] = 0.5  # a strong one over no event (10-10.9 s)
+    spans = [(t[10], t[30]), (t[90], t[120])]
+    labels = {"events": [{"start_ns": int(t[20]), "end_ns": int(t[21]), "kind": "accel"}]}
+    got = confirm_curve(t, scores, spans, labels)
+    assert got["none"] == (1, 2, 1)
+    assert got["peak >= 0.05"] == (0, 1, 1)  # the event's window dropped: not recalled
+    assert got["flagged >= 0.3 s"] == (0, 1, 1)  # 0.1 s of flags
+    assert got["flagged >= 0.9 s"] == (0, 1, 1)  # 10 flags over 0.9 s
+    assert got["peak >= 0.1 or flagged >= 0.6 s"] == (0, 1, 1)
