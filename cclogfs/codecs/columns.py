@@ -181,18 +181,25 @@ def classify_joined(joined: str, n: int, decimal: bool = False) -> tuple[ColumnK
         parsed = _parse_joined(joined, n, "i")
         if parsed is not None and orjson_text(parsed) == joined:
             return ColumnKind.INT, parsed
-    elif first not in ("true", "false") and not (decimal and _decimal_start(joined, comma)):
+    elif first not in ("true", "false") and not (decimal and _maybe_decimal(joined, first)):
         parsed = _parse_joined(joined, n)
         if parsed is not None and _render_joined(parsed) == joined:
             return ColumnKind.FLOAT, parsed
     return classify(joined.split(","), decimal)
 
 
-def _decimal_start(joined: str, comma: int) -> bool:
-    """Whether the first two of the joined tokens are DECIMAL: a DECIMAL column's are, and
-    most float columns (repr digits, whose count varies) fail at the second."""
-    end = joined.find(",", comma + 1)
-    return _as_decimals((joined[:comma], joined[comma + 1 :] if end < 0 else joined[comma + 1 : end])) is not None
+# A DECIMAL column's tokens joined, d digits after each point (render_decimals' text): a
+# column the pattern misses is not DECIMAL, and is decided on its joined text (issue 14).
+_FIXED_POINT = {d: re.compile(r"-?[0-9]+\.[0-9]{%d}(?:,-?[0-9]+\.[0-9]{%d})*" % (d, d)) for d in DECIMAL_DIGITS}
+
+
+def _maybe_decimal(joined: str, first: str) -> bool:
+    """Whether the joined tokens may be DECIMAL: every one fixed-point with the first's
+    digits after the point. Float columns fail within a few tokens (repr's digit count
+    varies); a column that passes takes the token path, which decides."""
+    point = first.find(".")
+    d = len(first) - point - 1
+    return point >= 1 and d in _FIXED_POINT and _FIXED_POINT[d].fullmatch(joined) is not None
 
 
 def _numbers(tokens: Sequence[str], decimal: bool = False) -> tuple[ColumnKind, Any]:

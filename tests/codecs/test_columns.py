@@ -5,7 +5,7 @@ import json
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from cclogfs.codecs import columns
@@ -174,8 +174,15 @@ _NUMBER_COLUMNS = st.integers(1, 40).flatmap(lambda n: st.one_of(  # from 16 tok
 ))
 
 
+# Real /odom floats whose first tokens share their digit count: DECIMAL is ruled out on the joined text.
+_ODOM = ["0.849090576171875", "0.837188720703125", "0.8263397216796875", "0.8155975341796875", "0.802703857421875"] * 4
+
+
 @given(_NUMBER_COLUMNS, st.lists(st.tuples(st.integers(0, 39), _NUMBER_TOKENS), max_size=2), st.booleans())
 @settings(max_examples=1500, deadline=None)
+@example(_ODOM, [], True)
+@example(_ODOM[:16] + ["0.125"] * 4, [], True)
+@example([f"{m / 1000:.3f}" for m in range(20)] + ["1.5"], [], True)
 def test_a_joined_number_column_gets_the_token_path_s_verdict(tokens, edits, decimal):
     """The encoder classifies a number slot's tokens joined by "," (as the row finder gives
     them): the same kind and values as classify of the tokens, so the same bytes."""
