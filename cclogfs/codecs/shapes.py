@@ -330,7 +330,7 @@ class ShapeMatcher:
     def group_window(self, texts: list[str | None]) -> tuple[list[tuple[tuple, list[int], list]], list[int]]:
         """Groups [(literals, indices, value columns)] of a window, and indices without shape.
         A value column is a sequence of tokens, or a number slot's tokens joined by ","
-        (`_columns`); `columns.classify` takes either.
+        (`_columns`, which the encoder checks with `columns.classify_joined`).
 
         Most values of a robot message never change within a window (covariances, frame
         ids, zero axes). The first pending text and a few probes spread over the window
