@@ -3,11 +3,13 @@
     python3 dev.py bench classify_ab [--rev 9c7a0a8] [--messages 60000] [--rounds 15]
 
 Encodes 200-message windows of real /odom (every shared MCAP file's, as the speed bench
-takes them) once, collecting the value columns that `classify` sees; checks that
-columns.py at --rev and today's give every column the same kind and values; then times
-`classify` of all the columns, and of the FLOAT ones, the two versions in alternating
-rounds. Prints CPU microseconds a message (minimum over rounds) and the median and range
-of the pair ratios (issue 14, sixth pass).
+takes them) once, collecting the value columns that `classify` and `classify_joined` see
+(a number slot's tokens joined by ",", from the eighth pass); checks that columns.py at
+--rev and today's give every column the same kind and values; then times the check of
+all the columns, and of the FLOAT ones, the two versions in alternating rounds: --rev's
+`classify` of each column's tokens (what its row finder gave), today's as the encoder
+calls it. Prints CPU microseconds a message (minimum over rounds) and the median and range
+of the pair ratios (issue 14, sixth and eighth passes).
 """
 
 from __future__ import annotations
@@ -59,28 +61,39 @@ def main() -> int:
     from bench.speed import odometry
     from cclogfs.codecs.columnar import ColumnarCodec
     from cclogfs.codecs.columnar_format import ColumnKind
+    from cclogfs.codecs.shapes import column_tokens
 
     then = load_columns(args.rev)
     msgs = odometry(args.messages)
-    columns: list[tuple] = []
-    classify = encode.classify
-    encode.classify = lambda tokens, decimal=False: (columns.append((tokens, decimal)), classify(tokens, decimal))[1]
+    columns: list[tuple] = []  # (what today's encoder checks, its count, decimal)
+    classify, joined = encode.classify, encode.classify_joined
+    encode.classify = lambda tokens, decimal=False: (columns.append((tokens, len(tokens), decimal)), classify(tokens, decimal))[1]
+    encode.classify_joined = lambda text, n, decimal=False: (columns.append((text, n, decimal)), joined(text, n, decimal))[1]
     codec = ColumnarCodec()
     for i in range(0, len(msgs), 200):
         codec.encode([s for s, _ in msgs[i : i + 200]], [t for _, t in msgs[i : i + 200]])
-    encode.classify = classify
-    for tokens, decimal in columns:
-        assert same(then.classify(tokens, decimal), now.classify(tokens, decimal)), tokens[:3]
-    floats = [c for c in columns if now.classify(*c)[0] is ColumnKind.FLOAT]
+    encode.classify, encode.classify_joined = classify, joined
+    tokens_of = [tuple(column_tokens(column)) for column, _, _ in columns]  # what --rev's row finder gave
+
+    def today(column, n, decimal):
+        return now.classify_joined(column, n, decimal) if isinstance(column, str) else now.classify(column, decimal)
+
+    for (column, n, decimal), tokens in zip(columns, tokens_of):
+        assert same(then.classify(tokens, decimal), today(column, n, decimal)), tokens[:3]
+    floats = [k for k, c in enumerate(columns) if today(*c)[0] is ColumnKind.FLOAT]
 
     def run(module, chosen) -> float:
         start = time.process_time()
-        for tokens, decimal in chosen:
-            module.classify(tokens, decimal)
+        if module is then:
+            for k in chosen:
+                then.classify(tokens_of[k], columns[k][2])
+        else:
+            for k in chosen:
+                today(*columns[k])
         return (time.process_time() - start) / len(msgs) * 1e6
 
     print(f"{len(msgs):,} messages, {len(columns):,} columns ({len(floats):,} FLOAT); {args.rev} against today's")
-    for label, chosen in (("all columns", columns), ("FLOAT columns", floats)):
+    for label, chosen in (("all columns", range(len(columns))), ("FLOAT columns", floats)):
         a, b = [], []
         for _ in range(args.rounds):
             a.append(run(then, chosen))

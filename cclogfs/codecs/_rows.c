@@ -8,9 +8,13 @@
  * Both tokens are found by one forward scan: a string ends at its first unescaped quote
  * (the regex cannot end it elsewhere), a number takes every character of its class.
  *
- * match_columns(literals, kinds, texts) -> the same tokens by slot: k lists of one token
- * per text (the rows transposed), or None if any text does not match. The encoder works
- * a column at a time; building the rows and transposing them cost more than the matching.
+ * match_columns(literals, kinds, texts) -> the same tokens by slot, one entry per slot, or
+ * None if any text does not match. A string slot's entry is a list of one token per text
+ * (the rows transposed); a number slot's is one str, its tokens joined by "," (a number
+ * token holds no comma, so split(",") gives them back). The encoder works a column at a
+ * time, and it parses and compares a number column as that joined text: one object per
+ * column instead of one per text (a window of 200 odometry messages has ~2,000 number
+ * tokens, whose objects cost more than finding them; issue 14, eighth pass).
  *
  * Only texts and literals of one byte per character (ASCII and Latin-1, as robot JSON
  * is) are handled; for any other both functions return NotImplemented and the caller
@@ -169,6 +173,27 @@ static PyObject *match_rows(PyObject *Py_UNUSED(self), PyObject *args)
     return out;
 }
 
+/* A number slot's tokens, found at spans[i * k + j] (start, end) for each text i, joined by
+ * ",": a new ASCII str (number tokens are [-+.0-9A-Za-z] only). */
+static PyObject *joined_tokens(PyObject *texts, const Py_ssize_t *spans, Py_ssize_t k, Py_ssize_t j)
+{
+    Py_ssize_t count = PyList_GET_SIZE(texts), size = count > 0 ? count - 1 : 0;
+    for (Py_ssize_t i = 0; i < count; i++)
+        size += spans[2 * (i * k + j) + 1] - spans[2 * (i * k + j)];
+    PyObject *out = PyUnicode_New(size, 127);
+    if (out == NULL)
+        return NULL;
+    Py_UCS1 *at = PyUnicode_1BYTE_DATA(out);
+    for (Py_ssize_t i = 0; i < count; i++) {
+        Py_ssize_t start = spans[2 * (i * k + j)], len = spans[2 * (i * k + j) + 1] - start;
+        if (i > 0)
+            *at++ = ',';
+        memcpy(at, PyUnicode_1BYTE_DATA(PyList_GET_ITEM(texts, i)) + start, len);
+        at += len;
+    }
+    return out;
+}
+
 static PyObject *match_columns(PyObject *Py_UNUSED(self), PyObject *args)
 {
     struct shape sh;
@@ -176,30 +201,41 @@ static PyObject *match_columns(PyObject *Py_UNUSED(self), PyObject *args)
     int ready = shape_init(args, "match_columns", &sh, &texts);
     if (ready <= 0)
         return ready < 0 ? NULL : Py_NewRef(Py_NotImplemented);
-    Py_ssize_t count = PyList_GET_SIZE(texts);
-    PyObject *out = PyList_New(sh.k);
-    for (Py_ssize_t j = 0; out != NULL && j < sh.k; j++) {
-        PyObject *column = PyList_New(count);
+    Py_ssize_t count = PyList_GET_SIZE(texts), k = sh.k;
+    /* Every text's value spans first: a joined column's size is known only after the last. */
+    Py_ssize_t *spans = PyMem_Malloc(2 * (count * k + 1) * sizeof *spans);
+    PyObject *out = spans == NULL ? PyErr_NoMemory() : PyList_New(k);
+    for (Py_ssize_t i = 0; out != NULL && i < count; i++) {
+        if (!find_values(PyList_GET_ITEM(texts, i), &sh)) {
+            Py_SETREF(out, Py_NewRef(Py_None));
+            break;
+        }
+        for (Py_ssize_t j = 0; j < k; j++) {
+            spans[2 * (i * k + j)] = sh.starts[j];
+            spans[2 * (i * k + j) + 1] = sh.ends[j];
+        }
+    }
+    for (Py_ssize_t j = 0; out != NULL && out != Py_None && j < k; j++) {
+        PyObject *column;
+        if (sh.kinds[j]) {
+            column = PyList_New(count);
+            for (Py_ssize_t i = 0; column != NULL && i < count; i++) {
+                Py_ssize_t at = 2 * (i * k + j);
+                PyObject *token = PyUnicode_Substring(PyList_GET_ITEM(texts, i), spans[at], spans[at + 1]);
+                if (token == NULL)
+                    Py_CLEAR(column);
+                else
+                    PyList_SET_ITEM(column, i, token);
+            }
+        } else {
+            column = joined_tokens(texts, spans, k, j);
+        }
         if (column == NULL)
             Py_CLEAR(out);
         else
             PyList_SET_ITEM(out, j, column);
     }
-    for (Py_ssize_t i = 0; out != NULL && i < count; i++) {
-        PyObject *text = PyList_GET_ITEM(texts, i);
-        if (!find_values(text, &sh)) {
-            Py_SETREF(out, Py_NewRef(Py_None));
-            break;
-        }
-        for (Py_ssize_t j = 0; j < sh.k; j++) {
-            PyObject *token = PyUnicode_Substring(text, sh.starts[j], sh.ends[j]);
-            if (token == NULL) {
-                Py_CLEAR(out);
-                break;
-            }
-            PyList_SET_ITEM(PyList_GET_ITEM(out, j), i, token);
-        }
-    }
+    PyMem_Free(spans);
     shape_free(&sh);
     return out;
 }
@@ -208,7 +244,7 @@ static PyMethodDef methods[] = {
     {"match_rows", match_rows, METH_VARARGS,
      "match_rows(literals, kinds, texts): each text's value tokens in the shape, or None."},
     {"match_columns", match_columns, METH_VARARGS,
-     "match_columns(literals, kinds, texts): each slot's value tokens, one per text; None if a text misses."},
+     "match_columns(literals, kinds, texts): each slot's value tokens (a number slot's joined by ','); None if a text misses."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -21,13 +21,14 @@ from .columns import (
     _write_blob,
     _zigzag_delta,
     classify,
+    classify_joined,
     float_deltas,
     quaternion_prediction,
     slot_floats,
     write_column,
     write_packed,
 )
-from .shapes import ShapeMatcher
+from .shapes import ShapeMatcher, column_tokens
 
 
 # A float slot after three float slots is coded as a quaternion's w when at least this
@@ -38,24 +39,26 @@ _MAX_LABELS = 8
 
 
 def _split_by_label(
-    literals: tuple[str, ...], indices: list[int], columns: list[Sequence[str]]
-) -> list[tuple[tuple[str, ...], list[int], list[Sequence[str]]]]:
+    literals: tuple[str, ...], indices: list[int], columns: list[Sequence[str] | str]
+) -> list[tuple[tuple[str, ...], list[int], list[Sequence[str] | str]]]:
     """Split a group by its first string slot with a few values (a frame id, say).
 
     /tf interleaves transforms of different frames; apart, each frame's values form a
     smooth series that delta coding shrinks, together they alternate and do not.
+    (A column is a sequence of tokens, or a number slot's tokens joined: `classify_joined`.)
     """
     if len(indices) < 2 * _MAX_LABELS:
         return [(literals, indices, columns)]
     for column in columns:
-        if column[0][:1] != '"':
+        if isinstance(column, str) or column[0][:1] != '"':
             continue
         labels = dict.fromkeys(column)  # in order of first appearance: the parts' order
         if 1 < len(labels) <= _MAX_LABELS:
+            tokens = list(map(column_tokens, columns))
             parts = []
             for label in labels:
                 rows = [r for r, token in enumerate(column) if token == label]
-                parts.append((literals, [indices[r] for r in rows], [[c[r] for r in rows] for c in columns]))
+                parts.append((literals, [indices[r] for r in rows], [[c[r] for r in rows] for c in tokens]))
             return parts
     return [(literals, indices, columns)]
 
@@ -77,12 +80,15 @@ def _maybe_unit(xyz: list, w: np.ndarray) -> bool:
     return False
 
 
-def _encode_group(literals: tuple[str, ...], columns: list[Sequence[str]], n: int, version: int) -> bytes:
+def _encode_group(literals: tuple[str, ...], columns: list[Sequence[str] | str], n: int, version: int) -> bytes:
     """One group of n texts: header, literals, kinds, then each column's data."""
     kinds, values = [], []
     floats: list[np.ndarray | str | None] = []  # what slot_floats takes, per slot
     for tokens in columns:
-        kind, vals = classify(tokens, decimal=version >= 4)
+        if isinstance(tokens, str):  # a number slot's tokens joined (shapes._columns)
+            kind, vals = classify_joined(tokens, n, decimal=version >= 4)
+        else:
+            kind, vals = classify(tokens, decimal=version >= 4)
         fl = vals if kind in (ColumnKind.FLOAT, ColumnKind.CONST) else None
         if kind is ColumnKind.FLOAT and len(floats) >= 3 and _maybe_unit(floats[-3:], vals):
             xyz = [slot_floats(f, n) for f in floats[-3:]]

@@ -39,6 +39,7 @@ __all__ = [
     "read_packed",
     "write_packed",
     "classify",
+    "classify_joined",
     "float_deltas",
     "quaternion_prediction",
     "read_column",
@@ -128,6 +129,7 @@ def classify(tokens: Sequence[str], decimal: bool = False) -> tuple[ColumnKind, 
     """The most compact kind that reproduces every token, and the values to store.
 
     `decimal` allows DECIMAL (format version 4), whose values are (digits, i64 array).
+    A number slot's tokens joined by "," go to `classify_joined`.
     """
     first = tokens[0]
     if tokens[-1] == first and tokens.count(first) == len(tokens):  # most columns vary: one compare
@@ -156,6 +158,48 @@ def classify(tokens: Sequence[str], decimal: bool = False) -> tuple[ColumnKind, 
     if kind is ColumnKind.DECIMAL:
         return kind, (values[0], values[1][rows])
     return kind, values[rows]
+
+
+def classify_joined(joined: str, n: int, decimal: bool = False) -> tuple[ColumnKind, Any]:
+    """`classify` of n number tokens joined by "," (as `shapes._columns` gives a number
+    slot; a number token holds no comma, so `split(",")` gives them back).
+
+    The usual columns are decided on the joined text, which is what simdjson parses and
+    what orjson's rendering is compared with: a constant, and a column that is INT, or
+    FLOAT and not DECIMAL, by the one-call checks of `_ints` and `_as_floats`. Each is the
+    decision and the values the token path gives (its kinds are properties of each token,
+    so whether it checks each distinct token once or all of them does not change them).
+    Any other column (one the one-call checks refuse, a DECIMAL candidate, true/false)
+    takes the token path. Issue 14, eighth pass: a token object per number cost more than
+    checking it.
+    """
+    comma = joined.find(",")
+    first = joined if comma < 0 else joined[:comma]
+    if comma < 0 or (joined[joined.rfind(",") + 1 :] == first and ",".join([first] * n) == joined):
+        return ColumnKind.CONST, first
+    if first.isdigit() or (first[:1] == "-" and first[1:].isdigit()):
+        parsed = _parse_joined(joined, n, "i")
+        if parsed is not None and orjson_text(parsed) == joined:
+            return ColumnKind.INT, parsed
+    elif first not in ("true", "false") and not (decimal and _maybe_decimal(joined, first)):
+        parsed = _parse_joined(joined, n)
+        if parsed is not None and _render_joined(parsed) == joined:
+            return ColumnKind.FLOAT, parsed
+    return classify(joined.split(","), decimal)
+
+
+# A DECIMAL column's tokens joined, d digits after each point (render_decimals' text): a
+# column the pattern misses is not DECIMAL, and is decided on its joined text (issue 14).
+_FIXED_POINT = {d: re.compile(r"-?[0-9]+\.[0-9]{%d}(?:,-?[0-9]+\.[0-9]{%d})*" % (d, d)) for d in DECIMAL_DIGITS}
+
+
+def _maybe_decimal(joined: str, first: str) -> bool:
+    """Whether the joined tokens may be DECIMAL: every one fixed-point with the first's
+    digits after the point. Float columns fail within a few tokens (repr's digit count
+    varies); a column that passes takes the token path, which decides."""
+    point = first.find(".")
+    d = len(first) - point - 1
+    return point >= 1 and d in _FIXED_POINT and _FIXED_POINT[d].fullmatch(joined) is not None
 
 
 def _numbers(tokens: Sequence[str], decimal: bool = False) -> tuple[ColumnKind, Any]:

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from itertools import chain, repeat
 from operator import itemgetter
 
-__all__ = ["ShapeMatcher", "split_text"]
+__all__ = ["ShapeMatcher", "column_tokens", "split_text"]
 
 # The compiled row finder (cclogfs/codecs/_rows.c; setup.py builds it where a C compiler is):
 # the same rows as `_rows_python`, or the same tokens by column (`_columns`), in half the
@@ -250,16 +250,26 @@ def _rows(shape: tuple, texts: list[str]) -> list[tuple | None]:
     return _rows_python(shape, texts)
 
 
-def _columns(shape: tuple, texts: list[str]) -> list[Sequence[str]] | None:
-    """The value tokens of texts in a shape by slot (one sequence per slot, one token per
-    text), or None if any text misses: `_rows` transposed. The encoder works a column at
-    a time; the compiled helper gives the columns without building rows in between."""
+def _columns(shape: tuple, texts: list[str]) -> list[Sequence[str] | str] | None:
+    """The value tokens of texts in a shape by slot, or None if any text misses: `_rows`
+    transposed. A string slot gives a sequence of one token per text; a number slot its
+    tokens joined by "," in one str (a number token holds no comma: `split(",")` gives
+    them back), which is how the encoder parses and checks a number column. The compiled
+    helper gives the columns without building rows, or an object per number, in between."""
     if _match_columns_c is not None:
         columns = _match_columns_c(shape[0], shape[3], texts)
         if columns is not NotImplemented:
             return columns
     rows = _rows_python(shape, texts)
-    return None if None in rows else transpose(rows, len(shape[3]))
+    if None in rows:
+        return None
+    columns = transpose(rows, len(shape[3]))
+    return [column if is_string else ",".join(column) for column, is_string in zip(columns, shape[3])]
+
+
+def column_tokens(column: Sequence[str] | str) -> Sequence[str]:
+    """A value column's tokens, whether a sequence or a number slot's joined (`_columns`)."""
+    return column.split(",") if isinstance(column, str) else column
 
 
 def transpose(rows: list[tuple[str, ...]], k: int) -> list[Sequence[str]]:
@@ -319,6 +329,8 @@ class ShapeMatcher:
 
     def group_window(self, texts: list[str | None]) -> tuple[list[tuple[tuple, list[int], list]], list[int]]:
         """Groups [(literals, indices, value columns)] of a window, and indices without shape.
+        A value column is a sequence of tokens, or a number slot's tokens joined by ","
+        (`_columns`, which the encoder checks with `columns.classify_joined`).
 
         Most values of a robot message never change within a window (covariances, frame
         ids, zero axes). The first pending text and a few probes spread over the window

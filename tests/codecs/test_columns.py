@@ -1,10 +1,11 @@
 """cclogfs.codecs.columns: one value slot of a shape, classified, written and read back."""
 
 import base64
+import json
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from cclogfs.codecs import columns
@@ -141,3 +142,51 @@ def test_int_columns_read_at_once_get_int_s_verdict(ints, edits):
         assert values == want
     if not edits:
         assert kind in (ColumnKind.INT, ColumnKind.CONST)
+
+
+def same_verdict(a, b) -> bool:
+    """Whether two classify results are the same kind and values, bit for bit."""
+    (ka, va), (kb, vb) = a, b
+    if ka is not kb:
+        return False
+    if ka is ColumnKind.DECIMAL:
+        return va[0] == vb[0] and va[1].tobytes() == vb[1].tobytes()
+    if isinstance(va, np.ndarray):
+        return va.dtype == vb.dtype and va.tobytes() == vb.tobytes()
+    return list(va) == list(vb) if ka is not ColumnKind.CONST else va == vb
+
+
+# Number tokens as a number slot holds them: json.dumps floats (NaN, Infinity, exponents),
+# ints beyond i64, fixed-point decimals, and spellings that denote a number otherwise.
+_FLOAT_TOKENS = st.floats().map(json.dumps) | st.floats(-1e-3, 1e-3).map(json.dumps)
+_NUMBER_TOKENS = st.one_of(
+    _FLOAT_TOKENS,
+    st.integers(-(2**64), 2**64).map(str),
+    st.integers(-10**6, 10**6).map(lambda m: f"{m / 1000:.3f}"),
+    ODD_INTS,
+    st.sampled_from(["true", "false", "null", "1e-5", "0.00001", "-0.0", "0.10", "nan", "inf", "NaN", "1_0"]),
+)
+_NUMBER_COLUMNS = st.integers(1, 40).flatmap(lambda n: st.one_of(  # from 16 tokens simdjson reads them at once
+    st.lists(_FLOAT_TOKENS, min_size=n, max_size=n),
+    st.lists(st.integers(-(2**63), 2**63 - 1).map(str), min_size=n, max_size=n),
+    st.lists(st.integers(-10**6, 10**6).map(lambda m: f"{m / 1000:.3f}"), min_size=n, max_size=n),
+    st.lists(_NUMBER_TOKENS, min_size=1, max_size=6).flatmap(lambda pool: st.lists(st.sampled_from(pool), min_size=n, max_size=n)),
+))
+
+
+# Real /odom floats whose first tokens share their digit count: DECIMAL is ruled out on the joined text.
+_ODOM = ["0.849090576171875", "0.837188720703125", "0.8263397216796875", "0.8155975341796875", "0.802703857421875"] * 4
+
+
+@given(_NUMBER_COLUMNS, st.lists(st.tuples(st.integers(0, 39), _NUMBER_TOKENS), max_size=2), st.booleans())
+@settings(max_examples=1500, deadline=None)
+@example(_ODOM, [], True)
+@example(_ODOM[:16] + ["0.125"] * 4, [], True)
+@example([f"{m / 1000:.3f}" for m in range(20)] + ["1.5"], [], True)
+def test_a_joined_number_column_gets_the_token_path_s_verdict(tokens, edits, decimal):
+    """The encoder classifies a number slot's tokens joined by "," (as the row finder gives
+    them): the same kind and values as classify of the tokens, so the same bytes."""
+    for at, token in edits:
+        tokens[at % len(tokens)] = token
+    got = columns.classify_joined(",".join(tokens), len(tokens), decimal)
+    assert same_verdict(got, classify(tuple(tokens), decimal)), tokens

@@ -50,12 +50,15 @@ def test_the_same_rows_as_the_regex(text, edits, others):
         return
     want = regex_rows(literals, values, candidates)
     assert got == want
-    # By column: the rows transposed when every candidate matches, else None.
+    # By column: the rows transposed when every candidate matches (a number slot's tokens
+    # joined by ","), else None.
     columns = COMPILED.match_columns(literals, kinds, candidates)
     if None in want:
         assert columns is None
     else:
-        assert columns == [list(c) for c in shapes.transpose(want, len(kinds))]
+        by_slot = shapes.transpose(want, len(kinds))
+        assert columns == [list(c) if s else ",".join(c) for c, s in zip(by_slot, kinds)]
+        assert [c.split(",") for c, s in zip(columns, kinds) if not s] == [list(c) for c, s in zip(by_slot, kinds) if not s]
 
 
 def test_edges_of_string_and_number_tokens():
@@ -65,7 +68,7 @@ def test_edges_of_string_and_number_tokens():
     want = regex_rows(literals, ['"s"', "0"], candidates)
     assert COMPILED.match_rows(literals, kinds, candidates) == want
     assert COMPILED.match_columns(literals, kinds, candidates) is None
-    assert COMPILED.match_columns(literals, kinds, [candidates[0], candidates[2]]) == [['"a\\"b"', '"a\\\\"'], ["-1.5e+3", "1"]]
+    assert COMPILED.match_columns(literals, kinds, [candidates[0], candidates[2]]) == [['"a\\"b"', '"a\\\\"'], "-1.5e+3,1"]
     assert COMPILED.match_columns(("[]",), (), ["[]", "[]"]) == []  # no value slots: no columns
     assert want[0] == ('"a\\"b"', "-1.5e+3") and want[1] is None and want[2] == ('"a\\\\"', "1")
 
