@@ -1,6 +1,6 @@
 #!/bin/bash
 # Whole-process A/B of issue 14's commands: this checkout (A) against an older commit (B),
-# in alternating pairs with farm-bench (medians; quote the CPU ratio on a shared machine).
+# in alternating pairs with bench/ab.py (medians; quote the CPU ratio on a shared machine).
 #   bash bench/speed_ab.sh [REV]      (REV default 8f10a52: main before issue 14)
 # Needs the inputs of `python3 dev.py bench speed` (out/speed-data-300000-1000000-5-v2).
 set -e
@@ -21,15 +21,15 @@ A="env PYTHONPATH=$ROOT $PY -m cclogfs"
 B="env PYTHONPATH=$TMP/old $PY -m cclogfs"
 show() { grep -E "cpu s|wall s|peak MiB|A/B (cpu|wall)|exit"; }
 cd "$TMP"
-echo "=== cclog --help"; farm-bench -n 9 --vs "$B --help" -- $A --help 2>&1 | show
+echo "=== cclog --help"; $PY $ROOT/bench/ab.py -n 9 --vs "$B --help" -- $A --help 2>&1 | show
 echo "=== cat 1 s of the 1M-message store"
-farm-bench -n 7 --timeout 200 --vs "$B cat $D/big.store --start $start --end $end" -- \
+$PY $ROOT/bench/ab.py -n 7 --timeout 200 --vs "$B cat $D/big.store --start $start --end $end" -- \
   $A cat "$D/big.store" --start "$start" --end "$end" 2>&1 | show
 echo "=== cat of the 300k-message store (full scan)"
-farm-bench -n 3 --timeout 400 --vs "$B cat $D/small.store" -- $A cat "$D/small.store" 2>&1 | show
+$PY $ROOT/bench/ab.py -n 3 --timeout 400 --vs "$B cat $D/small.store" -- $A cat "$D/small.store" 2>&1 | show
 for args in "odom30k.jsonl" "$D/sim.bag" "odom30k.jsonl --model $D/model --force-model"; do
   echo "=== record $args"
-  farm-bench -n 5 --timeout 600 \
+  $PY $ROOT/bench/ab.py -n 5 --timeout 600 \
     --vs "sh -c 'rm -rf s/b; PYTHONPATH=$TMP/old exec $PY -m cclogfs record $args --store s/b'" -- \
     sh -c "rm -rf s/a; PYTHONPATH=$ROOT exec $PY -m cclogfs record $args --store s/a" 2>&1 | show
 done
