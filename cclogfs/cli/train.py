@@ -53,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     if args.validate:  # checked before training, so that a bad run fails in seconds, not after
         (validate,), _ = _read_runs([args.validate], args.topic, make_features(args.features), "score")
+        validate_labels = load_labels(args.validate_labels, validate.stamp_ns, args.validate, args.topic)
     if len(args.sources) == 1 and (Path(args.sources[0]) / "dataset.json").is_file():
         config, nominal, anomalous = load_dataset(args.sources[0])
         model = OneClassModel(feature_config=config, topic=args.topic,
@@ -63,7 +64,8 @@ def run(args: argparse.Namespace) -> int:
         runs, reports = _read_runs(args.sources, args.topic, make_features(args.features))
         # A left-out message would only repeat the vector before it: train without them.
         runs = [odom.take(r.accepted) if r.left_out else odom for odom, r in zip(runs, reports)]
-        labels = [load_labels(p) for p in args.labels] if args.labels else None
+        labels = ([load_labels(p, odom.stamp_ns, src, args.topic) for p, odom, src in zip(args.labels, runs, args.sources)]
+                  if args.labels else None)  # fmt: skip
         try:
             model = train(runs, labels=labels, features=args.features, topic=args.topic,
                           false_alarm_rate=args.false_alarm_rate)  # fmt: skip
@@ -84,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
 
         _, flags = Detector(model).score_batch(validate)
         print(f"\nvalidation on {args.validate} (per message, as the paper's Table 1):")
-        print(format_message_table(message_table(validate.stamp_ns, flags, load_labels(args.validate_labels))))
+        print(format_message_table(message_table(validate.stamp_ns, flags, validate_labels)))
     return 0
 
 
