@@ -118,8 +118,12 @@ def what_exists(streams: dict[str, dict]) -> str:
 def nothing_matched(store, args: argparse.Namespace) -> InvalidInputError:
     """The error for a --topic/--start/--end selection that matched no message."""
     wanted = " or ".join(args.topic or ["any topic"])
-    times = f" between {args.start if args.start is None else iso_ns(args.start)} and " \
-            f"{args.end if args.end is None else iso_ns(args.end)}" if args.start is not None or args.end is not None else ""
+    if args.start is not None and args.end is not None:
+        times = f" between {iso_ns(args.start)} and {iso_ns(args.end)}"
+    elif args.start is not None or args.end is not None:  # not "between ... and None"
+        times = f" from {iso_ns(args.start)} on" if args.start is not None else f" up to {iso_ns(args.end)}"
+    else:
+        times = ""
     from ..runs import hidden_by_default
 
     if not any(hidden_by_default(t) for t in args.topic or ()):  # the runs' wall-clock span only when asked for

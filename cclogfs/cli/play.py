@@ -57,6 +57,9 @@ def run(args: argparse.Namespace) -> int:
 
     if not args.rate > 0:
         raise InvalidInputError(f"--rate must be positive, not {args.rate}")
+    if args.skip_gaps is not None and not 0 <= args.skip_gaps < float("inf"):
+        # nan was a traceback; a negative S played every gap backwards: no pacing at all
+        raise InvalidInputError(f"--skip-gaps must be a number of seconds >= 0, not {args.skip_gaps}")
     if args.foxglove is not None and args.to != "-":
         raise InvalidInputError("--foxglove and --to ros1:// are two ways to play; choose one")
     if args.to != "-" and not args.to.startswith("ros1://"):
