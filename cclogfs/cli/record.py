@@ -294,16 +294,20 @@ def _options(args: argparse.Namespace) -> dict:
 
 def _begin_run(args: argparse.Namespace, store, source):
     """Refuse a source the store has a run of already (unless --append); write this run's start."""
-    from ..runs import begin_run, earlier_run, source_fingerprint
+    from ..runs import begin_run, earlier_run, grown_run, source_fingerprint
 
     fingerprint = source_fingerprint(args.source)
     earlier = earlier_run(store, fingerprint)
-    if earlier is not None and not args.append:
-        kept = "its end not recorded" if earlier.kept is None else f"{earlier.kept:,} messages kept"
+    grown = None if earlier is not None or args.append else grown_run(store, args.source, fingerprint)
+    if (earlier is not None or grown is not None) and not args.append:
+        run = earlier or grown
+        kept = "its end not recorded" if run.kept is None else f"{run.kept:,} messages kept"
+        what = "already" if grown is None else f"when it was {run.fingerprint['bytes']:,} bytes (it has grown since)"
         raise InvalidInputError(
-            f"{args.source} was recorded into {args.store} already, as run {earlier.number} "
-            f"({iso_ns(earlier.start_ns)}, {earlier.status}, {kept}); recording it again would store its "
-            "messages twice: pass --append to record it again, or record into another --store.")  # fmt: skip
+            f"{args.source} was recorded into {args.store} {what}, as run {run.number} "
+            f"({iso_ns(run.start_ns)}, {run.status}, {kept}); recording it again would store "
+            f"{'its' if grown is None else 'those'} messages twice: pass --append to record it again, "
+            "or record into another --store.")  # fmt: skip
     if fingerprint is None:  # stdin or a live master: named as given (a master by its URI)
         name, extra = args.source, ({"master": source.master} if hasattr(source, "master") else {})
     else:
