@@ -238,6 +238,7 @@ def _warn_damage(store) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Record; a run that fails before storing anything leaves no store it created."""
+    _refuse_store_in_source(args)
     existed = os.path.exists(args.store)
     try:
         return _run(args)
@@ -249,6 +250,17 @@ def run(args: argparse.Namespace) -> int:
             raise StoreFailedError(f"{err.store_failed}; nothing of this run was stored, so the store it created was "
                                    "removed: free space, then record again") from err  # fmt: skip
         raise
+
+
+def _refuse_store_in_source(args: argparse.Namespace) -> None:
+    """A store inside the source (a ROS 2 bag directory) writes into an input, and changes
+    the bag's fingerprint with every run, so recording it again is not known as a second
+    time: its messages were stored twice, exit 0."""
+    if args.source != "-" and "://" not in args.source and os.path.isdir(args.source):
+        store, source = os.path.realpath(args.store), os.path.realpath(args.source)
+        if store == source or store.startswith(source.rstrip(os.sep) + os.sep):
+            raise InvalidInputError(f"--store {args.store} is inside the source {args.source}; inputs are never "
+                                    "written: choose a store outside it.")  # fmt: skip
 
 
 def _remove_if_empty(path: str) -> bool:

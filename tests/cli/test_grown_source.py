@@ -49,3 +49,17 @@ def test_a_run_fingerprinted_before_head_was_kept_still_counts_as_the_same_conte
     with cclogfs.open_store(tmp_path / "s", create=True) as store:
         begin_run(store, str(log), fingerprint=old, options={}).end(messages_kept=5)
         assert earlier_run(store, new).number == 1
+
+
+def test_a_store_inside_the_source_bag_directory_is_refused(tmp_path, capsys):
+    """It wrote into the input and, the bag's fingerprint changing with each run, a second
+    recording of the bag was not refused: every message stored twice, exit 0."""
+    from cclogfs.sim import simulate
+
+    simulate(seed=1, duration_s=5.0, rate_hz=20.0).write(tmp_path / "sim")
+    bag = tmp_path / "sim" / "run"
+    before = sorted(p.name for p in bag.iterdir())
+    for store in (bag / "st", bag):
+        assert main(["record", str(bag), "--store", str(store)]) == 1
+        assert "is inside the source" in capsys.readouterr().err
+    assert sorted(p.name for p in bag.iterdir()) == before
