@@ -52,6 +52,10 @@ def run(args: argparse.Namespace) -> int:
     paths = plot_store(data, out)
     if not len(data.x):
         print(f"cclog: no pose stream in {args.store} (name one with --topic): windows only", file=sys.stderr)
+    if data.undrawn:
+        print(f"cclog: note: {data.undrawn:,} of {len(data.x):,} messages of {data.topic} left out of the "
+              "trajectory or speed plot: a position or speed is NaN, infinite or beyond 1e100",
+              file=sys.stderr)  # fmt: skip
     for path in paths:
         print(path)
     return 0

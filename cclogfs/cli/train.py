@@ -29,7 +29,8 @@ DESCRIPTION = "Fit a one-class SVM (RBF kernel) on the odometry of nominal runs.
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("sources", nargs="+", help="bags, MCAP or JSONL files, or a feature-vector dataset directory")
-    p.add_argument("--out", required=True, help="model directory to write (an existing model is replaced only with --force)")
+    p.add_argument("--out", required=True,
+                   help="model directory to write (an existing model is replaced only with --force)")
     add_force(p)
     p.add_argument("--topic", default="/odom", help="odometry topic (nav_msgs/Odometry; default /odom)")
     p.add_argument("--labels", action="append", metavar="JSON",
@@ -64,8 +65,8 @@ def run(args: argparse.Namespace) -> int:
         runs, reports = _read_runs(args.sources, args.topic, make_features(args.features))
         # A left-out message would only repeat the vector before it: train without them.
         runs = [odom.take(r.accepted) if r.left_out else odom for odom, r in zip(runs, reports)]
-        labels = ([load_labels(p, odom.stamp_ns, src, args.topic) for p, odom, src in zip(args.labels, runs, args.sources)]
-                  if args.labels else None)  # fmt: skip
+        labels = None if not args.labels else [
+            load_labels(p, odom.stamp_ns, src, args.topic) for p, odom, src in zip(args.labels, runs, args.sources)]
         try:
             model = train(runs, labels=labels, features=args.features, topic=args.topic,
                           false_alarm_rate=args.false_alarm_rate)  # fmt: skip
