@@ -50,6 +50,8 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"--labels was given {len(args.labels)} times for {len(args.sources)} sources")
     if bool(args.validate) != bool(args.validate_labels):
         raise InvalidInputError("--validate and --validate-labels go together")
+    if not 0 <= args.false_alarm_rate <= 1:  # nan and -1 were numpy's traceback after reading every run
+        raise InvalidInputError(f"--false-alarm-rate must be a fraction from 0 to 1, not {args.false_alarm_rate}")
     _check_out(args)
     started = time.perf_counter()
     if args.validate:  # checked before training, so that a bad run fails in seconds, not after

@@ -79,3 +79,10 @@ def test_simulate_refuses_a_store_and_contradicting_counts(store, tmp_path, caps
         assert main(["simulate", "--duration", "5", "--anomalies", "3", *other, "--out", str(tmp_path / "x")]) == 1
         assert "contradict" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+def test_train_refuses_a_false_alarm_rate_outside_0_to_1(tmp_path, run_dir, capsys):
+    for rate in ("nan", "-1", "1.5"):
+        assert main(["train", str(run_dir / "run.jsonl"), "--out", str(tmp_path / "m"), "--false-alarm-rate", rate]) == 1
+        assert "--false-alarm-rate must be a fraction from 0 to 1" in capsys.readouterr().err
+    assert not (tmp_path / "m").exists()
