@@ -86,3 +86,9 @@ def test_train_refuses_a_false_alarm_rate_outside_0_to_1(tmp_path, run_dir, caps
         assert main(["train", str(run_dir / "run.jsonl"), "--out", str(tmp_path / "m"), "--false-alarm-rate", rate]) == 1
         assert "--false-alarm-rate must be a fraction from 0 to 1" in capsys.readouterr().err
     assert not (tmp_path / "m").exists()
+
+
+def test_demo_refuses_a_store(store, capsys):
+    before = listing(store)
+    assert main(["demo", "--out", str(store), "--no-plots"]) == 1
+    assert "is a cclogfs store" in capsys.readouterr().err and listing(store) == before
