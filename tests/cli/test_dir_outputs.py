@@ -92,3 +92,10 @@ def test_demo_refuses_a_store(store, capsys):
     before = listing(store)
     assert main(["demo", "--out", str(store), "--no-plots"]) == 1
     assert "is a cclogfs store" in capsys.readouterr().err and listing(store) == before
+
+
+@pytest.mark.parametrize("flag", ["--mcap", "--rosbag2", "--parquet"])
+def test_export_to_dash_is_refused_not_a_file_named_dash(store, tmp_path, monkeypatch, capsys, flag):
+    monkeypatch.chdir(tmp_path)
+    assert main(["export", str(store), flag, "-", "--robot", "r"][: 4 if flag != "--parquet" else 6]) == 1
+    assert "not standard output" in capsys.readouterr().err and not (tmp_path / "-").exists()
