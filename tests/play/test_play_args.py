@@ -48,3 +48,9 @@ def test_no_match_names_a_one_sided_range(store, capsys):
     assert main(["play", store, "--end", "5s"]) == 1
     err = capsys.readouterr().err
     assert "up to 1970-01-01T00:00:05.000Z" in err and "None" not in err
+
+
+@pytest.mark.parametrize("opts", [["--clock"], ["--host", "0.0.0.0"], ["--wait-for-subscribers"]])
+def test_options_of_another_sink_are_refused_not_ignored(store, capsys, opts):
+    assert main(["play", store, *opts]) == 1
+    assert "goes with" in capsys.readouterr().err
