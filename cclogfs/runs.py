@@ -35,8 +35,8 @@ RUNS_STREAM = "/cclog/runs"
 _EDGE = 1 << 20  # bytes hashed at each end of a file: cheap on a 10 GB bag, and a bag's
 # header (first MiB) and index (last MiB) differ between any two recordings
 
-__all__ = ["RUNS_STREAM", "Run", "RunInfo", "begin_run", "earlier_run", "hidden_by_default", "list_runs",
-           "source_fingerprint"]  # fmt: skip
+__all__ = ["RUNS_STREAM", "Run", "RunInfo", "begin_run", "earlier_run", "grown_run", "hidden_by_default",
+           "list_runs", "source_fingerprint"]  # fmt: skip
 
 
 def hidden_by_default(name: str) -> bool:
@@ -71,7 +71,16 @@ def source_fingerprint(path: str) -> dict[str, Any] | None:
             h.update(os.path.relpath(name, path).encode() + b"\0")
             size += _hash_file(name, h)
         return {"bytes": size, "files": len(names), "sha256": h.hexdigest()}
-    return {"bytes": _hash_file(path, h), "sha256": h.hexdigest()}
+    size = _hash_file(path, h)
+    with open(path, "rb") as f:  # "head": to know the file again once it has grown
+        head = hashlib.sha256(f.read(min(size, _EDGE))).hexdigest()
+    return {"bytes": size, "sha256": h.hexdigest(), "head": head}
+
+
+def _same_content(a: Mapping[str, Any], b: Mapping[str, Any]) -> bool:
+    """Fingerprints of one content: "head" is left out, since runs recorded before it
+    was kept have none."""
+    return all(a.get(k) == b.get(k) for k in ("bytes", "files", "sha256"))
 
 
 @dataclass
@@ -129,8 +138,27 @@ def earlier_run(store: Store, fingerprint: Mapping[str, Any] | None) -> RunInfo 
     if fingerprint is None:
         return None
     for run in list_runs(store):
-        if run.fingerprint == fingerprint and run.kept != 0:
+        if run.fingerprint is not None and _same_content(run.fingerprint, fingerprint) and run.kept != 0:
             return run
+    return None
+
+
+def grown_run(store: Store, path: str, fingerprint: Mapping[str, Any] | None) -> RunInfo | None:
+    """The first run that recorded `path` (a file) when it was shorter: the file begins with
+    the bytes that run saw (an appended log recorded again), so recording it would store
+    that run's messages twice. Judged by the first min(size, 1 MiB) bytes the run saw."""
+    if fingerprint is None or "head" not in fingerprint:
+        return None
+    import hashlib
+
+    size = fingerprint["bytes"]
+    for run in list_runs(store):
+        old = run.fingerprint or {}
+        if run.kept == 0 or not isinstance(old.get("bytes"), int) or not old.get("head") or not old["bytes"] < size:
+            continue
+        with open(path, "rb") as f:
+            if hashlib.sha256(f.read(min(old["bytes"], _EDGE))).hexdigest() == old["head"]:
+                return run
     return None
 
 

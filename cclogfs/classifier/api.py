@@ -38,12 +38,17 @@ def parse_labels(labels) -> list[dict]:
         return []
     try:
         events = labels["events"] if isinstance(labels, dict) else labels
-        return [{"start_ns": int(e["start_ns"]), "end_ns": int(e["end_ns"]),
-                 "kind": str(e.get("kind", ""))} for e in events]  # fmt: skip
+        out = [{"start_ns": int(e["start_ns"]), "end_ns": int(e["end_ns"]),
+                "kind": str(e.get("kind", ""))} for e in events]  # fmt: skip
     except (KeyError, TypeError, ValueError) as err:
         raise InvalidInputError(
             f"Labels must be {{'events': [{{'start_ns', 'end_ns', 'kind'}}]}}: bad field {err}."
         ) from err
+    for i, e in enumerate(out):
+        if e["end_ns"] < e["start_ns"]:  # it would cover no message: an event missed, in silence
+            raise InvalidInputError(f"Labels: event {i + 1} ends before it starts "
+                                    f"(start_ns {e['start_ns']} > end_ns {e['end_ns']}).")  # fmt: skip
+    return out
 
 
 def event_masks(features, stamp_ns: np.ndarray, labels) -> tuple[np.ndarray, np.ndarray]:

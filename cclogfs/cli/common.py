@@ -118,8 +118,12 @@ def what_exists(streams: dict[str, dict]) -> str:
 def nothing_matched(store, args: argparse.Namespace) -> InvalidInputError:
     """The error for a --topic/--start/--end selection that matched no message."""
     wanted = " or ".join(args.topic or ["any topic"])
-    times = f" between {args.start if args.start is None else iso_ns(args.start)} and " \
-            f"{args.end if args.end is None else iso_ns(args.end)}" if args.start is not None or args.end is not None else ""
+    if args.start is not None and args.end is not None:
+        times = f" between {iso_ns(args.start)} and {iso_ns(args.end)}"
+    elif args.start is not None or args.end is not None:  # not "between ... and None"
+        times = f" from {iso_ns(args.start)} on" if args.start is not None else f" up to {iso_ns(args.end)}"
+    else:
+        times = ""
     from ..runs import hidden_by_default
 
     if not any(hidden_by_default(t) for t in args.topic or ()):  # the runs' wall-clock span only when asked for
@@ -194,14 +198,33 @@ def unmatched_rules_error(flag: str, rules, what: str) -> InvalidInputError:
                              f"inside msg: 'pose.covariance', not 'msg.pose.covariance'); {what}.")  # fmt: skip
 
 
-def load_labels(path: str | None):
-    """The labelled events of a run from a JSON file (None without a path)."""
+def load_labels(path: str | None, stamp_ns=None, source: str = "", topic: str = ""):
+    """The labelled events of a run from a JSON file (None without a path).
+
+    With the run's odometry stamps (`stamp_ns`, of `source`'s `topic`), an event that lies
+    wholly outside them is an error: labels of another run (or another clock) would
+    otherwise score every event missed, or train on the anomalies, with exit 0."""
     if path is None:
         return None
+    from ..classifier import parse_labels
+
     try:
-        return json.loads(Path(path).read_text())
+        labels = json.loads(Path(path).read_text())
     except (OSError, ValueError) as err:
         raise InvalidInputError(f"cannot read labels {path}: {err}") from err
+    try:
+        events = parse_labels(labels)
+    except InvalidInputError as err:
+        raise InvalidInputError(f"labels {path}: {str(err).removeprefix('Labels: ')}") from err
+    if stamp_ns is not None and len(stamp_ns):
+        first, last = int(min(stamp_ns)), int(max(stamp_ns))
+        for i, e in enumerate(events):
+            if e["end_ns"] < first or e["start_ns"] > last:
+                raise InvalidInputError(
+                    f"labels {path}: event {i + 1} ({e['kind'] or 'no kind'}, {e['start_ns']} to {e['end_ns']} ns) "
+                    f"lies outside {source}'s {topic} ({first} to {last} ns): labels of another run, or of "
+                    "another clock (labels are in header stamps)?")  # fmt: skip
+    return labels
 
 
 class Progress:

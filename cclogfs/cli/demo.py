@@ -32,7 +32,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..demo import DemoConfig, run_demo
+    from .outputs import refuse_store_dir
 
+    refuse_store_dir(args.out)  # the demo's model, runs and stores would land among a store's segments
     run_demo(DemoConfig(out=Path(args.out), train_minutes=args.train_minutes, test_minutes=args.test_minutes,
                         rate_hz=args.rate, anomalies=args.anomalies, test_seed=args.seed,
                         plots=not args.no_plots))  # fmt: skip

@@ -55,7 +55,8 @@ def run(args: argparse.Namespace) -> int:
         messages = [(m.topic, m.stamp_ns, m.text) for m in source]
     model_fits(model, args.model, args.source, odom_topic, force=args.force_model,
                texts=[text for t, _, text in messages if t == odom_topic])  # fmt: skip
-    result = evaluate_run(messages, model, load_labels(args.labels), before=args.before, after=args.after,
+    labels = load_labels(args.labels, [s for t, s, _ in messages if t == odom_topic], args.source, odom_topic)
+    result = evaluate_run(messages, model, labels, before=args.before, after=args.after,
                           odom_topic=odom_topic)  # fmt: skip
     print("per message (the paper's Table 1):")
     print(format_message_table(result["messages"]))

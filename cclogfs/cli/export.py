@@ -56,6 +56,8 @@ def run(args: argparse.Namespace) -> int:
     if args.encoding and not args.mcap:
         raise InvalidInputError("--encoding is for --mcap (a rosbag2 bag is all CDR; Parquet columns are typed "
                                 "from the JSON).")  # fmt: skip
+    if "-" in (args.mcap, args.rosbag2, args.parquet):  # `convert -o -` is stdout; this made a file named "-"
+        raise InvalidInputError("export writes files, not standard output: give a file or directory name, not -")
     if args.mcap:
         check_output(args.mcap, [args.store], force=args.force)
     elif args.rosbag2:

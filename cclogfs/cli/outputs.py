@@ -72,3 +72,17 @@ def atomic_output(path: str | Path, mode: str = "w") -> Iterator:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def refuse_store_dir(path: str | Path, what: str = "Output") -> None:
+    """Refuse an output directory that is a store or inside one (a directory holding a
+    MANIFEST): files the store does not hold would sit among its segments (`cclog fsck`
+    warns of each), and a later `--force` could replace the store's own files."""
+    from ..store.format import MANIFEST
+
+    real = Path(os.path.realpath(path))
+    for d in (real, *real.parents):
+        if (d / MANIFEST).is_file():
+            where = "" if d == real else f" (inside the store {d})"
+            raise InvalidInputError(f"{what} {path} is a cclogfs store{where}; a store holds only its own "
+                                    "files: choose another directory.")  # fmt: skip

@@ -57,10 +57,14 @@ def run(args: argparse.Namespace) -> int:
 
     if not args.rate > 0:
         raise InvalidInputError(f"--rate must be positive, not {args.rate}")
+    if args.skip_gaps is not None and not 0 <= args.skip_gaps < float("inf"):
+        # nan was a traceback; a negative S played every gap backwards: no pacing at all
+        raise InvalidInputError(f"--skip-gaps must be a number of seconds >= 0, not {args.skip_gaps}")
     if args.foxglove is not None and args.to != "-":
         raise InvalidInputError("--foxglove and --to ros1:// are two ways to play; choose one")
     if args.to != "-" and not args.to.startswith("ros1://"):
         raise InvalidInputError(f"--to {args.to!r}: write - (stdout) or ros1://[HOST:PORT]")
+    _refuse_options_of_other_sinks(args)
     check_range(args)
     with open_store(args.store, readonly=True) as store:
         names = sorted(n for n in store.streams() if (n in args.topic if args.topic else not hidden_by_default(n)))
@@ -89,6 +93,18 @@ def run(args: argparse.Namespace) -> int:
             raise nothing_matched(store, args)
     print(f"played {n:,} messages of {len(names)} streams from {args.store}", file=sys.stderr)
     return 0
+
+
+def _refuse_options_of_other_sinks(args: argparse.Namespace) -> None:
+    """--clock, --host and --wait-for-subscribers belong to one sink each; given to another
+    they were ignored without a word (`play --clock` played JSONL with no /clock)."""
+    ros1, foxglove = args.to.startswith("ros1://"), args.foxglove is not None
+    if args.clock and not ros1:
+        raise InvalidInputError("--clock publishes /clock on ROS 1: it goes with --to ros1://")
+    if args.host != "127.0.0.1" and not foxglove:
+        raise InvalidInputError("--host is the address the Foxglove server listens on: it goes with --foxglove")
+    if args.wait_for_subscribers and not (ros1 or foxglove):
+        raise InvalidInputError("--wait-for-subscribers goes with --to ros1:// or --foxglove (stdout has no subscribers)")
 
 
 def _sink(args: argparse.Namespace, store, names: list[str], types: dict):

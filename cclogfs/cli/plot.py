@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -34,6 +35,10 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():  # before the store is read: fail fast, write nothing
         raise InvalidInputError(f"--out {out} is a file, not a directory for the PNG files")
+    if Path(os.path.realpath(out)).is_relative_to(os.path.realpath(args.store)):
+        # PNGs in the store would be files it does not hold (`cclog fsck` warns of each).
+        raise InvalidInputError(f"--out {out} is the store {args.store} (or inside it); the store is never "
+                                "written: choose another directory for the PNG files")  # fmt: skip
 
     # Imported here, not at the top: `cclog --help` imports every subcommand module.
     from ..plot.store import plot_data, plot_store
@@ -47,6 +52,10 @@ def run(args: argparse.Namespace) -> int:
     paths = plot_store(data, out)
     if not len(data.x):
         print(f"cclog: no pose stream in {args.store} (name one with --topic): windows only", file=sys.stderr)
+    if data.undrawn:
+        print(f"cclog: note: {data.undrawn:,} of {len(data.x):,} messages of {data.topic} left out of the "
+              "trajectory or speed plot: a position or speed is NaN, infinite or beyond 1e100",
+              file=sys.stderr)  # fmt: skip
     for path in paths:
         print(path)
     return 0

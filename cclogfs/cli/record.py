@@ -240,6 +240,7 @@ def _warn_damage(store) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Record; a run that fails before storing anything leaves no store it created."""
+    _refuse_store_in_source(args)
     existed = os.path.exists(args.store)
     try:
         return _run(args)
@@ -251,6 +252,17 @@ def run(args: argparse.Namespace) -> int:
             raise StoreFailedError(f"{err.store_failed}; nothing of this run was stored, so the store it created was "
                                    "removed: free space, then record again") from err  # fmt: skip
         raise
+
+
+def _refuse_store_in_source(args: argparse.Namespace) -> None:
+    """A store inside the source (a ROS 2 bag directory) writes into an input, and changes
+    the bag's fingerprint with every run, so recording it again is not known as a second
+    time: its messages were stored twice, exit 0."""
+    if args.source != "-" and "://" not in args.source and os.path.isdir(args.source):
+        store, source = os.path.realpath(args.store), os.path.realpath(args.source)
+        if store == source or store.startswith(source.rstrip(os.sep) + os.sep):
+            raise InvalidInputError(f"--store {args.store} is inside the source {args.source}; inputs are never "
+                                    "written: choose a store outside it.")  # fmt: skip
 
 
 def _remove_if_empty(path: str) -> bool:
@@ -296,16 +308,20 @@ def _options(args: argparse.Namespace) -> dict:
 
 def _begin_run(args: argparse.Namespace, store, source):
     """Refuse a source the store has a run of already (unless --append); write this run's start."""
-    from ..runs import begin_run, earlier_run, source_fingerprint
+    from ..runs import begin_run, earlier_run, grown_run, source_fingerprint
 
     fingerprint = source_fingerprint(args.source)
     earlier = earlier_run(store, fingerprint)
-    if earlier is not None and not args.append:
-        kept = "its end not recorded" if earlier.kept is None else f"{earlier.kept:,} messages kept"
+    grown = None if earlier is not None or args.append else grown_run(store, args.source, fingerprint)
+    if (earlier is not None or grown is not None) and not args.append:
+        run = earlier or grown
+        kept = "its end not recorded" if run.kept is None else f"{run.kept:,} messages kept"
+        what = "already" if grown is None else f"when it was {run.fingerprint['bytes']:,} bytes (it has grown since)"
         raise InvalidInputError(
-            f"{args.source} was recorded into {args.store} already, as run {earlier.number} "
-            f"({iso_ns(earlier.start_ns)}, {earlier.status}, {kept}); recording it again would store its "
-            "messages twice: pass --append to record it again, or record into another --store.")  # fmt: skip
+            f"{args.source} was recorded into {args.store} {what}, as run {run.number} "
+            f"({iso_ns(run.start_ns)}, {run.status}, {kept}); recording it again would store "
+            f"{'its' if grown is None else 'those'} messages twice: pass --append to record it again, "
+            "or record into another --store.")  # fmt: skip
     if fingerprint is None:  # stdin or a live master: named as given (a master by its URI)
         name, extra = args.source, ({"master": source.master} if hasattr(source, "master") else {})
     else:

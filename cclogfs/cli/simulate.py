@@ -6,6 +6,7 @@ import argparse
 import time
 
 from ..errors import InvalidInputError
+from .outputs import refuse_store_dir
 
 EXAMPLES = """\
 examples:
@@ -44,7 +45,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="random seed (default 0); same seed, same bytes")
     p.add_argument("--duration", type=float, default=600.0, help="seconds (default 600)")
     p.add_argument("--rate", type=float, default=100.0, help="odometry rate in Hz (default 100)")
-    p.add_argument("--anomalies", type=int, default=8, help="number of anomalies (default 8)")
+    p.add_argument("--anomalies", type=int, help="number of anomalies (default 8)")
     p.add_argument("--rate-per-min", type=float, default=None,
                    help="instead of --anomalies: a Poisson count at this many per minute")
     p.add_argument("--nominal", action="store_true", help="no anomalies at all")
@@ -64,13 +65,18 @@ def run(args: argparse.Namespace) -> int:
 
     if args.nominal and args.rate_per_min is not None:
         raise InvalidInputError("--nominal and --rate-per-min contradict each other; give one.")
+    if args.anomalies is not None and (args.nominal or args.rate_per_min is not None):
+        # Either would silently win over the count asked for.
+        other = "--nominal" if args.nominal else "--rate-per-min"
+        raise InvalidInputError(f"--anomalies and {other} contradict each other; give one.")
+    refuse_store_dir(args.out)
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()] if args.kinds else None
     t0 = time.perf_counter()
     sim = simulate(
         seed=args.seed,
         duration_s=args.duration,
         rate_hz=args.rate,
-        anomalies=0 if args.nominal else args.anomalies,
+        anomalies=0 if args.nominal else 8 if args.anomalies is None else args.anomalies,
         anomaly_rate_per_min=None if args.nominal else args.rate_per_min,
         kinds=kinds,
         severity=args.severity,

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
 
 from ..errors import InvalidInputError, ModelError
 from .common import check_odometry, load_labels
+from .outputs import add_force, check_output, refuse_store_dir
 
 EXAMPLES = """\
 examples:
@@ -27,7 +29,9 @@ DESCRIPTION = "Fit a one-class SVM (RBF kernel) on the odometry of nominal runs.
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("sources", nargs="+", help="bags, MCAP or JSONL files, or a feature-vector dataset directory")
-    p.add_argument("--out", required=True, help="model directory to write")
+    p.add_argument("--out", required=True,
+                   help="model directory to write (an existing model is replaced only with --force)")
+    add_force(p)
     p.add_argument("--topic", default="/odom", help="odometry topic (nav_msgs/Odometry; default /odom)")
     p.add_argument("--labels", action="append", metavar="JSON",
                    help="labels of the sources, one per source in order; their events are left out of training")
@@ -46,9 +50,13 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"--labels was given {len(args.labels)} times for {len(args.sources)} sources")
     if bool(args.validate) != bool(args.validate_labels):
         raise InvalidInputError("--validate and --validate-labels go together")
+    if not 0 <= args.false_alarm_rate <= 1:  # nan and -1 were numpy's traceback after reading every run
+        raise InvalidInputError(f"--false-alarm-rate must be a fraction from 0 to 1, not {args.false_alarm_rate}")
+    _check_out(args)
     started = time.perf_counter()
     if args.validate:  # checked before training, so that a bad run fails in seconds, not after
         (validate,), _ = _read_runs([args.validate], args.topic, make_features(args.features), "score")
+        validate_labels = load_labels(args.validate_labels, validate.stamp_ns, args.validate, args.topic)
     if len(args.sources) == 1 and (Path(args.sources[0]) / "dataset.json").is_file():
         config, nominal, anomalous = load_dataset(args.sources[0])
         model = OneClassModel(feature_config=config, topic=args.topic,
@@ -59,7 +67,8 @@ def run(args: argparse.Namespace) -> int:
         runs, reports = _read_runs(args.sources, args.topic, make_features(args.features))
         # A left-out message would only repeat the vector before it: train without them.
         runs = [odom.take(r.accepted) if r.left_out else odom for odom, r in zip(runs, reports)]
-        labels = [load_labels(p) for p in args.labels] if args.labels else None
+        labels = None if not args.labels else [
+            load_labels(p, odom.stamp_ns, src, args.topic) for p, odom, src in zip(args.labels, runs, args.sources)]
         try:
             model = train(runs, labels=labels, features=args.features, topic=args.topic,
                           false_alarm_rate=args.false_alarm_rate)  # fmt: skip
@@ -80,8 +89,22 @@ def run(args: argparse.Namespace) -> int:
 
         _, flags = Detector(model).score_batch(validate)
         print(f"\nvalidation on {args.validate} (per message, as the paper's Table 1):")
-        print(format_message_table(message_table(validate.stamp_ns, flags, load_labels(args.validate_labels))))
+        print(format_message_table(message_table(validate.stamp_ns, flags, validate_labels)))
     return 0
+
+
+def _check_out(args: argparse.Namespace) -> None:
+    """Refuse, before training, an --out that is (or is inside) an input, an existing model
+    without --force, and any other non-empty directory even with it: `model.save` adds its
+    two files to whatever directory it is given (a bag directory, a store) without a word."""
+    out = args.out
+    inputs = [*args.sources, *(args.labels or []), *filter(None, [args.validate, args.validate_labels])]
+    refuse_store_dir(out)
+    empty_dir = os.path.isdir(out) and not os.listdir(out)
+    check_output(out, inputs, force=args.force or empty_dir, directory=True)
+    if os.path.isdir(out) and not empty_dir and not (Path(out) / "model.json").is_file():
+        raise InvalidInputError(f"Output {out} holds files but no model.json, so it is not a model directory; "
+                                "--force replaces only a model: choose another output.")  # fmt: skip
 
 
 def _read_runs(sources: list[str], topic: str, feature_set, job: str = "train on") -> tuple[list, list]:

@@ -10,12 +10,20 @@ import json
 from typing import Any
 
 
-def schema_of(value: Any) -> dict[str, Any]:
+# Deeper than this, a value is described as {} (any JSON): a store takes messages nested as
+# deep as Python's json reads (~900 levels), and describing each level took two Python
+# frames, so exporting one ended in a RecursionError traceback.
+MAX_DEPTH = 64
+
+
+def schema_of(value: Any, depth: int = 0) -> dict[str, Any]:
     """The JSON Schema of a parsed JSON value's shape (numbers are "number", ints included)."""
+    if depth >= MAX_DEPTH:
+        return {}
     if isinstance(value, dict):
-        return {"type": "object", "properties": {k: schema_of(v) for k, v in value.items()}}
+        return {"type": "object", "properties": {k: schema_of(v, depth + 1) for k, v in value.items()}}
     if isinstance(value, list):
-        return {"type": "array", "items": schema_of(value[0])} if value else {"type": "array"}
+        return {"type": "array", "items": schema_of(value[0], depth + 1)} if value else {"type": "array"}
     if isinstance(value, bool):
         return {"type": "boolean"}
     if isinstance(value, (int, float)):

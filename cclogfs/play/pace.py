@@ -15,6 +15,7 @@ from typing import Any
 from ..export.jsonl import merged_messages
 
 Message = tuple[str, int, str]  # (stream, stamp_ns, JSON text)
+_LONGEST_SLEEP_S = 86400.0
 
 
 def store_messages(store: Any, topics: Iterable[str] | None = None, start_ns: int | None = None,
@@ -46,6 +47,9 @@ def paced(messages: Iterable[Message], rate: float = 1.0, *, skip_gaps_s: float 
             origin += stamp - prev - skip_ns  # the gap beyond skip_ns is cut out
         prev = stamp
         wait = start + (stamp - origin) / 1e9 / rate - clock()
+        while wait > _LONGEST_SLEEP_S:  # time.sleep overflows past ~1e9 s (a tiny --rate)
+            sleep(_LONGEST_SLEEP_S)
+            wait -= _LONGEST_SLEEP_S
         if wait > 0:
             sleep(wait)
         yield m

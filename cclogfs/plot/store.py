@@ -37,6 +37,7 @@ class PlotData:
     windows: dict[str, list[tuple[int, int]]] = field(default_factory=dict)  # stream -> (start, end)
     peaks: list[tuple[int, float]] = field(default_factory=list)  # (peak_ns, peak_score) per smart window
     summary: list[tuple[int, int, int]] = field(default_factory=list)  # (start_ns, end_ns, anomalies)
+    undrawn: int = 0  # pose messages whose x, y or speed is not drawn (`_drawable`)
 
     @property
     def t0(self) -> int:
@@ -106,12 +107,27 @@ def plot_data(store: Any, topic: str | None = None) -> PlotData:
     arr = np.array(rows, dtype=object)[order]
     stamp, x, y = arr[:, 0].astype(np.int64), arr[:, 1].astype(float), arr[:, 2].astype(float)
     speed = arr[:, 3].astype(float)
+    bad = ~(_drawable(x) & _drawable(y))
+    x[bad], y[bad] = math.nan, math.nan
     if np.isnan(speed).all() and len(x) > 1:  # no twist: from consecutive poses
         dt = np.diff(stamp) / NS
         with np.errstate(divide="ignore", invalid="ignore"):
             speed = np.concatenate([[math.nan], np.hypot(np.diff(x), np.diff(y)) / dt])
+    bad |= ~_drawable(speed) & ~np.isnan(speed)
+    speed[~_drawable(speed)] = math.nan
     return PlotData(topic, stamp, x, y, speed, np.array(window_of)[order], windows, sorted(peaks.values()),
-                    sorted(summary))  # fmt: skip
+                    sorted(summary), int(bad.sum()))  # fmt: skip
+
+
+# Beyond this (metres, m/s) a value is junk, not a robot: matplotlib's axis limits and ticks
+# overflow on values near 1e308 ("Axis limits cannot be NaN or Inf", a traceback).
+_LARGEST = 1e100
+
+
+def _drawable(values: np.ndarray) -> np.ndarray:
+    """Which values can be drawn: finite and within _LARGEST."""
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(values) & (np.abs(values) <= _LARGEST)
 
 
 def plot_store(data: PlotData, out: Path) -> list[Path]:

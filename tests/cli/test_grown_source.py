@@ -1,0 +1,65 @@
+"""A file recorded once and recorded again after it grew (an appended JSONL log, a bag
+still being written) is refused like the same content: its first messages would be stored
+twice, exit 0, without a word (found by the attack of l-atk6). --append records it again."""
+
+import json
+
+import cclogfs
+from cclogfs.cli import main
+from cclogfs.runs import begin_run, earlier_run, source_fingerprint
+
+
+def lines(first, n):
+    return "".join(json.dumps({"topic": "/odom", "stamp_ns": i, "msg": {"i": i}}) + "\n" for i in range(first, first + n))
+
+
+def messages(store):
+    with cclogfs.open_store(store, readonly=True) as s:
+        return s.streams()["/odom"]["messages"]
+
+
+def test_a_grown_file_is_refused_then_appended_with_append(tmp_path, capsys):
+    log, store = tmp_path / "log.jsonl", str(tmp_path / "s")
+    log.write_text(lines(0, 50))
+    assert main(["record", str(log), "--store", store]) == 0
+    with open(log, "a") as f:
+        f.write(lines(50, 30))
+    capsys.readouterr()
+    assert main(["record", str(log), "--store", store]) == 1
+    err = capsys.readouterr().err
+    assert "it has grown since), as run 1" in err and "--append" in err and err.count("\n") == 1
+    assert messages(store) == 50
+    assert main(["record", str(log), "--store", store, "--append"]) == 0
+    assert messages(store) == 130
+
+
+def test_another_file_with_a_shorter_prefix_in_common_is_not_refused(tmp_path):
+    a, b, store = tmp_path / "a.jsonl", tmp_path / "b.jsonl", str(tmp_path / "s")
+    a.write_text(lines(0, 50))
+    b.write_text(lines(0, 49) + lines(100, 10))  # shares 49 lines, not the whole of a
+    assert main(["record", str(a), "--store", store]) == 0
+    assert main(["record", str(b), "--store", store]) == 0
+
+
+def test_a_run_fingerprinted_before_head_was_kept_still_counts_as_the_same_content(tmp_path):
+    log = tmp_path / "log.jsonl"
+    log.write_text(lines(0, 5))
+    new = source_fingerprint(str(log))
+    old = {k: v for k, v in new.items() if k != "head"}  # as versions before this one wrote it
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        begin_run(store, str(log), fingerprint=old, options={}).end(messages_kept=5)
+        assert earlier_run(store, new).number == 1
+
+
+def test_a_store_inside_the_source_bag_directory_is_refused(tmp_path, capsys):
+    """It wrote into the input and, the bag's fingerprint changing with each run, a second
+    recording of the bag was not refused: every message stored twice, exit 0."""
+    from cclogfs.sim import simulate
+
+    simulate(seed=1, duration_s=5.0, rate_hz=20.0).write(tmp_path / "sim")
+    bag = tmp_path / "sim" / "run"
+    before = sorted(p.name for p in bag.iterdir())
+    for store in (bag / "st", bag):
+        assert main(["record", str(bag), "--store", str(store)]) == 1
+        assert "is inside the source" in capsys.readouterr().err
+    assert sorted(p.name for p in bag.iterdir()) == before
