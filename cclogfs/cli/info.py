@@ -151,7 +151,8 @@ def run(args: argparse.Namespace) -> int:
         if st["records"] != st["windows"]:
             print(f"{name}: its {st['windows']} windows are stored as {st['records']} records ({st['stored_as']})")
         if st["aged"]:  # compaction ages records, each part of a window alone
-            print(f"aged: {st['aged']} of {st['records']} records of {name} hold texts within stated error "
+            unit = "windows" if st["records"] == st["windows"] else "records"
+            print(f"aged: {st['aged']} of {st[unit]} {unit} of {name} hold texts within stated error "
                   "bounds, not byte-exact (their meta key \"aged\" says how)")
     for name, st in info["dropped"]["streams"].items():
         print(f"retention dropped {st['windows']} windows ({st['messages']} messages) of {name} from "
