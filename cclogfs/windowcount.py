@@ -100,7 +100,7 @@ class WindowCount:
     stream_records: dict[str, int] = field(default_factory=dict)
     # (stream, why) -> records part of a window begun before them (why: `WindowJoiner.join`)
     joined: dict[tuple[str, str], int] = field(default_factory=dict)
-    _joiner: WindowJoiner = field(default_factory=WindowJoiner, repr=False)
+    _joiner: WindowJoiner = field(default_factory=WindowJoiner, repr=False, compare=False)
 
     def add(self, stream: str, link: Link, *, seq: int | None = None, continues: bool = False,
             records: int = 1) -> bool:  # fmt: skip

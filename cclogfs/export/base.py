@@ -47,7 +47,7 @@ class ExportStats:
     files: list[str] = dataclasses.field(default_factory=list)
     # (seq, stream, link, flagged PART) of each record written, counted when asked
     _written: list[tuple[int, str, Link, bool]] = dataclasses.field(default_factory=list, repr=False)
-    _count: tuple[int, WindowCount] | None = dataclasses.field(default=None, repr=False)
+    _count: tuple[int, WindowCount] | None = dataclasses.field(default=None, repr=False, compare=False)
 
     def wrote(self, w: StoredWindow, count: int) -> None:
         """`count` messages of the stored record `w` were written (in any order)."""

@@ -130,3 +130,20 @@ def test_a_window_whose_stamps_go_back_counts_once(tmp_path, capsys):
     assert exported(store, tmp_path, capsys).startswith(
         f"exported {windows} windows (stored as {records} records: a window whose stamps go back is stored as "
         "records each in time order)")
+
+
+def test_info_names_a_record_it_cannot_read_and_counts_it_alone(tmp_path, capsys):
+    # info reads every record's meta to count windows: one failing its checksum (damage the
+    # store did not know of) is named and counted as a window of its own, exit 3, not 0
+    from helpers import SEG, flip, make_store
+
+    recs = make_store(tmp_path / "s", n=6)
+    seq, off, length = recs[1]
+    flip(tmp_path / "s" / SEG, off + length - 5)
+    assert main(["info", str(tmp_path / "s")]) == 3
+    out = capsys.readouterr().out
+    assert f"DAMAGE (its record counted above as a window alone; `cclog fsck` names it): {SEG} at offset {off} " \
+           f"(seq {seq}): " in out, out
+    assert main(["info", str(tmp_path / "s"), "--json"]) == 3
+    got = json.loads(capsys.readouterr().out)
+    assert len(got["unreadable"]) == 1 and sum(st["windows"] for st in got["streams"].values()) == 6
