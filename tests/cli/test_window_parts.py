@@ -147,3 +147,18 @@ def test_info_names_a_record_it_cannot_read_and_counts_it_alone(tmp_path, capsys
     assert main(["info", str(tmp_path / "s"), "--json"]) == 3
     got = json.loads(capsys.readouterr().out)
     assert len(got["unreadable"]) == 1 and sum(st["windows"] for st in got["streams"].values()) == 6
+
+
+def test_an_end_record_written_before_records_were_counted_reads_as_written(tmp_path, capsys):
+    # an older cclog counted each part of a smart window in `windows` and wrote no `records`
+    import cclogfs
+    from cclogfs.runs import begin_run
+
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        store.put_window("/odom", [(1, "{}")], {"window_id": "w1", "part": 0})
+        begin_run(store, "/old.mcap").end("done", messages_in=9, messages_kept=1, windows=36, summaries=14,
+                                          topics_kept={"/odom": 1})  # fmt: skip
+    (run,) = info(str(tmp_path / "s"), capsys)["runs"]
+    assert run["windows"] == 36 and "records" not in run
+    assert main(["info", str(tmp_path / "s")]) == 0
+    assert " 36 (+14 summaries) " in capsys.readouterr().out
