@@ -151,7 +151,8 @@ class RecordStats:
 
     @property
     def records(self) -> int:
-        """The records holding `windows` (the store's split over 16 MiB aside)."""
+        """The records holding `windows`: a smart window's parts, a window whose stamps go
+        back, one the store split over its 16 MiB record limit, each record."""
         return self.counted.records
 
     def saw(self, topic: str, text: str) -> None:

@@ -37,6 +37,8 @@ def link_of(meta: Mapping[str, Any] | None) -> Link:
     split = meta.get("split")
     k = split[0] if isinstance(split, list) and split and isinstance(split[0], int) else 0
     wid = meta.get("window_id")
+    # a summary the recorder made: a keep-all recording of a smart store's export keeps that
+    # store's summaries as messages that came in (kind "all")
     return (wid if isinstance(wid, str) else None, meta.get("part"), k, meta.get("kind") == "summary")
 
 
