@@ -14,7 +14,7 @@ records, and each such window counts once:
   flagged PART, the next record (seq + 1) its continuation (docs/FORMAT.md, "Splitting").
 
 The recorder's own summaries (meta `kind` "summary") are counted apart. `record`'s end
-summary and run record, `info`, `export` and `eval` all count with `WindowCount`, so they say
+summary and run record, `info`, `export`, `eval` and `plot` all count with this module, so they say
 the same number. This module knows neither the store nor the classifier: it reads metadata.
 """
 
