@@ -14,8 +14,8 @@ records, and each such window counts once:
   flagged PART, the next record (seq + 1) its continuation (docs/FORMAT.md, "Splitting").
 
 The recorder's own summaries (meta `kind` "summary") are counted apart. `record`'s end
-summary and run record, `info`, `export`, `eval` and `plot` all count with this module, so they say
-the same number. This module knows neither the store nor the classifier: it reads metadata.
+summary and run record, `info`, `export`, `eval` and `plot` all count with this module, so
+they say the same number. It knows neither the store nor the classifier: it reads metadata.
 """
 
 from __future__ import annotations
