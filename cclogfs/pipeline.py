@@ -29,6 +29,7 @@ from .jsontext.rostypes import StreamTypes, reserved_refusal
 from .runs import RUNS_STREAM
 from .store import Store, open_store
 from .upkeep import Upkeep
+from .windowcount import WindowCount, link_of
 
 # Default logging-window extents, in seconds so they mean the same at any odometry rate.
 # The window starts `before` ahead of where the anomaly's evidence starts, not of the first
@@ -131,13 +132,28 @@ class RecordStats:
     json_bytes_in: int = 0
     messages_kept: int = 0
     json_bytes_kept: int = 0
-    windows: int = 0
-    summaries: int = 0  # of `windows`, the recorder's own summaries (`/cclog/summary`), no message that came in
-    records: int = 0
     seconds: float = 0.0
     topics_in: dict[str, int] = field(default_factory=dict)
     topics_kept: dict[str, int] = field(default_factory=dict)
     interrupted: bool = False
+    # the windows stored, each counted once however many records hold it (`windowcount`)
+    counted: WindowCount = field(default_factory=WindowCount)
+
+    @property
+    def windows(self) -> int:
+        """Logging windows of the messages kept (a smart window's parts count once)."""
+        return self.counted.windows
+
+    @property
+    def summaries(self) -> int:
+        """The recorder's own summaries (`/cclog/summary`), counted apart from `windows`."""
+        return self.counted.summaries
+
+    @property
+    def records(self) -> int:
+        """The records holding `windows`: a smart window's parts, a window whose stamps go
+        back, one the store split over its 16 MiB record limit, each record."""
+        return self.counted.records
 
     def saw(self, topic: str, text: str) -> None:
         """Count one message that came in."""
@@ -193,13 +209,13 @@ def store_window(store: Store, window: PendingWindow, stats: RecordStats, types:
     `types`: the streams' message types, added to the window's metadata."""
     runs = list(monotonic_runs(window.messages))
     base = window.meta if types is None else types.meta(window.topic, window.meta)
+    records = 0
     for k, part in enumerate(runs):
         meta = base if len(runs) == 1 else {**base, "split": [k, len(runs)]}
-        store.put_window(window.topic, part, meta, check_json=False)
-        stats.records += 1
-    stats.windows += 1
+        records += store.put_window(window.topic, part, meta, check_json=False).records
+    # one window however many records hold it, as `cclog info` counts it in the store
+    stats.counted.add(window.topic, link_of(window.meta), records=records)
     if window.meta.get("kind") == "summary":  # made by the recorder, not a message that came in
-        stats.summaries += 1
         return
     n = len(window.messages)
     stats.messages_kept += n

@@ -6,6 +6,7 @@ from typing import Iterable
 
 import numpy as np
 
+from ..windowcount import WindowJoiner, link_of
 from .api import parse_labels
 from .windows import PendingWindow
 
@@ -36,12 +37,14 @@ def message_table(stamp_ns: np.ndarray, flags: np.ndarray, labels) -> dict:
 
 
 def window_spans(windows: Iterable[PendingWindow], topic: str = "/odom") -> list[tuple[int, int]]:
-    """(start_ns, end_ns) of each stored window of `topic`, parts joined by window_id."""
-    spans: dict[str, list[int]] = {}
+    """(start_ns, end_ns) of each stored window of `topic`, its parts joined as `cclog
+    record` and `cclog info` count them (`windowcount`: by window_id and part)."""
+    spans: dict[int, list[int]] = {}
+    joiner = WindowJoiner()
     for w in windows:
+        key = joiner.join(w.topic, link_of(w.meta))[0]
         if w.topic != topic or not w.messages:
             continue
-        key = w.meta.get("window_id", id(w))
         s = spans.setdefault(key, [w.start_ns, w.end_ns])
         s[0], s[1] = min(s[0], w.start_ns), max(s[1], w.end_ns)
     return sorted((a, b) for a, b in spans.values())

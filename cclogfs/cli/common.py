@@ -179,6 +179,39 @@ def newest_window(store, name: str, end_ns: int):
     return last
 
 
+# Why a window is held in several records (`windowcount.WindowJoiner.join`): `info` and
+# `export` say it beside a count of records that differs from the windows'.
+_IN_RECORDS = {
+    "part": "a smart logging window is stored in parts, each topic apart, one every --window-max-s of wall time "
+            "and every 10,000 messages of a topic",
+    "split": "a window whose stamps go back is stored as records each in time order",
+    "limit": "a window over the 16 MiB record limit is split into several",
+}
+
+
+def why_records(joined, stream: str | None = None) -> str:
+    """Why windows are held in several records: the reasons `WindowCount.joined` found, of
+    `stream` or of all."""
+    found = {why for (name, why) in joined if stream is None or name == stream}
+    return "; ".join(text for why, text in _IN_RECORDS.items() if why in found)
+
+
+def count_windows(windows) -> tuple:
+    """The `WindowCount` of stored windows (any order), as `record` counted them when it
+    stored them, and where a record failed its check when read (its meta unknown, it counts
+    as a window alone): every record's meta is read."""
+    from ..windowcount import count_records, link_of
+
+    records, unreadable = [], []
+    for w in windows:
+        try:
+            records.append((w.seq, w.name, link_of(w.meta), w.continues))
+        except CorruptionError as err:
+            records.append((w.seq, w.name, link_of(None), False))
+            unreadable.append(f"{os.path.basename(err.path)} at offset {err.offset} (seq {w.seq}): {err.reason}")
+    return count_records(records), unreadable
+
+
 def stored_types(store) -> dict[str, str]:
     """Stream -> the message type its newest window names, for the streams that name one
     (the type a recording into the store must keep: `jsontext.rostypes.TypeCheck`)."""

@@ -8,7 +8,7 @@ import os
 import sys
 
 from ..errors import InvalidInputError
-from .common import Progress, Skipped, add_selection, nothing_matched, selected_windows
+from .common import Progress, Skipped, add_selection, nothing_matched, selected_windows, why_records
 from .outputs import add_force, check_output
 
 EXAMPLES = """\
@@ -92,11 +92,13 @@ def run(args: argparse.Namespace) -> int:
             )
     notes = []
     if stats.records != stats.windows:  # as `cclog info` says it
-        notes.append(f"stored as {stats.records} records: a window over the 16 MiB record limit is split into several")
+        notes.append(f"stored as {stats.records} records: {why_records(stats.counted.joined)}")
     if clip.left_out:
         cut = f"{clip.cut} records" if stats.records != stats.windows else clip.cut
         notes.append(f"{cut} cut to --start/--end: {clip.left_out:,} messages outside left out")
     said = f" ({'; '.join(notes)})" if notes else ""
+    if stats.summaries:  # the recorder's own, apart from the windows of messages kept, as `record` says them
+        said += f" and {stats.summaries} summaries"
     print(f"exported {stats.windows} windows{said}, {stats.messages} messages of {len(stats.streams)} streams to "
           f"{len(stats.files)} files", file=sys.stderr)  # fmt: skip
     if args.mcap or args.rosbag2:

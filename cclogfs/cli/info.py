@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from .common import EXIT_SKIPPED, human_bytes, iso_ns, newest_window, repair_hint, table
+from .common import EXIT_SKIPPED, count_windows, human_bytes, iso_ns, newest_window, repair_hint, table, why_records
 
 EXAMPLES = """examples:
   cclog info out/demo/store
@@ -38,10 +38,12 @@ def store_info(path: str) -> dict:
         damage = store.damage()
         # The runs' bookkeeping is listed as runs, not counted as messages
         streams = {name: st for name, st in store.streams().items() if not hidden_by_default(name)}
-        parts = store.split_parts()
+        # A window held in several records (a smart window's parts, ...) counts once, as
+        # `record` counted it: every record's meta read (`windowcount`)
+        counted, unreadable = count_windows(w for w in store.query(skip_damaged=True) if w.name in streams)
         for name, st in streams.items():
-            # A window over the record limit is stored as several records; count it once.
-            st["records"], st["windows"] = st["windows"], st["windows"] - parts.get(name, 0)
+            st["records"], st["windows"] = st["windows"], counted.streams.get(name, 0)
+            st["stored_as"] = why_records(counted.joined, name)
             last = newest_window(store, name, st["end_ns"])
             st["codec"] = last.codec_config if last is not None else None
             st["msgtype"] = (last.meta or {}).get("msgtype", "") if last is not None else ""
@@ -61,6 +63,7 @@ def store_info(path: str) -> dict:
             "recovery": [str(p) for p in store.recovery.problems],
             "damage": [describe_damage(d) for d in damage],
             "damage_repair": [repair_hint(d) for d in damage],  # what clears each stretch
+            "unreadable": unreadable,  # records that failed a check when read: each counted as a window
         }
 
 
@@ -126,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
     info = store_info(args.store)
     if args.json:
         print(json.dumps(info, indent=2))
-        return EXIT_SKIPPED if info["damage"] else 0
+        return EXIT_SKIPPED if info["damage"] or info["unreadable"] else 0
     rows = []
     for name, st in info["streams"].items():
         span = (st["end_ns"] - st["start_ns"]) / 1e9
@@ -146,10 +149,10 @@ def run(args: argparse.Namespace) -> int:
               f"{t['peak_accel']:.2f} m/s^2, {t['anomalies']:,} anomalous of {t['messages']:,} odometry messages")
     for name, st in info["streams"].items():
         if st["records"] != st["windows"]:
-            print(f"{name}: its {st['windows']} windows are stored as {st['records']} records (a window over "
-                  "the 16 MiB record limit is split into several)")
-        if st["aged"]:
-            print(f"aged: {st['aged']} of {st['windows']} windows of {name} hold texts within stated error "
+            print(f"{name}: its {st['windows']} windows are stored as {st['records']} records ({st['stored_as']})")
+        if st["aged"]:  # compaction ages records, each part of a window alone
+            unit = "windows" if st["records"] == st["windows"] else "records"
+            print(f"aged: {st['aged']} of {st[unit]} {unit} of {name} hold texts within stated error "
                   "bounds, not byte-exact (their meta key \"aged\" says how)")
     for name, st in info["dropped"]["streams"].items():
         print(f"retention dropped {st['windows']} windows ({st['messages']} messages) of {name} from "
@@ -158,4 +161,6 @@ def run(args: argparse.Namespace) -> int:
         print(f"note: a reader would drop a torn tail: {line}")
     for line, fix in zip(info["damage"], info["damage_repair"]):  # the totals above leave these windows out
         print(f"DAMAGE (not counted above; {fix}): {line}")
-    return EXIT_SKIPPED if info["damage"] else 0
+    for line in info["unreadable"]:
+        print(f"DAMAGE (its record counted above as a window alone; `cclog fsck` names it): {line}")
+    return EXIT_SKIPPED if info["damage"] or info["unreadable"] else 0

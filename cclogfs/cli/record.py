@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import CclogError, InvalidInputError
 from ..times import parse_duration
+from ..windowcount import Link, WindowCount, count_records, link_of
 from .common import (Progress, check_topics_exist, damaged_exit, human_bytes, iso_ns, load_labels, model_fits,
                      no_source_message, parse_size, repair_hint, stored_types, unmatched_rules_error)
 
@@ -336,8 +337,9 @@ def _end_run(run, source, stats: RecordStats, received: list[int], error: BaseEx
     interrupted = stats.interrupted or isinstance(error, KeyboardInterrupt)
     status = "interrupted" if interrupted else "error" if error is not None else "done"
     # windows: of the messages kept, as the end summary says; the recorder's own summaries apart
+    # (a smart window's parts count once, `windowcount`; `records`: what holds them)
     counts = {"messages_in": stats.messages_in, "messages_kept": stats.messages_kept,
-              "windows": stats.windows - stats.summaries, "summaries": stats.summaries,
+              "windows": stats.windows, "summaries": stats.summaries, "records": stats.records,
               "topics_kept": dict(sorted(stats.topics_kept.items()))}  # fmt: skip
     if received:
         counts["signal"] = signal.Signals(received[0]).name
@@ -368,7 +370,7 @@ def _stored_when_failed(store, run_seq: int | None) -> str:
     whatever happens), and those handed to the OS but not fsynced (a reopen keeps them
     unless power is lost too)."""
     synced, written = store.synced_seq(), store.synced_seq(written=True)
-    kept = _run_windows(store, run_seq, written)
+    kept = _run_records(store, run_seq, written)
     said = f"synced up to seq {synced}: {_counted(kept, synced)}" if synced is not None else "nothing synced"
     if written is not None and written != synced:
         said += (f"; written but not yet fsynced up to seq {written} or further: at least {_counted(kept, written)} "
@@ -391,18 +393,18 @@ def _end_after_failure(path: str, source: str, failed: _StoreFailed) -> CclogErr
             f"{failed.stats.messages_in:,} messages it read was lost")  # fmt: skip
     try:
         with open_store(path) as store:
-            kept = _run_windows(store, failed.run_seq, store.synced_seq(written=True))
+            kept = _run_records(store, failed.run_seq, store.synced_seq(written=True))
             if kept is None:
                 raise StoreFailedError("its windows cannot be counted")
-            n = sum(count for _, count in kept)
+            n, count = _kept(kept)
             Run(store, failed.run.number, failed.run.id).end(
-                "error", messages_in=failed.stats.messages_in, messages_kept=n, windows=len(kept),
-                summaries=_run_summaries(store, failed.run_seq), error=str(failed.err), store_failed=True)  # fmt: skip
+                "error", messages_in=failed.stats.messages_in, messages_kept=n, windows=count.windows,
+                summaries=count.summaries, records=count.records, error=str(failed.err), store_failed=True)  # fmt: skip
     except (CclogError, OSError):
         error = StoreFailedError(f"{said}, and its end record could not be written. Reopening the store (any cclog "
                                  f"command) keeps what is stored; {_again(source, 'messages')}")  # fmt: skip
     else:
-        error = StoreFailedError(f"{said}. Reopened, the store keeps {n:,} messages of this run in {len(kept):,} "
+        error = StoreFailedError(f"{said}. Reopened, the store keeps {n:,} messages of this run in {count.windows:,} "
                                  "windows and its end record (`cclog info`: ended on a store failure); "
                                  f"{_again(source, f'{n:,} messages')}")  # fmt: skip
     error.store_failed = said  # what to say instead when the store turns out empty and is removed (`run`)
@@ -418,45 +420,32 @@ def _again(source: str, kept: str) -> str:
             f"stores the {kept} of this run it keeps a second time")  # fmt: skip
 
 
-def _run_windows(store, run_seq: int | None, upto: int | None) -> list[tuple[int, int]] | None:
-    """(seq, message count) of this run's windows of messages kept up to seq `upto` (the
-    recorder's own summaries apart, as `RecordStats` counts them); None when unreadable."""
-    if upto is None:
-        return []
-    try:
-        return [(w.seq, w.count) for w in _run_records(store, run_seq, upto) if not _is_summary(w)]
-    except CclogError:
-        return None
-
-
-def _run_summaries(store, run_seq: int | None) -> int:
-    """The recorder's own summary windows this run stored (0 when unreadable)."""
-    try:
-        return sum(map(_is_summary, _run_records(store, run_seq, store.synced_seq(written=True))))
-    except CclogError:
-        return 0
-
-
-def _run_records(store, run_seq: int | None, upto: int | None):
+def _run_records(store, run_seq: int | None, upto: int | None) -> list[tuple[int, str, Link, bool, int]] | None:
+    """(seq, stream, link, flagged PART, message count) of this run's records up to seq `upto`
+    (`windowcount.link_of` says of which window each is part); None when unreadable."""
     from ..runs import hidden_by_default
 
     if upto is None:
         return []
-    return [w for w in store.query(skip_damaged=True)
-            if (run_seq is None or w.seq > run_seq) and w.seq <= upto and not hidden_by_default(w.name)]  # fmt: skip
+    try:
+        return [(w.seq, w.name, link_of(w.meta), w.continues, w.count) for w in store.query(skip_damaged=True)
+                if (run_seq is None or w.seq > run_seq) and w.seq <= upto and not hidden_by_default(w.name)]  # fmt: skip
+    except CclogError:
+        return None
 
 
-def _is_summary(window) -> bool:
-    """A summary the recorder made (`RecordStats.summaries`), not a message that came in: a
-    keep-all recording of a smart store's export keeps that store's summaries as messages."""
-    return (window.meta or {}).get("kind") == "summary"
+def _kept(records: list[tuple[int, str, Link, bool, int]], upto: int | None = None) -> tuple[int, WindowCount]:
+    """Messages kept (a summary the recorder made is no message that came in) and the windows
+    of `records` up to seq `upto`, counted as `RecordStats` counts them."""
+    mine = [r for r in records if upto is None or r[0] <= upto]
+    return sum(r[4] for r in mine if not r[2][3]), count_records(r[:4] for r in mine)
 
 
-def _counted(windows: list[tuple[int, int]] | None, upto: int) -> str:
-    if windows is None:
+def _counted(records: list[tuple[int, str, Link, bool, int]] | None, upto: int) -> str:
+    if records is None:
         return "count unknown"
-    mine = [n for seq, n in windows if seq <= upto]
-    return f"{sum(mine):,} messages in {len(mine):,} windows"
+    n, count = _kept(records, upto)
+    return f"{n:,} messages in {count.windows:,} windows"
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -616,23 +605,24 @@ def _retention(store, run_seq: int | None, stats: RecordStats, upkeep: Upkeep | 
     earlier runs' messages it dropped). None without a budget, or when the store cannot say."""
     if upkeep is None or upkeep.budget is None:
         return None
-    windows = _run_windows(store, run_seq, store.synced_seq(written=True))
-    if windows is None:
+    records = _run_records(store, run_seq, store.synced_seq(written=True))
+    if records is None:
         return None
-    held = sum(n for _, n in windows)
+    held = _kept(records)[0]
     mine = max(0, stats.messages_kept - upkeep.messages_thinned - held)
     return held, mine, max(0, _dropped_messages(store) - dropped_before - mine)
 
 
 def _windows(stats: RecordStats) -> str:
     """The windows of messages kept, apart from the recorder's own summaries: "0 kept in 8
-    windows" read as a contradiction when the 8 were all `/cclog/summary` records."""
-    said = f"{stats.windows - stats.summaries:,} windows"
-    if not stats.summaries:
-        return said
-    from ..classifier.summary import SUMMARY_TOPIC
+    windows" read as a contradiction when the 8 were all `/cclog/summary` records. A window
+    stored in several records (a smart window's parts) counts once, the records said apart."""
+    notes = [f"stored as {stats.records:,} records"] if stats.records != stats.windows else []
+    if stats.summaries:
+        from ..classifier.summary import SUMMARY_TOPIC
 
-    return f"{said} (and {stats.summaries:,} summaries on {SUMMARY_TOPIC})"
+        notes.append(f"and {stats.summaries:,} summaries on {SUMMARY_TOPIC}")
+    return f"{stats.windows:,} windows" + (f" ({', '.join(notes)})" if notes else "")
 
 
 def _unscored(args: argparse.Namespace, policy) -> str:

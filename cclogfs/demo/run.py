@@ -25,6 +25,7 @@ from ..sim import simulate
 from ..store import open_store
 from ..textfmt import human_bytes, table
 from ..upkeep import Policy, compact, parse_rule
+from ..windowcount import WindowJoiner, link_of
 
 TOPICS = ["/odom", "/imu"]
 # The error bound the demo ages a copy of its store to: 1 mm, 1 mrad, 1 mm/s.
@@ -169,12 +170,16 @@ def _log(cfg: DemoConfig, res: DemoResult, model, messages: list) -> None:
 
 
 def _stored_windows(path: Path) -> list[tuple[int, int]]:
-    """The logging windows the store holds (one per window id, over its streams), in time order."""
+    """The logging windows the store holds (their parts joined as `cclog info` counts them,
+    `windowcount`), as their /odom spans, in time order."""
+    joiner = WindowJoiner()
     with open_store(path, readonly=True) as store:
         spans: dict[Any, list[int]] = {}
-        for w in store.query("/odom"):
-            s = spans.setdefault(w.meta.get("window_id", w.seq), [w.start_ns, w.end_ns])
-            s[0], s[1] = min(s[0], w.start_ns), max(s[1], w.end_ns)
+        for w in sorted(store.query(), key=lambda w: w.seq):
+            key = joiner.join(w.name, link_of(w.meta), seq=w.seq, continues=w.continues)[0]
+            if w.name == "/odom":
+                s = spans.setdefault(key, [w.start_ns, w.end_ns])
+                s[0], s[1] = min(s[0], w.start_ns), max(s[1], w.end_ns)
     return sorted((a, b) for a, b in spans.values())
 
 

@@ -9,6 +9,8 @@ from collections.abc import Callable, Iterable, Iterator
 from operator import attrgetter
 from typing import Any, Protocol
 
+from ..windowcount import Link, WindowCount, count_records, link_of
+
 # Called with the number of messages just written, for progress bars.
 Progress = Callable[[int], None]
 
@@ -34,30 +36,43 @@ class StoredWindow(Protocol):
 
 @dataclasses.dataclass
 class ExportStats:
-    """What an export wrote. `windows` counts a window once however many records the
-    store split it into (over the 16 MiB record limit, each part but the last flagged
-    PART: `continues`), as `cclog info` counts them; `records` counts the records."""
+    """What an export wrote. `windows` counts a logging window once however many records
+    hold it (`windowcount`: a smart window's parts, a window whose stamps go back, a record
+    the store split over its 16 MiB limit), as `cclog record` and `cclog info` count them,
+    the recorder's summaries apart (`summaries`); `records` counts the records of `windows`.
+    With --start/--end a window counts when any record of it is written."""
 
-    windows: int = 0
-    records: int = 0
     messages: int = 0
     streams: set[str] = dataclasses.field(default_factory=set)
     files: list[str] = dataclasses.field(default_factory=list)
-    # (stream, seq) of the records that continue a window exported before them
-    _continued: set[tuple[str, int]] = dataclasses.field(default_factory=set, repr=False)
+    # (seq, stream, link, flagged PART) of each record written, counted when asked
+    _written: list[tuple[int, str, Link, bool]] = dataclasses.field(default_factory=list, repr=False)
+    _count: tuple[int, WindowCount] | None = dataclasses.field(default=None, repr=False, compare=False)
 
     def wrote(self, w: StoredWindow, count: int) -> None:
-        """`count` messages of the stored record `w` were written. A record that continues
-        one written before is not a window of its own; with --start/--end only some parts
-        of a window may be written, so the first written is the one counted."""
-        self.records += 1
-        if (w.name, w.seq) not in self._continued:
-            self.windows += 1
-        self._continued.discard((w.name, w.seq))
-        if getattr(w, "continues", False):
-            self._continued.add((w.name, w.seq + 1))
+        """`count` messages of the stored record `w` were written (in any order)."""
+        self._written.append((w.seq, w.name, link_of(w.meta), bool(getattr(w, "continues", False))))
         self.messages += count
         self.streams.add(w.name)
+
+    @property
+    def counted(self) -> WindowCount:
+        """The windows of the records written so far (`windowcount.count_records`)."""
+        if self._count is None or self._count[0] != len(self._written):
+            self._count = len(self._written), count_records(self._written)
+        return self._count[1]
+
+    @property
+    def windows(self) -> int:
+        return self.counted.windows
+
+    @property
+    def summaries(self) -> int:
+        return self.counted.summaries
+
+    @property
+    def records(self) -> int:
+        return self.counted.records
 
 
 @dataclasses.dataclass(frozen=True)

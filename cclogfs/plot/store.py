@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..runs import hidden_by_default
+from ..windowcount import count_records, link_of
 from .figures import pyplot
 
 POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped")
@@ -38,6 +39,8 @@ class PlotData:
     peaks: list[tuple[int, float]] = field(default_factory=list)  # (peak_ns, peak_score) per smart window
     summary: list[tuple[int, int, int]] = field(default_factory=list)  # (start_ns, end_ns, anomalies)
     undrawn: int = 0  # pose messages whose x, y or speed is not drawn (`_drawable`)
+    # stream -> its windows as `cclog info` counts them (a smart window's parts once: `windowcount`)
+    counted: dict[str, int] = field(default_factory=dict)
 
     @property
     def t0(self) -> int:
@@ -81,12 +84,13 @@ def plot_data(store: Any, topic: str | None = None) -> PlotData:
     if topic is not None and topic not in store.streams():
         raise InvalidInputError(f"the store has no stream {topic}")
     topic = topic or pose_topic(store)
-    rows, window_of, windows, peaks, summary = [], [], {}, {}, []
+    rows, window_of, windows, peaks, summary, records = [], [], {}, {}, [], []
     for w in store.query():
         if hidden_by_default(w.name):
             continue  # the runs' bookkeeping, stamped in wall time: not the robot's time line
         windows.setdefault(w.name, []).append((w.start_ns, w.end_ns))
         meta = w.meta
+        records.append((w.seq, w.name, link_of(meta), w.continues))
         if w.name == SUMMARY:
             for _, text in w.messages():
                 rec = json.loads(text)
@@ -102,7 +106,7 @@ def plot_data(store: Any, topic: str | None = None) -> PlotData:
     if not rows:
         empty = np.zeros(0)
         return PlotData(topic or "", empty.astype(np.int64), empty, empty, empty, empty.astype(int), windows,
-                        sorted(peaks.values()), sorted(summary))  # fmt: skip
+                        sorted(peaks.values()), sorted(summary), count_records(records).streams)  # fmt: skip
     order = np.argsort(np.array([r[0] for r in rows], dtype=np.int64), kind="stable")
     arr = np.array(rows, dtype=object)[order]
     stamp, x, y = arr[:, 0].astype(np.int64), arr[:, 1].astype(float), arr[:, 2].astype(float)
@@ -116,7 +120,7 @@ def plot_data(store: Any, topic: str | None = None) -> PlotData:
     bad |= ~_drawable(speed) & ~np.isnan(speed)
     speed[~_drawable(speed)] = math.nan
     return PlotData(topic, stamp, x, y, speed, np.array(window_of)[order], windows, sorted(peaks.values()),
-                    sorted(summary), int(bad.sum()))  # fmt: skip
+                    sorted(summary), int(bad.sum()), count_records(records).streams)  # fmt: skip
 
 
 # Beyond this (metres, m/s) a value is junk, not a robot: matplotlib's axis limits and ticks
@@ -154,7 +158,7 @@ def _trajectory(data: PlotData, path: Path) -> Path:
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    n = len(data.windows.get(data.topic, []))
+    n = data.counted.get(data.topic, 0)
     ax.set_title(f"Trajectory: {len(data.x):,} stored poses in {n:,} windows")
     ax.legend(loc="best", fontsize=8)
     return _save(plt, fig, path)

@@ -27,7 +27,7 @@ def smart_store(tmp_path_factory):
     cclog("simulate", "--seed", 1, "--duration", 120, "--anomalies", 2, "--rate", 20, "--robot-seed", 1, "--out", d / "run")
     cclog("simulate", "--seed", 2, "--duration", 90, "--nominal", "--rate", 20, "--robot-seed", 1, "--out", d / "nom")
     cclog("train", d / "nom" / "run", "--out", d / "model")
-    cclog("record", d / "run" / "run", "--store", d / "s", "--model", d / "model")
+    cclog("record", d / "run" / "run", "--store", d / "s", "--model", d / "model", "--window-max-s", "0.001")
     return d / "s"
 
 
@@ -60,6 +60,7 @@ def test_plot_draws_the_stored_odometry_windows_and_scores(smart_store, tmp_path
     assert np.allclose(data.speed, [math.hypot(v["x"], v["y"]) for v in lin])
     assert data.windows == spans and len(spans["/odom"]) >= 1
     finals = {m["window_id"]: (m["peak_ns"], m["peak_score"]) for m in metas}
+    assert data.counted["/odom"] == len(finals) < len(metas)  # the trajectory's title: a window's parts once
     assert data.peaks == sorted(finals.values()) and all(s > 0 for _, s in data.peaks)
     assert data.summary == sorted((s["start_ns"], s["end_ns"], s["anomalies"]) for s in summary)
     assert sum(n for *_, n in data.summary) > 0
