@@ -106,7 +106,7 @@ def plot_data(store: Any, topic: str | None = None) -> PlotData:
     if not rows:
         empty = np.zeros(0)
         return PlotData(topic or "", empty.astype(np.int64), empty, empty, empty, empty.astype(int), windows,
-                        sorted(peaks.values()), sorted(summary), count_records(records).streams)  # fmt: skip
+                        sorted(peaks.values()), sorted(summary), counted=count_records(records).streams)  # fmt: skip
     order = np.argsort(np.array([r[0] for r in rows], dtype=np.int64), kind="stable")
     arr = np.array(rows, dtype=object)[order]
     stamp, x, y = arr[:, 0].astype(np.int64), arr[:, 1].astype(float), arr[:, 2].astype(float)
@@ -120,7 +120,7 @@ def plot_data(store: Any, topic: str | None = None) -> PlotData:
     bad |= ~_drawable(speed) & ~np.isnan(speed)
     speed[~_drawable(speed)] = math.nan
     return PlotData(topic, stamp, x, y, speed, np.array(window_of)[order], windows, sorted(peaks.values()),
-                    sorted(summary), int(bad.sum()), count_records(records).streams)  # fmt: skip
+                    sorted(summary), int(bad.sum()), counted=count_records(records).streams)  # fmt: skip
 
 
 # Beyond this (metres, m/s) a value is junk, not a robot: matplotlib's axis limits and ticks
