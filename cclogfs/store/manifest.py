@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 import uuid
-from collections.abc import Iterator, Mapping
+from collections.abc import Collection, Iterator, Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -180,12 +180,13 @@ class Manifest(Mapping[str, Any]):
         segments = [infos.get(info["first_seq"], info) for info in self.segments]
         return self._next(segments=segments)
 
-    def without_oldest(self) -> Manifest:
-        """Retention: the oldest sealed segment dropped, its statistics added to `dropped`."""
+    def without_oldest(self, carried: Collection[str] = ()) -> Manifest:
+        """Retention: the oldest sealed segment dropped, its statistics added to `dropped`
+        but those of the streams `carried` (their windows were put again: none is lost)."""
         oldest = self.segments[0]
         before = self.dropped
         streams = {k: dict(v) for k, v in before["streams"].items()}
-        merge_stream_stats(streams, oldest["streams"])
+        merge_stream_stats(streams, {k: v for k, v in oldest["streams"].items() if k not in carried})
         return self._next(first_seq=oldest["end_seq"], segments=self.segments[1:],
                           dropped={"segments": before["segments"] + 1, "streams": streams})
 

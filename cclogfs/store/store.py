@@ -517,12 +517,14 @@ class Store:
 
         return compaction.rewrite(self, fn, segments)
 
-    def drop_oldest(self) -> Dropped | None:
+    def drop_oldest(self, carry: Sequence[str] = ()) -> Dropped | None:
         """Retention: remove the oldest sealed segment (never the active one); None when
-        there is no sealed segment. The log then starts at the next segment's first seq."""
+        there is no sealed segment. The log then starts at the next segment's first seq.
+        The windows of the streams `carry` in it are put again first (new seqs), so that
+        they outlive it (`cclog record`'s runs: FORMAT.md, "Compaction and retention")."""
         from . import compaction
 
-        return compaction.drop_oldest(self)
+        return compaction.drop_oldest(self, carry)
 
     def _seal(self, seg: Segment) -> None:
         """Write the segment's index, then name it in the manifest (it is already synced)."""
