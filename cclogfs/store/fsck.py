@@ -196,7 +196,7 @@ def _header_damage(fs: FileSystem, opened: Segment, info: SealedSegment) -> str:
     held = f"seqs {info.first_seq}..{info.end_seq - 1}" if info.end_seq > info.first_seq else "no record"
     return (f"segment header (offset 0, {SEGMENT_HEADER_SIZE} bytes) is damaged: {fault}; the manifest says "
             f"the segment holds {held}{span} ({info.size} bytes); `cclog fsck --repair` rebuilds the header "
-            "when its name, the manifest and its first record agree on first_seq")  # fmt: skip
+            "from its name and the manifest when its first record, if intact, agrees on first_seq")  # fmt: skip
 
 
 def _as_found(fs: FileSystem, opened: Segment) -> tuple[Segment, bool]:

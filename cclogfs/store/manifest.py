@@ -216,7 +216,8 @@ class Manifest(Mapping[str, Any]):
             if version in FORMAT_VERSIONS:  # a newer version may hold what this one does not know
                 check_body(body)
         except RecordError as err:
-            raise CorruptionError(f"{path} is damaged: {err}", path=path, offset=0,
+            raise CorruptionError(f"{path} is damaged: {err}; `cclog fsck --repair` rebuilds it from the segment "
+                                  "files (the damaged one kept in quarantine/)", path=path, offset=0,
                                   reason=err.reason) from err  # fmt: skip
         if version not in FORMAT_VERSIONS:
             raise StoreError(f"{path}: field format_version is {version!r}, which this cclogfs cannot read "

@@ -260,8 +260,9 @@ class SegmentOpener:
         only `fsck --repair` (which records the cut in the manifest) may go on."""
         cut = cut_damage(seg)
         if not self.readonly and not self.drop_lost_header:  # `open` closes the segments on the way out
-            raise DamagedError(f"{self.path}: a writer cannot open the store: {cut}; run `cclog fsck --repair "
-                               "--discard-damaged` to drop what the cut lost (and name its seqs)",
+            raise DamagedError(f"{self.path}: a writer cannot open the store: {cut}; run `cclog fsck --repair` "
+                               "to name what the cut lost in the manifest (its seqs are kept, never reused; "
+                               "`--discard-damaged` then drops them)",
                                [cut.damage_info()], path=seg.path, reason=cut.reason)  # fmt: skip
         seg.cut = True
         seg.sealed_size = seg.size  # reads take the file as it is, the cut named as damage

@@ -63,6 +63,9 @@ def repair_store(path: str, *, discard_damaged: bool = False, fs: FileSystem | N
                     "sealed with damage named in the manifest")  # fmt: skip
             report.actions.append(f"{what}: {p}")
         report.actions += [f"removed {n}" for n in rec.removed_files]
+        for seg in list(store.sealed):
+            if seg.size > seg.sealed_size:
+                _quarantine_growth(store, seg, report)
         _declare_sealed_damage(store, report)
         rebuild_headers(store, report.actions, report.unproven)
         _rebuild_indexes(store, report)
@@ -144,6 +147,32 @@ def _declare_sealed_damage(store: Store, report: RepairReport) -> None:
             store.commit_manifest(manifest)
             seg.cut = False
             report.actions += [f"named damage in a sealed segment in the manifest: {p}" for p in new]
+
+
+def _quarantine_growth(store: Store, seg, report: RepairReport) -> None:
+    """A sealed segment that gained bytes since it was sealed (a bad copy, another program
+    appending): they were never records of this store (the manifest states the size it was
+    sealed at, all of it synced and indexed), so they are not salvaged into it, but copied
+    to `quarantine/NAME.tail-SIZE` (kept until `--discard-damaged`) and cut from the file,
+    which is then what was sealed. Order: the copy durable, the cut synced, the manifest
+    naming the copy; a crash between leaves the copy (made again, or adopted unnamed)."""
+    name = f"{os.path.basename(seg.path)}.tail-{seg.sealed_size}"
+    qdir = store.file_path(QUARANTINE)
+    store.fs.mkdir(qdir)
+    store.fs.fsync_dir(store.path)
+    store.fs.copy_range_atomic(seg.fd, seg.sealed_size, seg.size, os.path.join(qdir, name))
+    grown = seg.size - seg.sealed_size
+    fd = store.fs.open(seg.path, write=True)
+    try:
+        store.fs.truncate(fd, seg.sealed_size)
+        store.fs.fsync(fd)
+    finally:
+        store.fs.close(fd)
+    seg.size = seg.sealed_size
+    store.commit_manifest(store.manifest.with_quarantined(name))
+    report.actions.append(f"{os.path.basename(seg.path)} had grown by {grown} bytes since it was sealed (at "
+                          f"{seg.sealed_size} bytes): they were never part of the store; moved to "
+                          f"{QUARANTINE}/{name} and cut from the segment")  # fmt: skip
 
 
 def _salvage(store: Store, name: str, report: RepairReport) -> None:

@@ -192,7 +192,8 @@ class Segment:
             # Never answer from a sealed segment that lost or gained bytes: a shorter one
             # would otherwise give a silent hole.
             raise CorruptionError(f"{self.path} is {self.size} bytes but the manifest says it was sealed "
-                                  f"at {self.sealed_size}; its records cannot be trusted (run `cclog fsck`)",
+                                  f"at {self.sealed_size}; its records cannot be trusted (`cclog fsck` names why; `cclog fsck --repair` "
+                                  "names what a cut lost, or moves bytes added since into quarantine/)",
                                   path=self.path, offset=min(self.size, self.sealed_size),
                                   reason=Reason.SIZE_MISMATCH)  # fmt: skip
         try:

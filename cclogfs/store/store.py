@@ -758,8 +758,8 @@ class Store:
         if damage:
             where = "; ".join(describe_damage(d) for d in damage)
             raise DamagedError(f"{self.path}: windows lost to damage below the synced point ({where}); a "
-                               "query could miss them, so it refuses: run `cclog fsck --repair --discard-damaged` "
-                               "to drop them (their seqs named), or read the intact windows with --skip-damaged", damage, path=self.path,
+                               f"query could miss them, so it refuses: {repair_hint(damage)}, or read the intact "
+                               "windows with --skip-damaged", damage, path=self.path,
                                reason=damage[0]["reason"])  # fmt: skip
 
     def query(self, name: str | None = None, start_ns: int | None = None,
@@ -848,6 +848,18 @@ def _remove_stale_creations(parent: str, base: str) -> None:
                 shutil.rmtree(os.path.join(parent, name), ignore_errors=True)
             except PermissionError:
                 continue
+
+
+def repair_hint(damage: Sequence[Mapping[str, Any]]) -> str:
+    """The repair that ends a read's refusal of `damage`. A damaged segment header (offset
+    0) needs only `fsck --repair`: it rebuilds a header whose records are intact, and seals
+    a segment whose records were lost with its header with them discarded. Any other
+    stretch stays named until `--discard-damaged` (the hint once named it for a header
+    too, dropping nothing more than plain --repair but saying the records would go)."""
+    if all(d["offset"] == 0 and d["reason"] == Reason.BAD_SEGMENT_HEADER for d in damage):
+        return ("run `cclog fsck --repair` (it rebuilds a segment header whose records are intact, or names the "
+                "records lost with it, their seqs never reused)")  # fmt: skip
+    return "run `cclog fsck --repair --discard-damaged` to drop them (their seqs named)"
 
 
 def describe_damage(d: Mapping[str, Any]) -> str:
