@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 
 from ..codecs import codec_from_config
 from ..errors import CclogError, CorruptionError, StoreLockedError
-from .format import AGED_META_KEY, Reason, LOCK, MANIFEST, QUARANTINE, SIDE_FILE, check_fields, index_size_limit
+from .format import (AGED_META_KEY, LOCK, MANIFEST, QUARANTINE, SIDE_FILE, Reason, check_fields, index_size_limit,
+                     parse_seq_name)
 from .fs import FileSystem, FileTooLargeError
 from .header_repair import rebuild_headers
 from .records import intact_in
@@ -83,12 +84,14 @@ def repair_store(path: str, *, discard_damaged: bool = False, fs: FileSystem | N
 
 
 def _rebuild_manifest_if_damaged(path: str, fs: FileSystem, report: RepairReport) -> None:
-    """A MANIFEST that fails its checks (not a missing one: that is no store) is derived
-    again from the segment files."""
+    """A MANIFEST that fails its checks, or one that is missing beside segment files (a
+    directory without either is no store), is derived again from the segment files."""
     manifest = os.path.join(path, MANIFEST)
-    if not fs.exists(manifest):
-        return
     try:
+        if not fs.exists(manifest):
+            if not fs.exists(path) or not any(n.endswith(".seg") and parse_seq_name(n) for n in fs.listdir(path)):
+                return
+            raise CorruptionError(f"{manifest} is missing")
         Manifest.load(fs, manifest)
     except CorruptionError:
         # Under the writer's lock, as every other step: a writer still running would commit

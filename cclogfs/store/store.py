@@ -181,9 +181,11 @@ class Store:
         and renamed into place once its manifest is durable. A directory an older version
         left half made (only LOCK and temporary files) is finished by the next writer."""
         names = self.fs.listdir(self.path) if self.fs.exists(self.path) else []
+        if any(n.endswith(".seg") and parse_seq_name(n) for n in names):
+            raise StoreError(f"{self.path} holds segment files but no {MANIFEST}: a store whose manifest was lost; "
+                             "`cclog fsck --repair` rebuilds it from the segment files")  # fmt: skip
         if any(n != LOCK and not n.endswith(TMP_SUFFIX) for n in names):
-            raise StoreError(f"{self.path} holds files but no {MANIFEST}: not a cclogfs store, "
-                             "or one whose manifest was lost (run `cclog fsck`)")  # fmt: skip
+            raise StoreError(f"{self.path} holds files but no {MANIFEST} and no segment file: not a cclogfs store")
         half_made = LOCK in names
         if self.readonly or not (create or half_made):
             what = ("its creation was interrupted; open it for writing to finish it" if half_made

@@ -114,3 +114,24 @@ def test_a_damaged_manifest_names_the_repair_that_rebuilds_it(tmp_path, capsys):
     assert code == 1 and _named(err) == ["fsck", "--repair"], err
     assert _follow(path, err, capsys) == 4  # the damaged MANIFEST kept in quarantine
     assert _cat(path, capsys)[:2] == (0, 30)
+
+
+def test_a_lost_manifest_names_the_repair_that_rebuilds_it(tmp_path, capsys):
+    """It said "not a cclogfs store, or one whose manifest was lost (run `cclog fsck`)";
+    `cclog fsck` said the same, and `fsck --repair` refused the store (exit 8)."""
+    path = _store(tmp_path / "s")
+    (path / "MANIFEST").unlink()
+    code, _n, err = _cat(path, capsys)
+    assert code == 1 and _named(err) == ["fsck", "--repair"], err
+    capsys.readouterr()
+    assert main(["fsck", "--repair", str(path)]) == 1
+    assert "rebuilt MANIFEST from 3 segment files (new store id; retention's totals start again; it was missing)" \
+        in capsys.readouterr().out
+    assert _cat(path, capsys)[:2] == (0, 30)
+    assert main(["fsck", str(path)]) == 0
+    junk = tmp_path / "junk"
+    junk.mkdir()
+    (junk / "notes.txt").write_text("hi")
+    assert main(["fsck", "--repair", str(junk)]) == 8  # no segment file: no store to rebuild
+    assert "not a cclogfs store" in capsys.readouterr().err
+    assert sorted(os.listdir(junk)) == ["notes.txt"]
