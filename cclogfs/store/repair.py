@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from ..codecs import codec_from_config
 from ..errors import CclogError, CorruptionError, StoreLockedError
 from .format import (AGED_META_KEY, LOCK, MANIFEST, QUARANTINE, SIDE_FILE, Reason, check_fields, index_size_limit,
-                     parse_seq_name)
+                     parse_seq_name, segment_name)
 from .fs import FileSystem, FileTooLargeError
 from .header_repair import rebuild_headers
 from .records import intact_in
@@ -51,6 +51,7 @@ def repair_store(path: str, *, discard_damaged: bool = False, fs: FileSystem | N
     report = RepairReport(path)
     fs = fs or FileSystem()
     _rebuild_manifest_if_damaged(path, fs, report)
+    _recreate_missing(path, fs, report, discard_damaged)
     with open_store(path, sync_every_ms=None, sync_every_bytes=None, fs=fs, drop_lost_header=True) as store:
         rec = store.recovery
         report.actions += [f"cut torn tail: {p}" for p in rec.problems]
@@ -104,6 +105,42 @@ def _rebuild_manifest_if_damaged(path: str, fs: FileSystem, report: RepairReport
             report.actions += rebuild_manifest(fs, path, codec_from_config("columnar").get_config())
         finally:
             fs.unlock(lock)
+
+
+def _recreate_missing(path: str, fs: FileSystem, report: RepairReport, discard_damaged: bool) -> None:
+    """A segment file the manifest (or the last clean close's checkpoint) says holds records,
+    gone: an empty file in its place makes it what the store already repairs, a segment cut
+    to nothing, so that its seqs are named lost and never reused. The active segment as
+    plain --repair treats one whose header was lost; a sealed one only with
+    `discard_damaged` (its records are then dropped for good, and a file restored later
+    could no longer take its place)."""
+    try:
+        manifest = Manifest.load(fs, os.path.join(path, MANIFEST))[0]
+    except (CclogError, OSError):
+        return  # no store, or one the open refuses with its own words
+    wanted = [segment_name(i["first_seq"], i.get("gen", 0)) for i in manifest.segments] if discard_damaged else []
+    mark = manifest.checkpoint
+    if mark and mark["next_seq"] > mark["first_seq"] >= manifest.end_seq:
+        wanted.append(segment_name(mark["first_seq"]))
+    missing = [n for n in wanted if not fs.exists(os.path.join(path, n))]
+    if not missing:
+        return
+    lock = fs.lock(os.path.join(path, LOCK))
+    if lock is None:
+        raise StoreLockedError(f"{path} is locked by another writer; a segment file is missing, and is "
+                               "named lost only once that writer has stopped")  # fmt: skip
+    try:
+        for name in missing:
+            fd = fs.open(os.path.join(path, name), write=True, create=True)
+            try:
+                fs.fsync(fd)
+            finally:
+                fs.close(fd)
+            fs.fsync_dir(path)
+            report.actions.append(f"{name} was missing: an empty file put in its place, so that its seqs are "
+                                  "named lost (below) and never reused")  # fmt: skip
+    finally:
+        fs.unlock(lock)
 
 
 def _rebuild_indexes(store: Store, report: RepairReport) -> None:

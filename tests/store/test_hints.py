@@ -135,3 +135,25 @@ def test_a_lost_manifest_names_the_repair_that_rebuilds_it(tmp_path, capsys):
     assert main(["fsck", "--repair", str(junk)]) == 8  # no segment file: no store to rebuild
     assert "not a cclogfs store" in capsys.readouterr().err
     assert sorted(os.listdir(junk)) == ["notes.txt"]
+
+
+@pytest.mark.parametrize("which, repair, left", [(ACTIVE, ["fsck", "--repair"], 24),
+                                                 (SEALED, ["fsck", "--repair", "--discard-damaged"], 18)])
+def test_a_missing_segment_names_the_repair_that_names_its_seqs_lost(tmp_path, capsys, which, repair, left):
+    """It said only "... is missing", and `fsck --repair` refused the store (exit 8) with
+    the same words: no way back. Now the error names the seqs and the repair, which puts an
+    empty file in its place so that they are named lost, never reused; a sealed one only
+    with --discard-damaged (a restored file could no longer take its place)."""
+    path = _store(tmp_path / "s")
+    (path / which).unlink()
+    code, _n, err = _cat(path, capsys)
+    assert code == 1 and _named(err) == repair, err
+    assert "seqs 8..9" in err if which == ACTIVE else "(seqs 4..7)" in err
+    if which == SEALED:
+        assert main(["fsck", "--repair", str(path)]) == 8  # refused: the user must say the records are gone
+        assert not (path / which).exists()
+    assert _follow(path, err, capsys) == 1
+    assert _cat(path, capsys)[:2] == (0, left)
+    assert main(["fsck", str(path)]) == 0
+    with cclogfs.open_store(path) as store:  # the lost seqs are never given to new records
+        assert store.put_window("/a", [(99_999, "{}")]).seq == 10
