@@ -237,7 +237,8 @@ class Segment:
                 raise RecordError(Reason.INDEX_MISMATCH, f"record is {header.record_len} bytes, index says {length}")
         except RecordError as err:
             raise CorruptionError(
-                f"{self.path}: record at offset {offset} is damaged: {err}",
+                f"{self.path}: record at offset {offset} is damaged: {err}; `cclog fsck --repair` names it in the "
+                "manifest (reads then skip it with --skip-damaged; --discard-damaged drops it)",
                 path=self.path, offset=offset, reason=err.reason,
             ) from err  # fmt: skip
         return header, payload

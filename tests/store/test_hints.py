@@ -157,3 +157,18 @@ def test_a_missing_segment_names_the_repair_that_names_its_seqs_lost(tmp_path, c
     assert main(["fsck", str(path)]) == 0
     with cclogfs.open_store(path) as store:  # the lost seqs are never given to new records
         assert store.put_window("/a", [(99_999, "{}")]).seq == 10
+
+
+@pytest.mark.parametrize("which", [SEALED, ACTIVE])
+def test_a_damaged_record_a_read_meets_names_the_repair(tmp_path, capsys, which):
+    """A read that met a damaged record nobody had named yet said only "record at offset N
+    is damaged: payload checksum mismatch"."""
+    path = _store(tmp_path / "s")
+    _flip(path / which, (path / which).stat().st_size - 5)
+    code, _n, err = _cat(path, capsys)
+    assert code == 1 and _named(err) == ["fsck", "--repair"], err
+    assert _follow(path, err, capsys) == 4  # named: damage left
+    code, _n, err = _cat(path, capsys)
+    assert code == 1 and _named(err) == ["fsck", "--repair", "--discard-damaged"], err
+    assert _follow(path, err, capsys) == 1
+    assert _cat(path, capsys)[:2] == (0, 27)
