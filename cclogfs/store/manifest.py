@@ -196,6 +196,10 @@ class Manifest(Mapping[str, Any]):
         """Make this version the store's: one atomic replace of the MANIFEST file."""
         fs.write_file_atomic(path, pack_manifest(self._body))
 
+    def encoded_size(self) -> int:
+        """Bytes this version takes as a MANIFEST file."""
+        return len(pack_manifest(self._body))
+
     @staticmethod
     def read_bytes(fs: FileSystem, path: str) -> bytes:
         """The MANIFEST file's bytes, its size checked against the format's limit first."""

@@ -815,17 +815,21 @@ class Store:
         so evidence kept for a repair never makes retention drop data."""
         names = [n for n in self.fs.listdir(self.path) if n == MANIFEST or parse_seq_name(n) is not None]
         # A file removed meanwhile (a writer compacting while we read) counts 0.
-        return sum(self.fs.file_size(self.file_path(name)) or 0 for name in names) + self._index_to_come()
+        return sum(self.fs.file_size(self.file_path(name)) or 0 for name in names) + self._close_to_come()
 
-    def _index_to_come(self) -> int:
-        """Bytes the active segment's index will add when close() writes it (FORMAT.md,
-        "Checkpoint index"): counted now, so a budget met while recording is met after the
-        close too (it was overshot by the size of that index)."""
+    def _close_to_come(self) -> int:
+        """Bytes close() will add: the active segment's index (FORMAT.md, "Checkpoint
+        index") and the checkpoint the manifest then names (up to ~100 bytes): counted now, so
+        a budget met while recording is met after the close too (it was overshot by the
+        size of that index, then by the checkpoint's bytes)."""
         seg = self.active
         if self.readonly or seg is None or not seg.rows:
             return 0
         on_disk = self.fs.file_size(self._index_path(seg)) or 0
-        return max(0, seg.index().encoded_size() - on_disk)
+        index = max(0, seg.index().encoded_size() - on_disk)
+        closed = self.manifest.with_checkpoint(seg.first_seq, seg.size, seg.next_seq, xxh3=(1 << 64) - 1)  # the widest
+        manifest = self.fs.file_size(self.file_path(MANIFEST)) or 0
+        return index + max(0, closed.encoded_size() - manifest)
 
     def free_bytes(self) -> int:
         """Bytes still free on the store's file system (for this user)."""
