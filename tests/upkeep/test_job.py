@@ -176,9 +176,15 @@ def test_recorder_keeps_to_its_budget_as_it_goes(tmp_path, capsys):
         assert s.data_bytes() <= 256 << 10
         assert s.dropped()["segments"] >= 1
         windows = list(s.query("/odom"))
-        # What is left is the newest stretch, gapless, every window exact.
+        # What is left is the newest stretch, gapless, every window exact (the log's seqs
+        # hold the run records retention carried too: /cclog/runs).
         assert windows[-1].end_ns == 39_999 * NS // 20
-        assert [w.seq for w in windows] == list(range(windows[0].seq, windows[0].seq + len(windows)))
+        seqs = sorted(w.seq for w in s.query())
+        assert seqs == list(range(s.first_seq, s.first_seq + len(seqs)))
+        assert [w.seq for w in windows] == [q for q in seqs if q >= windows[0].seq and q not in
+                                            {w.seq for w in s.query("/cclog/runs")}]  # fmt: skip
+        assert [stamp for w in windows for stamp, _t in w.messages()] == \
+            list(range(windows[0].start_ns, 40_000 * NS // 20, NS // 20))
         assert all(w.aged is None for w in windows)
     assert not check_store(store, deep=True).errors
 
