@@ -93,6 +93,11 @@ def test_a_sealed_segment_that_grew_is_repaired_as_the_error_says(tmp_path, caps
     code, _n, err = _cat(path, capsys)
     assert code == 1 and "`cclog fsck --repair`" in err, err
     capsys.readouterr()
+    assert main(["fsck", str(path)]) == 1  # it said "torn record in a sealed segment", no way on
+    out = capsys.readouterr().out
+    assert (f"{SEALED}: is {(path / SEALED).stat().st_size} bytes, it was sealed at "
+            f"{(path / SEALED).stat().st_size - 11}: 11 bytes were added since; `cclog fsck --repair` moves them "
+            "to quarantine/ and cuts the file back") in out and "1 errors, 0 warnings" in out, out
     assert main(["fsck", "--repair", str(path)]) == 4  # was 8: "cannot repair ... (run `cclog fsck`)"
     out = capsys.readouterr().out
     name = f"{SEALED}.tail-{(path / SEALED).stat().st_size}"
