@@ -96,6 +96,19 @@ class RunInfo:
     start: dict[str, Any] = field(repr=False)
     end: dict[str, Any] | None = None
     end_ns: int | None = None
+    # Seqs the start and end records were first put under (retention carries them to new
+    # ones: store.carry): the run's windows lie between them.
+    start_seq: int = -1
+    end_seq: int | None = None
+    first_seq: int = 0  # the store's first seq: retention dropped every window before it
+
+    @property
+    def retention(self) -> str | None:
+        """"all dropped" or "some dropped" when retention dropped windows this run kept
+        (its records outlive them), else None."""
+        if self.kept == 0 or self.first_seq <= self.start_seq + 1:
+            return None
+        return "all dropped" if self.end_seq is not None and self.first_seq >= self.end_seq else "some dropped"
 
     @property
     def status(self) -> str:
@@ -109,24 +122,31 @@ class RunInfo:
 
     def as_dict(self) -> dict[str, Any]:
         """The run as `cclog info --json` prints it."""
-        return {"run": self.number, "id": self.id, "start_ns": self.start_ns, "end_ns": self.end_ns,
-                "status": self.status, **{k: v for k, v in self.start.items() if k not in ("event", "run", "id")},
-                **{k: v for k, v in (self.end or {}).items() if k not in ("event", "run", "id", "status")}}  # fmt: skip
+        out = {"run": self.number, "id": self.id, "start_ns": self.start_ns, "end_ns": self.end_ns,
+               "status": self.status, **{k: v for k, v in self.start.items() if k not in ("event", "run", "id")},
+               **{k: v for k, v in (self.end or {}).items() if k not in ("event", "run", "id", "status")}}  # fmt: skip
+        if self.retention:
+            out["retention"] = self.retention
+        return out
 
 
 def list_runs(store: Store) -> list[RunInfo]:
     """The store's runs in start order. Damaged records are left out (the store names its
     damage; `cclog info` prints it); a record that is not a run's JSON is skipped."""
+    from .store.carry import origin
+
     runs: dict[str, RunInfo] = {}
     for w in store.query(RUNS_STREAM, skip_damaged=True):
+        seq = origin(w.meta, w.seq)
         for stamp, text in w.messages():
             try:
                 rec = json.loads(text)
                 if rec.get("event") == "start":
                     runs[rec["id"]] = RunInfo(int(rec["run"]), rec["id"], stamp, rec.get("source", "?"),
-                                              rec.get("fingerprint"), rec.get("options", {}), rec)  # fmt: skip
+                                              rec.get("fingerprint"), rec.get("options", {}), rec,
+                                              start_seq=seq, first_seq=store.first_seq)  # fmt: skip
                 elif rec.get("event") == "end" and rec.get("id") in runs:
-                    runs[rec["id"]].end, runs[rec["id"]].end_ns = rec, stamp
+                    runs[rec["id"]].end, runs[rec["id"]].end_ns, runs[rec["id"]].end_seq = rec, stamp, seq
             except (ValueError, KeyError, TypeError, AttributeError):
                 continue  # someone else's text on the stream: not a run
     return sorted(runs.values(), key=lambda r: (r.start_ns, r.number))

@@ -109,6 +109,8 @@ def runs_table(runs: list[dict]) -> str:
             status += f" ({r['signal']})"
         took = f"{(r['end_ns'] - r['start_ns']) / 1e9:.1f} s" if r["end_ns"] is not None else "-"
         kept = f"{r['messages_kept']:,} of {r['messages_in']:,}" if "messages_kept" in r else "-"
+        if r.get("retention"):  # the run's records outlive its windows (store/carry.py)
+            kept += f" ({r['retention']} by retention since)"
         rows.append([r["run"], iso_ns(r["start_ns"]), took, status, kept, _run_windows(r), r["source"],
                      _flags(r["options"])])  # fmt: skip
     return table(rows, ["run", "start (UTC)", "took", "status", "messages kept", "windows", "source", "options"])

@@ -19,10 +19,12 @@ from typing import Any, Protocol
 from .._signals import signals_deferred
 from ..errors import CorruptionError, InvalidInputError, StoreError, StoreFailedError
 from . import planted
+from .carry import carry_forward
 from .encode import Codecs, encode_window
 from .format import (
     AGED_META_KEY,
     KNOWN_FLAGS,
+    MANIFEST,
     RECORD_FIXED_SIZE,
     SEGMENT_HEADER_SIZE,
     Reason,
@@ -66,6 +68,16 @@ class Host(Protocol):
 
     def ensure_reserve(self) -> bool: ...
 
+    # retention's carry (carry.py) puts windows again through the public API
+    def query(self, name: str | None = None, *, skip_damaged: bool = False) -> Iterator[Window]: ...
+
+    def put_window(self, name: str, messages: Sequence[tuple[int, str]], meta: Mapping[str, Any] | None = None,
+                   *, codec: Any = None) -> Any: ...  # fmt: skip
+
+    def sync(self) -> None: ...
+
+    def free_bytes(self) -> int: ...
+
 
 @dataclass(frozen=True)
 class Replacement:
@@ -96,8 +108,9 @@ class Dropped:
 
     first_seq: int
     end_seq: int
-    streams: dict[str, dict[str, int]]  # its stream_stats(): windows, messages, times, bytes
+    streams: dict[str, dict[str, int]]  # its stream_stats() (windows, messages, times, bytes), those carried aside
     bytes: int  # segment and index file bytes freed
+    carried: list[str] = field(default_factory=list)  # streams whose windows were put again, not lost
 
 
 @dataclass
@@ -429,7 +442,7 @@ def _finish_rewrite(store: Host, plans: list[_Plan], report: RewriteReport) -> N
                                    ) from err  # fmt: skip
 
 
-def drop_oldest(store: Host) -> Dropped | None:
+def drop_oldest(store: Host, carry: Sequence[str] = ()) -> Dropped | None:
     """See `Store.drop_oldest`."""
     with store.compaction_lock, store.lock:
         store.check_writable()
@@ -439,11 +452,14 @@ def drop_oldest(store: Host) -> Dropped | None:
         freed = file_bytes(store, seg, seg.gen)
         if "early-delete" in planted.BUGS:
             _remove(store, [segment_name(seg.first_seq, seg.gen), index_name(seg.first_seq, seg.gen)])
-        with signals_deferred():  # the commit and its aftermath run to the end
-            # On a full disk the new manifest fits only in the reserve's space (FORMAT.md, "Reserve").
+        with signals_deferred():  # the carry, the commit and its aftermath run to the end
+            # On a full disk the new manifest (and what is carried) fits only in the
+            # reserve's space (FORMAT.md, "Reserve").
+            manifest_bytes = store.fs.file_size(os.path.join(store.path, MANIFEST)) or 0
             store.release_reserve()
             try:
-                _commit(store, store.manifest.without_oldest(), f"dropping segment {os.path.basename(seg.path)}")
+                kept = carry_forward(store, info, carry, manifest_bytes) if carry else set()
+                _commit(store, store.manifest.without_oldest(kept), f"dropping segment {os.path.basename(seg.path)}")
             except StoreFailedError:
                 raise
             except StoreError:
@@ -451,7 +467,8 @@ def drop_oldest(store: Host) -> Dropped | None:
                 raise
             _finish_drop(store, seg)
             _ensure_reserve_quietly(store)
-        return Dropped(info["first_seq"], info["end_seq"], info["streams"], freed)
+        lost = {name: st for name, st in info["streams"].items() if name not in kept}
+        return Dropped(info["first_seq"], info["end_seq"], lost, freed, sorted(kept))
 
 
 def _ensure_reserve_quietly(store: Host) -> None:

@@ -196,7 +196,7 @@ def _header_damage(fs: FileSystem, opened: Segment, info: SealedSegment) -> str:
     held = f"seqs {info.first_seq}..{info.end_seq - 1}" if info.end_seq > info.first_seq else "no record"
     return (f"segment header (offset 0, {SEGMENT_HEADER_SIZE} bytes) is damaged: {fault}; the manifest says "
             f"the segment holds {held}{span} ({info.size} bytes); `cclog fsck --repair` rebuilds the header "
-            "when its name, the manifest and its first record agree on first_seq")  # fmt: skip
+            "from its name and the manifest when its first record, if intact, agrees on first_seq")  # fmt: skip
 
 
 def _as_found(fs: FileSystem, opened: Segment) -> tuple[Segment, bool]:
@@ -217,7 +217,15 @@ def _check_segment(store: Store, fs: FileSystem, info: SealedSegment, checked: S
         report.add("warning", _loc(p), f"{p.reason}, skipped")
     found = [*result.damage, *([result.problem] if result.problem else [])]
     unknown = [p for p in found if p.offset not in known]
-    if unknown:
+    # Bytes added past the sealed size (a bad copy, another program appending): not damage of
+    # a record, and repair has a way with them.
+    grown = checked.size > info.size and result.end >= info.size and all(p.offset >= info.size for p in unknown)
+    if grown:
+        report.add("error", name, f"is {checked.size} bytes, it was sealed at {info.size}: "
+                                  f"{checked.size - info.size} bytes were added since; `cclog fsck --repair` "
+                                  f"moves them to {QUARANTINE}/ and cuts the file back")  # fmt: skip
+        unknown = []
+    elif unknown:
         p = unknown[0]
         report.add("error", _loc(p), f"{p.reason} in a sealed segment")
         _check_past_damage(store, fs, info, checked, p.offset, report)
@@ -236,7 +244,8 @@ def _check_segment(store: Store, fs: FileSystem, info: SealedSegment, checked: S
             report.add("error", name, f"aged windows per stream {result.aged} differ from the "
                                       f"manifest's {info.aged}")  # fmt: skip
         report.aged += sum(result.aged.values())
-        _check_index(store, fs, info, checked, scanned, report)
+        if not grown:  # its index describes the sealed size, which repair cuts the file back to
+            _check_index(store, fs, info, checked, scanned, report)
 
 
 def _known_damage(store: Store, first_seq: int) -> set[int]:

@@ -41,8 +41,7 @@ def rebuild_headers(store: Store, actions: list[str], unproven: list[str], *, di
             continue
         # Stretches discarded before (or sealed as discarded: records lost with their header)
         # are gone already, so they never count against a header.
-        gone = {d["offset"] for d in info.get("discarded", ())}
-        why = _unprovable(seg, info, seg.known_damage if discarded else gone)
+        why = _unprovable(seg, info, seg.known_damage, discarded)
         if why:
             unproven.append(f"{name}: segment header kept as it is, not rebuilt ({fault}): {why}")
             continue
@@ -51,18 +50,27 @@ def rebuild_headers(store: Store, actions: list[str], unproven: list[str], *, di
         _rewrite(store, seg, _new_header(store, seg))
         if _header_entries(info):
             _forget_header_damage(store, seg, info)
+        info = next(i for i in store.manifest.segments if i["first_seq"] == seg.first_seq)
         actions.append(f"rebuilt the segment header of {name} ({fault}): first_seq {seg.first_seq}, as "
-                       f"{_proof(info, discarded)}")  # fmt: skip
+                       f"{_proof(info)}")  # fmt: skip
 
 
-def _proof(info: dict, discarded: bool) -> str:
+def _proof(info: dict) -> str:
     """What vouched for the rebuilt header's first_seq, and what became of the records."""
     gone = [d for d in info.get("discarded", ()) if d["end_seq"] > d["first_seq"]]
-    if not gone:
-        return (f"its name, the manifest and its first record state; its {info['end_seq'] - info['first_seq']} "
-                "records kept byte for byte")  # fmt: skip
-    lost = ", ".join(lost_seqs(d["first_seq"], d["end_seq"]) for d in gone)
-    return f"its name and the manifest state (the records that did not agree were discarded: {lost})"
+    named = [d for d in info.get("damaged", ()) if d["end_seq"] > d["first_seq"]]
+    if gone:
+        lost = ", ".join(lost_seqs(d["first_seq"], d["end_seq"]) for d in gone)
+        said = f"its name and the manifest state (the records that did not agree were discarded: {lost})"
+    elif any(d["offset"] == SEGMENT_HEADER_SIZE for d in named):
+        said = "its name and the manifest state (its first record is damaged)"
+    else:
+        said = "its name, the manifest and its first record state"
+    if not named:
+        return said if gone else f"{said}; its {info['end_seq'] - info['first_seq']} records kept byte for byte"
+    lost = ", ".join(lost_seqs(d["first_seq"], d["end_seq"]) for d in named)
+    return (f"{said}; every intact record kept byte for byte, the damaged ones still named as damage ({lost}: "
+            "`--discard-damaged` drops them)")  # fmt: skip
 
 
 def _header_entries(info: dict) -> list[dict]:
@@ -71,19 +79,22 @@ def _header_entries(info: dict) -> list[dict]:
     return [d for d in info.get("damaged", ()) if d["offset"] == 0 and d["reason"] == Reason.BAD_SEGMENT_HEADER]
 
 
-def _unprovable(seg: Segment, info: dict, dropped: set[int]) -> str:
+def _unprovable(seg: Segment, info: dict, dropped: set[int], discarded: bool) -> str:
     """Why the header cannot be known from the name, the manifest and the records ("" when
-    it can): the file must be the size the manifest states, its first record must state
-    the seq its name does, and every record must be intact up to the manifest's end_seq,
-    but for the stretches at the offsets `dropped` (discarded)."""
+    it can): the file must be the size the manifest states, and every record must be
+    intact up to the manifest's end_seq, but for the stretches the manifest names (damaged
+    or discarded: at the offsets `dropped`). Its first record, when intact, must state
+    the seq its name does (unless `discarded` dropped it); a damaged one, named as damage,
+    leaves the name and the manifest, which agree, to state it (a header holds nothing a
+    record needs, and the damage keeps its bytes and seqs named)."""
     if seg.size != seg.sealed_size:
         return f"the file is {seg.size} bytes, the manifest says {seg.sealed_size}"
-    if seg.size > SEGMENT_HEADER_SIZE and SEGMENT_HEADER_SIZE not in dropped:
+    if seg.size > SEGMENT_HEADER_SIZE and not (discarded and SEGMENT_HEADER_SIZE in dropped):
         first = seg.read_header(SEGMENT_HEADER_SIZE)
-        if first is None:
+        if first is None and SEGMENT_HEADER_SIZE not in dropped:
             return (f"its first record (offset {SEGMENT_HEADER_SIZE}) is damaged too, so no record confirms "
                     f"first_seq {seg.first_seq}")  # fmt: skip
-        if first.seq != seg.first_seq:
+        if first is not None and first.seq != seg.first_seq:
             return (f"its first record states seq {first.seq}, but its name and the manifest say "
                     f"{seg.first_seq}: which is right cannot be told, so nothing is guessed")  # fmt: skip
     result = scan(seg, salvage=bool(dropped))  # records only: a scan never reads the segment header

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 import uuid
-from collections.abc import Iterator, Mapping
+from collections.abc import Collection, Iterator, Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -180,12 +180,13 @@ class Manifest(Mapping[str, Any]):
         segments = [infos.get(info["first_seq"], info) for info in self.segments]
         return self._next(segments=segments)
 
-    def without_oldest(self) -> Manifest:
-        """Retention: the oldest sealed segment dropped, its statistics added to `dropped`."""
+    def without_oldest(self, carried: Collection[str] = ()) -> Manifest:
+        """Retention: the oldest sealed segment dropped, its statistics added to `dropped`
+        but those of the streams `carried` (their windows were put again: none is lost)."""
         oldest = self.segments[0]
         before = self.dropped
         streams = {k: dict(v) for k, v in before["streams"].items()}
-        merge_stream_stats(streams, oldest["streams"])
+        merge_stream_stats(streams, {k: v for k, v in oldest["streams"].items() if k not in carried})
         return self._next(first_seq=oldest["end_seq"], segments=self.segments[1:],
                           dropped={"segments": before["segments"] + 1, "streams": streams})
 
@@ -194,6 +195,10 @@ class Manifest(Mapping[str, Any]):
     def commit(self, fs: FileSystem, path: str) -> None:
         """Make this version the store's: one atomic replace of the MANIFEST file."""
         fs.write_file_atomic(path, pack_manifest(self._body))
+
+    def encoded_size(self) -> int:
+        """Bytes this version takes as a MANIFEST file."""
+        return len(pack_manifest(self._body))
 
     @staticmethod
     def read_bytes(fs: FileSystem, path: str) -> bytes:
@@ -215,7 +220,8 @@ class Manifest(Mapping[str, Any]):
             if version in FORMAT_VERSIONS:  # a newer version may hold what this one does not know
                 check_body(body)
         except RecordError as err:
-            raise CorruptionError(f"{path} is damaged: {err}", path=path, offset=0,
+            raise CorruptionError(f"{path} is damaged: {err}; `cclog fsck --repair` rebuilds it from the segment "
+                                  "files (the damaged one kept in quarantine/)", path=path, offset=0,
                                   reason=err.reason) from err  # fmt: skip
         if version not in FORMAT_VERSIONS:
             raise StoreError(f"{path}: field format_version is {version!r}, which this cclogfs cannot read "

@@ -46,17 +46,20 @@ def rebuild_manifest(fs: FileSystem, path: str, codec_config: dict[str, Any]) ->
         gen_seen = max(gen_seen, segment_manifest_gen(head))
         parsed = unpack_segment_header(head)
         created = parsed[1] if parsed else created
-    qname = f"{MANIFEST}.damaged-{time.time_ns()}"
-    fs.mkdir(os.path.join(path, QUARANTINE))
-    fs.rename(os.path.join(path, MANIFEST), os.path.join(path, QUARANTINE, qname))
-    fs.fsync_dir(os.path.join(path, QUARANTINE))
+    quarantine = []
+    if fs.exists(os.path.join(path, MANIFEST)):  # damaged: kept aside (a missing one has nothing to keep)
+        quarantine.append(f"{MANIFEST}.damaged-{time.time_ns()}")
+        fs.mkdir(os.path.join(path, QUARANTINE))
+        fs.rename(os.path.join(path, MANIFEST), os.path.join(path, QUARANTINE, quarantine[0]))
+        fs.fsync_dir(os.path.join(path, QUARANTINE))
     first = chosen[0][0] if chosen else 0
     body = {"format_version": FORMAT_VERSION, "store_id": uuid.uuid4().hex, "created_ns": created,
             "codec": codec_config, "segments": infos, "first_seq": first, "generation": gen_seen + 1,
-            "quarantine": [qname]}  # fmt: skip
+            "quarantine": quarantine}  # fmt: skip
     Manifest(body).commit(fs, os.path.join(path, MANIFEST))
-    return [f"rebuilt {MANIFEST} from {len(chosen)} segment files (new store id; the damaged one is "
-            f"{QUARANTINE}/{qname})"]  # fmt: skip
+    old = f"the damaged one is {QUARANTINE}/{quarantine[0]}" if quarantine else f"it was missing"
+    return [f"rebuilt {MANIFEST} from {len(chosen)} segment files (new store id; retention's totals start "
+            f"again; {old})"]  # fmt: skip
 
 
 def _chosen_segments(fs: FileSystem, path: str) -> list[tuple[int, int, str]]:

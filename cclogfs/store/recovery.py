@@ -34,7 +34,8 @@ from . import planted
 from .index import OFFSET, SEQ, SegmentIndex
 from .manifest import Manifest
 from .records import intact_in
-from .segment import Problem, ScanResult, Segment, cut_damage, ends_declared, hash_file, intact_after, open_segment, scan
+from .segment import (Problem, ScanResult, Segment, cut_damage, ends_declared, hash_file, intact_after, lost_seqs,
+                      open_segment, scan)
 
 
 @dataclass
@@ -230,7 +231,8 @@ class SegmentOpener:
                 and mark["first_seq"] not in files.tail):  # fmt: skip
             raise CorruptionError(
                 f"{self.path}: {segment_name(mark['first_seq'])}, the active segment holding seqs "
-                f"{mark['first_seq']}..{mark['next_seq'] - 1} at the last clean close, is missing",
+                f"{mark['first_seq']}..{mark['next_seq'] - 1} at the last clean close, is missing; restore it, or "
+                "`cclog fsck --repair` names those seqs lost (never reused) as for a segment whose header was lost",
                 path=self._file(segment_name(mark["first_seq"])), reason=Reason.MISSING_SEGMENT,
             )  # fmt: skip
 
@@ -240,8 +242,10 @@ class SegmentOpener:
             name = files.named.get((info["first_seq"], gen))
             if name is None:
                 raise CorruptionError(
-                    f"{self.path}: {MANIFEST} lists segment {segment_name(info['first_seq'], gen)}, "
-                    "which is missing", path=self._file(MANIFEST), reason=Reason.MISSING_SEGMENT,
+                    f"{self.path}: {MANIFEST} lists segment {segment_name(info['first_seq'], gen)}, which is "
+                    f"missing ({lost_seqs(info['first_seq'], info['end_seq'])}); restore it, or `cclog fsck --repair "
+                    "--discard-damaged` drops those seqs for good (never reused)",
+                    path=self._file(MANIFEST), reason=Reason.MISSING_SEGMENT,
                 )  # fmt: skip
             seg, _ok = open_segment(self.fs, self._file(name), write=False, lock=self.lock)
             seg.first_seq, seg.next_seq = info["first_seq"], info["end_seq"]
@@ -260,8 +264,9 @@ class SegmentOpener:
         only `fsck --repair` (which records the cut in the manifest) may go on."""
         cut = cut_damage(seg)
         if not self.readonly and not self.drop_lost_header:  # `open` closes the segments on the way out
-            raise DamagedError(f"{self.path}: a writer cannot open the store: {cut}; run `cclog fsck --repair "
-                               "--discard-damaged` to drop what the cut lost (and name its seqs)",
+            raise DamagedError(f"{self.path}: a writer cannot open the store: {cut}; run `cclog fsck --repair` "
+                               "to name what the cut lost in the manifest (its seqs are kept, never reused; "
+                               "`--discard-damaged` then drops them)",
                                [cut.damage_info()], path=seg.path, reason=cut.reason)  # fmt: skip
         seg.cut = True
         seg.sealed_size = seg.size  # reads take the file as it is, the cut named as damage

@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 
 from ..codecs import codec_from_config
 from ..errors import CclogError, CorruptionError, StoreLockedError
-from .format import AGED_META_KEY, Reason, LOCK, MANIFEST, QUARANTINE, SIDE_FILE, check_fields, index_size_limit
+from .format import (AGED_META_KEY, LOCK, MANIFEST, QUARANTINE, SIDE_FILE, Reason, check_fields, index_size_limit,
+                     parse_seq_name, segment_name)
 from .fs import FileSystem, FileTooLargeError
 from .header_repair import rebuild_headers
 from .records import intact_in
@@ -50,6 +51,7 @@ def repair_store(path: str, *, discard_damaged: bool = False, fs: FileSystem | N
     report = RepairReport(path)
     fs = fs or FileSystem()
     _rebuild_manifest_if_damaged(path, fs, report)
+    _recreate_missing(path, fs, report, discard_damaged)
     with open_store(path, sync_every_ms=None, sync_every_bytes=None, fs=fs, drop_lost_header=True) as store:
         rec = store.recovery
         report.actions += [f"cut torn tail: {p}" for p in rec.problems]
@@ -63,6 +65,9 @@ def repair_store(path: str, *, discard_damaged: bool = False, fs: FileSystem | N
                     "sealed with damage named in the manifest")  # fmt: skip
             report.actions.append(f"{what}: {p}")
         report.actions += [f"removed {n}" for n in rec.removed_files]
+        for seg in list(store.sealed):
+            if seg.size > seg.sealed_size:
+                _quarantine_growth(store, seg, report)
         _declare_sealed_damage(store, report)
         rebuild_headers(store, report.actions, report.unproven)
         _rebuild_indexes(store, report)
@@ -80,12 +85,14 @@ def repair_store(path: str, *, discard_damaged: bool = False, fs: FileSystem | N
 
 
 def _rebuild_manifest_if_damaged(path: str, fs: FileSystem, report: RepairReport) -> None:
-    """A MANIFEST that fails its checks (not a missing one: that is no store) is derived
-    again from the segment files."""
+    """A MANIFEST that fails its checks, or one that is missing beside segment files (a
+    directory without either is no store), is derived again from the segment files."""
     manifest = os.path.join(path, MANIFEST)
-    if not fs.exists(manifest):
-        return
     try:
+        if not fs.exists(manifest):
+            if not fs.exists(path) or not any(n.endswith(".seg") and parse_seq_name(n) for n in fs.listdir(path)):
+                return
+            raise CorruptionError(f"{manifest} is missing")
         Manifest.load(fs, manifest)
     except CorruptionError:
         # Under the writer's lock, as every other step: a writer still running would commit
@@ -98,6 +105,42 @@ def _rebuild_manifest_if_damaged(path: str, fs: FileSystem, report: RepairReport
             report.actions += rebuild_manifest(fs, path, codec_from_config("columnar").get_config())
         finally:
             fs.unlock(lock)
+
+
+def _recreate_missing(path: str, fs: FileSystem, report: RepairReport, discard_damaged: bool) -> None:
+    """A segment file the manifest (or the last clean close's checkpoint) says holds records,
+    gone: an empty file in its place makes it what the store already repairs, a segment cut
+    to nothing, so that its seqs are named lost and never reused. The active segment as
+    plain --repair treats one whose header was lost; a sealed one only with
+    `discard_damaged` (its records are then dropped for good, and a file restored later
+    could no longer take its place)."""
+    try:
+        manifest = Manifest.load(fs, os.path.join(path, MANIFEST))[0]
+    except (CclogError, OSError):
+        return  # no store, or one the open refuses with its own words
+    wanted = [segment_name(i["first_seq"], i.get("gen", 0)) for i in manifest.segments] if discard_damaged else []
+    mark = manifest.checkpoint
+    if mark and mark["next_seq"] > mark["first_seq"] >= manifest.end_seq:
+        wanted.append(segment_name(mark["first_seq"]))
+    missing = [n for n in wanted if not fs.exists(os.path.join(path, n))]
+    if not missing:
+        return
+    lock = fs.lock(os.path.join(path, LOCK))
+    if lock is None:
+        raise StoreLockedError(f"{path} is locked by another writer; a segment file is missing, and is "
+                               "named lost only once that writer has stopped")  # fmt: skip
+    try:
+        for name in missing:
+            fd = fs.open(os.path.join(path, name), write=True, create=True)
+            try:
+                fs.fsync(fd)
+            finally:
+                fs.close(fd)
+            fs.fsync_dir(path)
+            report.actions.append(f"{name} was missing: an empty file put in its place, so that its seqs are "
+                                  "named lost (below) and never reused")  # fmt: skip
+    finally:
+        fs.unlock(lock)
 
 
 def _rebuild_indexes(store: Store, report: RepairReport) -> None:
@@ -144,6 +187,32 @@ def _declare_sealed_damage(store: Store, report: RepairReport) -> None:
             store.commit_manifest(manifest)
             seg.cut = False
             report.actions += [f"named damage in a sealed segment in the manifest: {p}" for p in new]
+
+
+def _quarantine_growth(store: Store, seg, report: RepairReport) -> None:
+    """A sealed segment that gained bytes since it was sealed (a bad copy, another program
+    appending): they were never records of this store (the manifest states the size it was
+    sealed at, all of it synced and indexed), so they are not salvaged into it, but copied
+    to `quarantine/NAME.tail-SIZE` (kept until `--discard-damaged`) and cut from the file,
+    which is then what was sealed. Order: the copy durable, the cut synced, the manifest
+    naming the copy; a crash between leaves the copy (made again, or adopted unnamed)."""
+    name = f"{os.path.basename(seg.path)}.tail-{seg.sealed_size}"
+    qdir = store.file_path(QUARANTINE)
+    store.fs.mkdir(qdir)
+    store.fs.fsync_dir(store.path)
+    store.fs.copy_range_atomic(seg.fd, seg.sealed_size, seg.size, os.path.join(qdir, name))
+    grown = seg.size - seg.sealed_size
+    fd = store.fs.open(seg.path, write=True)
+    try:
+        store.fs.truncate(fd, seg.sealed_size)
+        store.fs.fsync(fd)
+    finally:
+        store.fs.close(fd)
+    seg.size = seg.sealed_size
+    store.commit_manifest(store.manifest.with_quarantined(name))
+    report.actions.append(f"{os.path.basename(seg.path)} had grown by {grown} bytes since it was sealed (at "
+                          f"{seg.sealed_size} bytes): they were never part of the store; moved to "
+                          f"{QUARANTINE}/{name} and cut from the segment")  # fmt: skip
 
 
 def _salvage(store: Store, name: str, report: RepairReport) -> None:

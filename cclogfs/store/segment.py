@@ -192,7 +192,8 @@ class Segment:
             # Never answer from a sealed segment that lost or gained bytes: a shorter one
             # would otherwise give a silent hole.
             raise CorruptionError(f"{self.path} is {self.size} bytes but the manifest says it was sealed "
-                                  f"at {self.sealed_size}; its records cannot be trusted (run `cclog fsck`)",
+                                  f"at {self.sealed_size}; its records cannot be trusted (`cclog fsck` names why; `cclog fsck --repair` "
+                                  "names what a cut lost, or moves bytes added since into quarantine/)",
                                   path=self.path, offset=min(self.size, self.sealed_size),
                                   reason=Reason.SIZE_MISMATCH)  # fmt: skip
         try:
@@ -236,7 +237,8 @@ class Segment:
                 raise RecordError(Reason.INDEX_MISMATCH, f"record is {header.record_len} bytes, index says {length}")
         except RecordError as err:
             raise CorruptionError(
-                f"{self.path}: record at offset {offset} is damaged: {err}",
+                f"{self.path}: record at offset {offset} is damaged: {err}; `cclog fsck --repair` names it in the "
+                "manifest (reads then skip it with --skip-damaged; --discard-damaged drops it)",
                 path=self.path, offset=offset, reason=err.reason,
             ) from err  # fmt: skip
         return header, payload

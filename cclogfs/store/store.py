@@ -181,9 +181,11 @@ class Store:
         and renamed into place once its manifest is durable. A directory an older version
         left half made (only LOCK and temporary files) is finished by the next writer."""
         names = self.fs.listdir(self.path) if self.fs.exists(self.path) else []
+        if any(n.endswith(".seg") and parse_seq_name(n) for n in names):
+            raise StoreError(f"{self.path} holds segment files but no {MANIFEST}: a store whose manifest was lost; "
+                             "`cclog fsck --repair` rebuilds it from the segment files")  # fmt: skip
         if any(n != LOCK and not n.endswith(TMP_SUFFIX) for n in names):
-            raise StoreError(f"{self.path} holds files but no {MANIFEST}: not a cclogfs store, "
-                             "or one whose manifest was lost (run `cclog fsck`)")  # fmt: skip
+            raise StoreError(f"{self.path} holds files but no {MANIFEST} and no segment file: not a cclogfs store")
         half_made = LOCK in names
         if self.readonly or not (create or half_made):
             what = ("its creation was interrupted; open it for writing to finish it" if half_made
@@ -517,12 +519,14 @@ class Store:
 
         return compaction.rewrite(self, fn, segments)
 
-    def drop_oldest(self) -> Dropped | None:
+    def drop_oldest(self, carry: Sequence[str] = ()) -> Dropped | None:
         """Retention: remove the oldest sealed segment (never the active one); None when
-        there is no sealed segment. The log then starts at the next segment's first seq."""
+        there is no sealed segment. The log then starts at the next segment's first seq.
+        The windows of the streams `carry` in it are put again first (new seqs), so that
+        they outlive it (`cclog record`'s runs: FORMAT.md, "Compaction and retention")."""
         from . import compaction
 
-        return compaction.drop_oldest(self)
+        return compaction.drop_oldest(self, carry)
 
     def _seal(self, seg: Segment) -> None:
         """Write the segment's index, then name it in the manifest (it is already synced)."""
@@ -756,8 +760,8 @@ class Store:
         if damage:
             where = "; ".join(describe_damage(d) for d in damage)
             raise DamagedError(f"{self.path}: windows lost to damage below the synced point ({where}); a "
-                               "query could miss them, so it refuses: run `cclog fsck --repair --discard-damaged` "
-                               "to drop them (their seqs named), or read the intact windows with --skip-damaged", damage, path=self.path,
+                               f"query could miss them, so it refuses: {repair_hint(damage)}, or read the intact "
+                               "windows with --skip-damaged", damage, path=self.path,
                                reason=damage[0]["reason"])  # fmt: skip
 
     def query(self, name: str | None = None, start_ns: int | None = None,
@@ -811,17 +815,21 @@ class Store:
         so evidence kept for a repair never makes retention drop data."""
         names = [n for n in self.fs.listdir(self.path) if n == MANIFEST or parse_seq_name(n) is not None]
         # A file removed meanwhile (a writer compacting while we read) counts 0.
-        return sum(self.fs.file_size(self.file_path(name)) or 0 for name in names) + self._index_to_come()
+        return sum(self.fs.file_size(self.file_path(name)) or 0 for name in names) + self._close_to_come()
 
-    def _index_to_come(self) -> int:
-        """Bytes the active segment's index will add when close() writes it (FORMAT.md,
-        "Checkpoint index"): counted now, so a budget met while recording is met after the
-        close too (it was overshot by the size of that index)."""
+    def _close_to_come(self) -> int:
+        """Bytes close() will add: the active segment's index (FORMAT.md, "Checkpoint
+        index") and the checkpoint the manifest then names (up to ~100 bytes): counted now, so
+        a budget met while recording is met after the close too (it was overshot by the
+        size of that index, then by the checkpoint's bytes)."""
         seg = self.active
         if self.readonly or seg is None or not seg.rows:
             return 0
         on_disk = self.fs.file_size(self._index_path(seg)) or 0
-        return max(0, seg.index().encoded_size() - on_disk)
+        index = max(0, seg.index().encoded_size() - on_disk)
+        closed = self.manifest.with_checkpoint(seg.first_seq, seg.size, seg.next_seq, xxh3=(1 << 64) - 1)  # the widest
+        manifest = self.fs.file_size(self.file_path(MANIFEST)) or 0
+        return index + max(0, closed.encoded_size() - manifest)
 
     def free_bytes(self) -> int:
         """Bytes still free on the store's file system (for this user)."""
@@ -846,6 +854,18 @@ def _remove_stale_creations(parent: str, base: str) -> None:
                 shutil.rmtree(os.path.join(parent, name), ignore_errors=True)
             except PermissionError:
                 continue
+
+
+def repair_hint(damage: Sequence[Mapping[str, Any]]) -> str:
+    """The repair that ends a read's refusal of `damage`. A damaged segment header (offset
+    0) needs only `fsck --repair`: it rebuilds a header whose records are intact, and seals
+    a segment whose records were lost with its header with them discarded. Any other
+    stretch stays named until `--discard-damaged` (the hint once named it for a header
+    too, dropping nothing more than plain --repair but saying the records would go)."""
+    if all(d["offset"] == 0 and d["reason"] == Reason.BAD_SEGMENT_HEADER for d in damage):
+        return ("run `cclog fsck --repair` (it rebuilds a segment header whose records are intact, or names the "
+                "records lost with it, their seqs never reused)")  # fmt: skip
+    return "run `cclog fsck --repair --discard-damaged` to drop them (their seqs named)"
 
 
 def describe_damage(d: Mapping[str, Any]) -> str:

@@ -31,6 +31,7 @@ from fnmatch import fnmatchcase
 from typing import Sequence
 
 from ..errors import StoreError
+from ..runs import RUNS_STREAM
 from ..store import RecordFlag, Replacement, Store, Window, file_bytes, merge_stream_stats
 from .policy import Policy
 
@@ -40,6 +41,10 @@ __all__ = ["DEFAULT_EXCLUDE", "CompactReport", "Stopped", "age_segments", "candi
 # The smart-logging summary answers "how far did the robot drive this year"; it is tiny,
 # so it stays exact unless a stream pattern names it.
 DEFAULT_EXCLUDE = ("/cclog/*",)
+# The recording runs are the store's history (what was recorded, from which source: the
+# check that refuses a source twice reads them), a few hundred bytes a run: retention keeps
+# them, carrying them out of each segment it drops (FORMAT.md, "Compaction and retention").
+KEPT_STREAMS = (RUNS_STREAM,)
 
 
 @dataclass
@@ -138,7 +143,7 @@ def _retain(store: Store, budget: int, keep_from: int | None, report: CompactRep
         sealed = store.sealed_segments()
         if keep_from is not None and sealed and sealed[0].first_seq >= keep_from:
             break
-        gone = store.drop_oldest()
+        gone = store.drop_oldest(carry=KEPT_STREAMS)
         if gone is None:
             break
         report.segments_dropped += 1
@@ -185,7 +190,7 @@ def preview(
                 break
             size -= file_bytes(store, seg, seg.gen)
             report.segments_dropped += 1
-            merge_stream_stats(report.dropped, seg.streams)
+            merge_stream_stats(report.dropped, {k: v for k, v in seg.streams.items() if k not in KEPT_STREAMS})
     report.disk_after = size
     return report
 

@@ -450,3 +450,54 @@ def test_open_keeps_the_old_generation_while_the_named_one_is_cut_short(tmp_path
         with pytest.raises(CorruptionError):
             list(s.query())
     assert all((tmp_path / "s" / name).read_bytes() == data for name, data in old_files.items())
+
+
+_KILLED_DROP = """
+import os, signal, sys
+import cclogfs
+from cclogfs.store.fs import FileSystem
+
+class Killed(FileSystem):
+    def rename(self, src, dst):
+        if src.endswith("MANIFEST.tmp") and sys.argv[2] == "before":
+            os.kill(os.getpid(), signal.SIGKILL)  # the copies synced, the drop not committed
+        super().rename(src, dst)
+        if src.endswith("MANIFEST.tmp"):
+            os.kill(os.getpid(), signal.SIGKILL)  # committed, the old files not yet deleted
+
+store = cclogfs.open_store(sys.argv[1], sync_every_ms=None, segment_records=3, fs=Killed())
+store.drop_oldest(carry=["/tf"])
+"""
+
+
+def _tf(path):
+    with cclogfs.open_store(path, readonly=True) as s:
+        return [(w.seq, w.meta, list(w.messages())) for w in s.query("/tf")]
+
+
+@pytest.mark.parametrize("when", ["before", "after"])
+def test_drop_oldest_carries_a_streams_windows_once_even_when_killed_around_its_commit(tmp_path, when):
+    """Retention's carry (FORMAT.md, "Compaction and retention"): the windows of the streams
+    named are put again before the drop commits, so none is lost; a kill -9 before the
+    commit leaves them twice, and the next drop does not carry them a third time."""
+    import subprocess
+    import sys
+
+    make(tmp_path / "s").close()
+    before = _tf(tmp_path / "s")  # seqs 0, 2 in the oldest segment (0..2)
+    proc = subprocess.run([sys.executable, "-c", _KILLED_DROP, str(tmp_path / "s"), when])
+    assert proc.returncode == -9
+    after = _tf(tmp_path / "s")
+    copies = [(meta, msgs) for seq, meta, msgs in after if seq >= 10]
+    assert copies == [(dict(meta, carried={"seq": seq}), msgs) for seq, meta, msgs in before if seq < 3]
+    assert [seq for seq, _m, _w in after if seq < 10] == ([0, 2, 4, 6, 8] if when == "before" else [4, 6, 8])
+    assert not check_store(str(tmp_path / "s")).errors
+    with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
+        gone = store.drop_oldest(carry=["/tf"])
+        assert (gone.first_seq, gone.carried) == ((0, ["/tf"]) if when == "before" else (3, ["/tf"]))
+        assert "/tf" not in gone.streams and "/tf" not in store.dropped()["streams"]
+        assert "/odom" in store.dropped()["streams"]
+    final = _tf(tmp_path / "s")
+    assert sorted(origin for origin in (m.get("carried", {}).get("seq", s) for s, m, _w in final)) == [0, 2, 4, 6, 8]
+    assert sorted(msgs for _s, _m, msgs in final) == sorted(msgs for _s, _m, msgs in before)
+    assert not check_store(str(tmp_path / "s"), deep=True).findings

@@ -127,23 +127,38 @@ def test_discard_damaged_drops_the_records_that_disagree_naming_their_seqs(tmp_p
     assert (path / SEALED).read_bytes()[SEGMENT_HEADER_SIZE:] == data[SEGMENT_HEADER_SIZE:]
 
 
-def test_a_header_with_a_damaged_record_behind_it_waits_for_discard(tmp_path):
+@pytest.mark.parametrize("name", [SEALED, ACTIVE])
+@pytest.mark.parametrize("record", ["first", "last"])
+def test_a_header_with_a_damaged_record_behind_it_is_rebuilt_and_the_damage_stays_named(tmp_path, name, record):
+    """Found by attack: with its first record damaged too, a header was rebuilt only by
+    `--discard-damaged` (and with any other record damaged, too): plain `--repair` kept it
+    damaged although the name and the manifest state its first_seq and every intact record
+    agrees. Now the header is rebuilt and the damaged record stays named (exit 4) until
+    `--discard-damaged`, as damage elsewhere does."""
     path = _store(tmp_path / "s")
-    seg = path / SEALED
+    seg = path / name
     _flip(seg, 3)
-    _flip(seg, seg.stat().st_size - 5)  # in the last record's payload
-    data = seg.read_bytes()
+    _flip(seg, SEGMENT_HEADER_SIZE + 2 if record == "first" else seg.stat().st_size - 5)
+    lost = int(name[:20]) + (0 if record == "first" else 3 if name == SEALED else 1)
+    records = seg.read_bytes()[SEGMENT_HEADER_SIZE:]
     report = repair_store(str(path))
-    assert report.exit_code == 4
-    assert [u.split(": ", 1)[0] for u in report.unproven] == [SEALED]
-    assert "a record behind it is damaged too (payload checksum mismatch at offset" in report.unproven[0]
-    assert seg.read_bytes() == data
+    assert report.exit_code == 4 and not report.unproven, report
+    proof = "its name and the manifest state (its first record is damaged)" if record == "first" else \
+        "its name, the manifest and its first record state"
+    assert any(f"rebuilt the segment header of {name}" in a and proof in a and
+               f"the damaged ones still named as damage (seq {lost}:" in a for a in report.actions), report.actions
+    assert len(report.damage_left) == 1 and f", seq {lost}: " in report.damage_left[0], report.damage_left
+    if record == "first":
+        assert report.damage_left[0].startswith(f"{name} at offset {SEGMENT_HEADER_SIZE}, ")
+    assert seg.read_bytes()[SEGMENT_HEADER_SIZE:] == records  # every byte behind the header kept
+    assert unpack_segment_header(seg.read_bytes())[0] == int(name[:20])
+    check = check_store(str(path))
+    assert len(check.errors) == 1 and f"seq {lost}" in str(check.errors[0]), check.findings
+    assert repair_store(str(path)).exit_code == 4  # the damage is left for --discard-damaged
     report = repair_store(str(path), discard_damaged=True)
     assert report.exit_code == 1 and not report.unproven, report
-    assert any(a.startswith(f"discarded {SEALED}") and "seq 7:" in a for a in report.actions), report.actions
-    assert any("the records that did not agree were discarded: seq 7" in a for a in report.actions)
     assert not check_store(str(path)).findings
-    assert [seq for seq, _n, _m in _windows(path)] == [0, 1, 2, 3, 4, 5, 6, 8, 9]
+    assert [seq for seq, _n, _m in _windows(path)] == [s for s in range(10) if s != lost]
 
 
 # -- a crash in the middle of the rewrite ------------------------------------------------

@@ -176,9 +176,15 @@ def test_recorder_keeps_to_its_budget_as_it_goes(tmp_path, capsys):
         assert s.data_bytes() <= 256 << 10
         assert s.dropped()["segments"] >= 1
         windows = list(s.query("/odom"))
-        # What is left is the newest stretch, gapless, every window exact.
+        # What is left is the newest stretch, gapless, every window exact (the log's seqs
+        # hold the run records retention carried too: /cclog/runs).
         assert windows[-1].end_ns == 39_999 * NS // 20
-        assert [w.seq for w in windows] == list(range(windows[0].seq, windows[0].seq + len(windows)))
+        seqs = sorted(w.seq for w in s.query())
+        assert seqs == list(range(s.first_seq, s.first_seq + len(seqs)))
+        assert [w.seq for w in windows] == [q for q in seqs if q >= windows[0].seq and q not in
+                                            {w.seq for w in s.query("/cclog/runs")}]  # fmt: skip
+        assert [stamp for w in windows for stamp, _t in w.messages()] == \
+            list(range(windows[0].start_ns, 40_000 * NS // 20, NS // 20))
         assert all(w.aged is None for w in windows)
     assert not check_store(store, deep=True).errors
 
@@ -433,3 +439,31 @@ def test_a_rule_is_checked_against_the_fields_of_what_ages(tmp_path, capsys):
                 [json.loads(odom(i))["pose"]["x"] for i in range(w.seq // 2 * 50, w.seq // 2 * 50 + 50)]
     policy = Policy([parse_rule("a.b=1"), parse_rule("a.*=1"), parse_rule("c=1"), parse_rule("s=1")])
     assert [r.pattern for r in policy.unmatched(['{"a": {"b": [1.5, 2]}, "s": "1.5"}'])] == ["c", "s"]
+
+
+def test_retention_keeps_every_run_record_so_a_source_is_still_refused_twice(tmp_path, capsys):
+    """Found by attack: `record --budget` dropped the runs' own start and end records (on
+    /cclog/runs) with the oldest segments, after which the same file was recorded again (the
+    duplicate check reads the runs stream) and `cclog info` listed no run. Retention carries
+    the run records of a segment it drops into the active segment (FORMAT.md, "Retention")."""
+    jsonl(tmp_path / "run.jsonl", 40_000)
+    jsonl(tmp_path / "run2.jsonl", 20_000, hz=40)
+    store = str(tmp_path / "s")
+    for src in ("run.jsonl", "run2.jsonl"):
+        assert main(["record", str(tmp_path / src), "--store", store, "--budget", "256KiB", "--chunk", "100"]) == 0
+    capsys.readouterr()
+    with cclogfs.open_store(store, readonly=True) as s:
+        assert s.dropped()["segments"] >= 3  # the first run's start record was in the first one
+        assert "/cclog/runs" not in s.dropped()["streams"]  # carried, not dropped
+        runs = list_runs(s)
+        assert [(r.number, r.status, r.kept) for r in runs] == [(1, "done", 40_000), (2, "done", 20_000)]
+        assert [r.source for r in runs] == [str(tmp_path / "run.jsonl"), str(tmp_path / "run2.jsonl")]
+        assert len(list(s.query("/cclog/runs"))) == 4  # each record once
+    assert main(["record", str(tmp_path / "run.jsonl"), "--store", store, "--budget", "256KiB"]) == 1
+    assert "was recorded into" in capsys.readouterr().err
+    assert main(["info", store]) == 0
+    out = capsys.readouterr().out
+    assert "runs (2, stream /cclog/runs)" in out
+    assert "40,000 of 40,000 (all dropped by retention since)" in out  # the table said "40,000 kept"
+    assert "20,000 of 20,000 (some dropped by retention since)" in out
+    assert not check_store(store, deep=True).findings
