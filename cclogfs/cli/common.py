@@ -392,14 +392,11 @@ def check_odometry(odom, feature_set, name: str, topic: str, job: str):
 
 
 def repair_hint(damage: dict) -> str:
-    """What clears one stretch of named damage (`Store.damage()`): a segment header that
-    lost no record is rebuilt by `fsck --repair`; lost records stay named (exit 4, the same
-    warning again) until `--discard-damaged` drops them. The hints said plain `--repair`
-    for both."""
-    if damage["first_seq"] == damage["end_seq"]:  # no seq lost: a header its records prove
-        return "run `cclog fsck --repair` to mend it"
-    return ("run `cclog fsck --repair --discard-damaged` to drop it, naming the lost seqs; the intact windows "
-            "stay, and plain --repair keeps it named")  # fmt: skip
+    """What clears one stretch of named damage (`Store.damage()`): the store's own rule
+    (`store.repair_hint`), so that a read's refusal, `record` and `info` name one fix."""
+    from ..store.store import repair_hint as store_hint  # not at the top: `cclog --help` imports this module
+
+    return store_hint([damage])
 
 
 DAMAGED_EXIT = 4  # the input was damaged: what could be read was kept
