@@ -338,4 +338,9 @@ class OneClassModel:
         if not isinstance(growth, (int, float)) or not growth >= 0 or (growth and limits is None):
             raise ModelError(f"{jpath}: 'limit_growth' must be a number >= 0, and needs limits in {npath}.")
         model.limit_growth_ = float(growth)
+        # model.json has no checksum of its own: a changed threshold, gamma or feature
+        # parameter loaded without a word. The model id covers them; compute it again.
+        if model._digest()[:16] != model.model_id_:
+            raise ModelError(f"{jpath} does not match its model_id (field 'model_id'): a value the model "
+                             "computes with was changed or damaged; retrain the model.")  # fmt: skip
         return model

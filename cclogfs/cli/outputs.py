@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
 from ..errors import InvalidInputError
+from ..export.base import work_file
 
 
 def add_force(p: argparse.ArgumentParser, *aliases: str) -> None:
@@ -63,10 +63,9 @@ def atomic_output(path: str | Path, mode: str = "w") -> Iterator:
     """A file object on a temporary name beside `path`, renamed over it only when the block
     ends without an error (so a failed or interrupted run leaves the old file, or none).
     `check_output` has refused a path that cannot take a file."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
+    tmp = work_file(path)
     try:
-        with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as f:
+        with open(tmp, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as f:
             yield f
         os.replace(tmp, path)
     except BaseException:

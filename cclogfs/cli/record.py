@@ -623,7 +623,10 @@ def _retention(store, run_seq: int | None, stats: RecordStats, upkeep: Upkeep | 
         return None
     held = _kept(records)[0]
     mine = max(0, stats.messages_kept - upkeep.messages_thinned - held)
-    return held, mine, max(0, _dropped_messages(store) - dropped_before - mine)
+    # This run's own summaries (one message each) that retention dropped are not messages
+    # of earlier runs: on a store the run had made, they were told as such.
+    summaries = max(0, stats.summaries - _run_summaries(store, run_seq)) if stats.summaries else 0
+    return held, mine, max(0, _dropped_messages(store) - dropped_before - mine - summaries)
 
 
 def _windows(stats: RecordStats) -> str:

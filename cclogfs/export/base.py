@@ -5,14 +5,34 @@ from __future__ import annotations
 import dataclasses
 import heapq
 import itertools
+import os
+import secrets
 from collections.abc import Callable, Iterable, Iterator
 from operator import attrgetter
+from pathlib import Path
 from typing import Any, Protocol
 
 from ..windowcount import Link, WindowCount, count_records, link_of
 
 # Called with the number of messages just written, for progress bars.
 Progress = Callable[[int], None]
+
+
+def work_file(path: str | Path) -> Path:
+    """A new empty file beside `path`, named for it and unique, to write an output in before
+    it is renamed over `path`. Unique: two exports to one output at once each have their own
+    (a fixed OUT.tmp was shared, so each wrote into the other's file, and a file of the user's
+    by that name was overwritten). Made with mode 0666 less the umask, as a new file is, not
+    mkstemp's 0600: the rename makes it the output others read."""
+    path = Path(path)
+    for _ in range(100):
+        tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+        except FileExistsError:
+            continue
+        return tmp
+    raise FileExistsError(f"no free work file name beside {path}")
 
 
 class StoredWindow(Protocol):

@@ -22,7 +22,7 @@ from pathlib import Path
 from mcap.writer import CompressionType, Writer
 
 from ..errors import InvalidInputError
-from .base import ExportStats, Progress, StoredWindow
+from .base import ExportStats, Progress, StoredWindow, work_file
 from .jsonl import continues, merged_runs
 from .jsonschema import message_schema
 from .ros2cdr import Describe, Ros2Types, message_error, stream_meta
@@ -66,9 +66,9 @@ def export_mcap(
     if encoding not in ENCODINGS:
         raise InvalidInputError(f"Unknown MCAP encoding {encoding!r}; use one of {', '.join(ENCODINGS)}.")
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
     stats = McapStats(files=[str(path)])
     channels = _Channels(encoding, stats, describe)
+    tmp = work_file(path)
     try:
         _write(windows, tmp, comp, channels, progress)
     except BaseException:

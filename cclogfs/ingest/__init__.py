@@ -7,6 +7,9 @@ class from `FORMATS`; every class follows the `Source` protocol. Parsing is left
 
 from __future__ import annotations
 
+import os
+import struct
+import zlib
 from collections.abc import Callable, Iterable
 from importlib import import_module
 from pathlib import Path
@@ -156,6 +159,8 @@ def open_source(
         try:
             if fmt == "rosbag2" and _db3_cut_short(Path(path)):
                 raise SourceError("its database is cut short")  # the bag reader would fail midway
+            if fmt == "rosbag2" and (why := mcap_summary_damaged(Path(path))):
+                raise SourceError(why)  # the bag reader would trust its schemas and channels
             return cls(path, topics=topics, clock=clock, on_error=on_error, report=report, types=types)
         except SourceError as err:
             salvage = _salvage_class(fmt, Path(path))
@@ -184,6 +189,32 @@ def _db3_cut_short(p: Path) -> bool:
     from .ros2salvage import db3_cut_short, db3_files
 
     return any(f.suffix == _SUFFIX["sqlite3"] and db3_cut_short(f) for f in db3_files(p))
+
+
+def mcap_summary_damaged(p: Path) -> str | None:
+    """Why the summary section of the MCAP file `p` cannot be trusted (None: it can, or it
+    has no CRC). The bag reader takes the schemas and channels from the summary, which no
+    chunk CRC covers: a flipped byte there renamed a field or a topic of every message, read
+    without a word (exit 0). The footer's summary_crc covers it (the MCAP spec, "Footer")."""
+    if not (p.is_file() and p.suffix == _SUFFIX["mcap"]):
+        return None
+    with open(p, "rb") as f:
+        size = f.seek(0, os.SEEK_END)
+        if size < 8 + 37:
+            return None  # too short for a footer: the reader says what is wrong
+        f.seek(size - 37)
+        tail = f.read(37)
+        if tail[0] != 0x02:  # no footer where it belongs: the reader says so, or salvage reads it
+            return None
+        _length, start, _offsets, crc = struct.unpack("<QQQI", tail[1:29])
+        if not crc or not 0 < start <= size - 37:
+            return None
+        f.seek(start)
+        got = zlib.crc32(f.read(size - 12 - start))
+    if got != crc:
+        return (f"its summary section (offset {start} to the footer at {size - 37}) fails its CRC "
+                f"(footer says {crc:#010x}, the bytes give {got:#010x}): damaged")
+    return None
 
 
 def _log_clock_only(path: str | Path, clock: str) -> None:

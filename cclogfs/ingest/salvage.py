@@ -32,6 +32,7 @@ class _Salvage:
         self.why = why
         self.size = os.path.getsize(path)
         self.lost: str | None = None
+        self.note: str | None = None
         self._types: dict[str, str] = {}
         self._typestore: Any = None
         self._convert = MessageConverter().to_json
@@ -125,7 +126,7 @@ class McapSalvage(_Salvage):
     """A ROS 2 MCAP file (CDR messages, ros2msg schemas) read as a stream of records."""
 
     def __iter__(self) -> Iterator[SourceMessage]:
-        from mcap.records import Channel, Message, Schema
+        from mcap.records import Channel, DataEnd, Message, Schema
         from mcap.stream_reader import StreamReader
         from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -149,6 +150,10 @@ class McapSalvage(_Salvage):
                             last = rec.log_time
                             count += 1
                             yield self._from_bytes(topic, msgtype, last, rec.data, wire)
+                    elif isinstance(rec, DataEnd):  # the summary repeats schemas and channels: no message
+                        break
                 raise EOFError("end of file")
             except (EOFError, Exception) as err:
                 self._stopped(f.tell() if not isinstance(err, EOFError) else self.size, last, count, err)
+        if self.lost is None and self.why:  # nothing lost, but the file is damaged: say so (`cli.common.damaged_exit`)
+            self.note = f"{self.name}: {self.why}; read record by record instead: every message read ({count:,})"

@@ -80,6 +80,31 @@ def test_load_rejects_other_features_versions_and_damage(tmp_path):
         OneClassModel.load(tmp_path / "missing")
 
 
+@pytest.mark.parametrize("field, value", [("threshold", None), ("gamma", None), ("nu", None),
+                                          ("feature_config", {**CONFIG, "params": {"x": 1.5}}),
+                                          ("model_id", "0123456789abcdef")])  # fmt: skip
+def test_load_rejects_a_model_json_changed_in_what_the_model_computes(tmp_path, field, value):
+    """Found by attack: model.json has no checksum of its own (model.npz's is in it), so a
+    flipped digit of the threshold, gamma or a feature parameter loaded without a word and
+    smart logging kept other windows, exit 0, each stamped with the model id the file
+    claimed. The model id covers those fields: a load computes it again and compares."""
+    path = OneClassModel(feature_config=CONFIG).fit(nominal()).save(tmp_path / "m")
+    header = json.loads((path / "model.json").read_text())
+    header[field] = value if value is not None else header[field] * 1.0001
+    (path / "model.json").write_text(json.dumps(header, indent=1))
+    with pytest.raises(ModelError, match=r"model\.json.*model_id"):
+        OneClassModel.load(path)
+
+
+def test_load_accepts_what_the_model_id_leaves_out(tmp_path):
+    """The training statistics and versions are not part of the model: editing them is no damage."""
+    path = OneClassModel(feature_config=CONFIG).fit(nominal()).save(tmp_path / "m")
+    header = json.loads((path / "model.json").read_text())
+    header["training"], header["versions"] = {"rate_hz": 1.0}, {"cclogfs": "0.0.1"}
+    (path / "model.json").write_text(json.dumps(header, indent=1))
+    assert OneClassModel.load(path).model_id_ == header["model_id"]
+
+
 def test_too_little_data():
     with pytest.raises(ModelError, match="at least 20"):
         OneClassModel().fit(np.ones((5, 3)))

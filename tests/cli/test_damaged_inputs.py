@@ -161,3 +161,29 @@ def test_unreadable_ros2_db3_fails_and_leaves_no_store(shared_data, tmp_path, ca
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err and "tf_example.db3" in err
     assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize("what", [b"Transform transform", b"/tf_static"])
+def test_a_flip_in_an_mcap_summary_renames_nothing(shared_data, tmp_path, capsys, what):
+    """Found by attack: the bag reader takes schemas and channels from an MCAP's summary
+    section, which no chunk CRC covers. One flipped byte of a field name there (a CDR export
+    of this project, recorded again) stored every /tf message with `tvansform` for
+    `transform`, exit 0, not a word; one in a topic name moves messages to another topic.
+    The footer's summary CRC catches it; the file is read record by record instead."""
+    store = tmp_path / "s"
+    assert main(["record", str(shared_data("tf_example.bag")), "--store", str(store)]) == 0
+    whole = tmp_path / "whole.mcap"
+    assert main(["export", str(store), "--mcap", str(whole)]) == 0
+    assert main(["convert", str(whole), "-o", str(tmp_path / "whole.jsonl")]) == 0
+    data = bytearray(whole.read_bytes())
+    start = int.from_bytes(data[-37 + 1 + 8 : -37 + 1 + 16], "little")  # the footer's summary_start
+    at = data.index(what, start) + 1
+    data[at] ^= 0x04
+    damaged = tmp_path / "flipped.mcap"
+    damaged.write_bytes(bytes(data))
+    capsys.readouterr()
+    assert main(["convert", str(damaged), "-o", str(tmp_path / "flipped.jsonl")]) == 0
+    err = capsys.readouterr().err
+    assert f"{damaged}: its summary section (offset {start} " in err and "fails its CRC" in err, err
+    assert "every message read (518)" in err, err
+    assert (tmp_path / "flipped.jsonl").read_text() == (tmp_path / "whole.jsonl").read_text()

@@ -68,3 +68,17 @@ def test_export_refuses_an_output_inside_the_store(tmp_path, capsys):
         store.put_window("/odom", [(1, '{"x": 1}')])
     assert main(["export", str(tmp_path / "s"), "--mcap", str(tmp_path / "s" / "x.mcap")]) == 1
     assert "is the input" in capsys.readouterr().err
+
+
+def test_convert_output_gets_the_mode_a_new_file_gets(tmp_path, capsys):
+    """It was written under mkstemp's 0600 and renamed into place: an output others could
+    not read, and --force took an existing output's mode away too."""
+    src, out = tmp_path / "in.jsonl", tmp_path / "out.jsonl"
+    jsonl(src)
+    old = os.umask(0o022)
+    try:
+        assert main(["convert", str(src), "-o", str(out)]) == 0
+    finally:
+        os.umask(old)
+    assert os.stat(out).st_mode & 0o777 == 0o644
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.jsonl", "out.jsonl"]

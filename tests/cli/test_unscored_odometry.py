@@ -8,6 +8,8 @@ import json
 
 import pytest
 
+import cclogfs
+
 from cclogfs.cli import main
 from cclogfs.jsontext.lines import format_line
 from cclogfs.pipeline import Logger, read_topic
@@ -76,3 +78,19 @@ def test_the_logger_keeps_them_message_by_message(tmp_path, capsys, model, passa
     assert log.policy.unscored == 200 and log.policy.first == (passage[100][0], "pose.position.x")
     kept = {m["stamp_ns"] for m in stored_odometry(str(tmp_path / "s"), capsys)}
     assert {s for s, _ in passage[100:300]} <= kept
+
+
+def test_budget_on_a_new_store_names_no_earlier_runs(tmp_path, capsys, model, passage):
+    """Found by attack: with --model and --budget, retention dropping this run's own
+    /cclog/summary records was told as "retention also dropped 1 messages of earlier runs"
+    on a store this run had made: the summaries were counted as dropped messages, but not as
+    this run's (the end summary counts them apart)."""
+    src = tmp_path / "nan.jsonl"
+    src.write_text(broken(passage, 500, float("nan")))
+    store = str(tmp_path / "s")
+    assert main(["record", str(src), "--store", store, "--model", model, "--budget", "48KiB"]) in (0, 3)
+    err = capsys.readouterr().err
+    assert "then retention DROPPED the oldest" in err, err
+    with cclogfs.open_store(store, readonly=True) as s:
+        assert s.dropped()["streams"]["/cclog/summary"]["messages"] >= 1  # the case: its own summaries went
+    assert "of earlier runs" not in err, err

@@ -1,0 +1,60 @@
+"""An export's work file is its own: two exports to one output at once, or a file of the
+user's named like the work file, must not share or lose it. The MCAP export wrote to the
+fixed name OUT.mcap.tmp: a second export to OUT.mcap truncated and wrote into the first's
+file, the first renamed the mix into place and said "exported N messages" (exit 0) over a
+file holding the other's, and a user's OUT.mcap.tmp was overwritten and renamed away."""
+
+from __future__ import annotations
+
+import os
+
+from _windows import FakeWindow
+from mcap.reader import make_reader
+
+from cclogfs.export import export_mcap
+
+
+def _windows(stream: str, n: int, per: int = 50) -> list[FakeWindow]:
+    msgs = [(t, f'{{"i": {t}}}') for t in range(1, n + 1)]
+    return [FakeWindow(stream, k, msgs[i : i + per]) for k, i in enumerate(range(0, n, per))]
+
+
+def _topics(path) -> dict[str, int]:
+    with open(path, "rb") as f:
+        got: dict[str, int] = {}
+        for _, chan, _msg in make_reader(f).iter_messages():
+            got[chan.topic] = got.get(chan.topic, 0) + 1
+    return got
+
+
+def test_an_export_started_during_another_to_the_same_file_does_not_mix_them(tmp_path):
+    out = tmp_path / "out.mcap"
+    done = []
+
+    def progress(_n: int) -> None:
+        if not done:  # the first export is half written: another runs to its end
+            done.append(export_mcap(_windows("/b", 300), out, compression="none"))
+
+    stats = export_mcap(_windows("/a", 2000, per=100), out, compression="none", progress=progress)
+    assert done and done[0].messages == 300 and stats.messages == 2000
+    assert _topics(out) == {"/a": 2000}  # the last to finish, whole, and only it
+    assert sorted(os.listdir(tmp_path)) == ["out.mcap"]
+
+
+def test_a_file_named_like_the_work_file_is_left_alone(tmp_path):
+    out = tmp_path / "out.mcap"
+    mine = tmp_path / "out.mcap.tmp"
+    mine.write_bytes(b"the user's own file")
+    export_mcap(_windows("/a", 10), out)
+    assert mine.read_bytes() == b"the user's own file"
+    assert _topics(out) == {"/a": 10}
+
+
+def test_the_output_gets_the_mode_a_new_file_gets(tmp_path):
+    """Not the 0600 of a private temporary file: others may play what was exported."""
+    old = os.umask(0o022)
+    try:
+        export_mcap(_windows("/a", 10), tmp_path / "out.mcap")
+    finally:
+        os.umask(old)
+    assert os.stat(tmp_path / "out.mcap").st_mode & 0o777 == 0o644
