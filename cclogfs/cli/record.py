@@ -621,11 +621,11 @@ def _retention(store, run_seq: int | None, stats: RecordStats, upkeep: Upkeep | 
     records = _run_records(store, run_seq, store.synced_seq(written=True))
     if records is None:
         return None
-    held = _kept(records)[0]
+    held, count = _kept(records)
     mine = max(0, stats.messages_kept - upkeep.messages_thinned - held)
     # This run's own summaries (one message each) that retention dropped are not messages
     # of earlier runs: on a store the run had made, they were told as such.
-    summaries = max(0, stats.summaries - _run_summaries(store, run_seq)) if stats.summaries else 0
+    summaries = max(0, stats.summaries - count.summaries)
     return held, mine, max(0, _dropped_messages(store) - dropped_before - mine - summaries)
 
 
