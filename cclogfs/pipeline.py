@@ -29,7 +29,7 @@ from .jsontext.rostypes import StreamTypes, reserved_refusal
 from .runs import RUNS_STREAM
 from .store import Store, open_store
 from .upkeep import Upkeep
-from .windowcount import WindowCount, link_of
+from .windowcount import CountedTotals, WindowCount, link_of
 
 # Default logging-window extents, in seconds so they mean the same at any odometry rate.
 # The window starts `before` ahead of where the anomaly's evidence starts, not of the first
@@ -125,7 +125,7 @@ def monotonic_runs(messages: list[tuple[int, str]]) -> Iterator[list[tuple[int, 
 
 
 @dataclass
-class RecordStats:
+class RecordStats(CountedTotals):
     """What a recording run saw and kept."""
 
     messages_in: int = 0
@@ -138,22 +138,6 @@ class RecordStats:
     interrupted: bool = False
     # the windows stored, each counted once however many records hold it (`windowcount`)
     counted: WindowCount = field(default_factory=WindowCount)
-
-    @property
-    def windows(self) -> int:
-        """Logging windows of the messages kept (a smart window's parts count once)."""
-        return self.counted.windows
-
-    @property
-    def summaries(self) -> int:
-        """The recorder's own summaries (`/cclog/summary`), counted apart from `windows`."""
-        return self.counted.summaries
-
-    @property
-    def records(self) -> int:
-        """The records holding `windows`: a smart window's parts, a window whose stamps go
-        back, one the store split over its 16 MiB record limit, each record."""
-        return self.counted.records
 
     def saw(self, topic: str, text: str) -> None:
         """Count one message that came in."""

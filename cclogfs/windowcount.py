@@ -124,6 +124,29 @@ class WindowCount:
         return why is None
 
 
+class CountedTotals:
+    """`windows`, `summaries` and `records` of the class's `counted` (a WindowCount), for
+    the stats a command prints (`RecordStats`, `ExportStats`), so that each says them alike."""
+
+    counted: WindowCount
+
+    @property
+    def windows(self) -> int:
+        """Logging windows of the messages kept (a window held in several records counts once)."""
+        return self.counted.windows
+
+    @property
+    def summaries(self) -> int:
+        """The recorder's own summaries (`/cclog/summary`), counted apart from `windows`."""
+        return self.counted.summaries
+
+    @property
+    def records(self) -> int:
+        """The records holding `windows`: a smart window's parts, a window whose stamps go
+        back, one the store split over its 16 MiB record limit, each record."""
+        return self.counted.records
+
+
 def count_records(records: Iterable[tuple[int, str, Link, bool]]) -> WindowCount:
     """`WindowCount` of stored records given as (seq, stream, link, flagged PART) in any
     order (an export writes them in time order, a query gives them in start order)."""

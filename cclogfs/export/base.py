@@ -12,7 +12,7 @@ from operator import attrgetter
 from pathlib import Path
 from typing import Any, Protocol
 
-from ..windowcount import Link, WindowCount, count_records, link_of
+from ..windowcount import CountedTotals, Link, WindowCount, count_records, link_of
 
 # Called with the number of messages just written, for progress bars.
 Progress = Callable[[int], None]
@@ -55,7 +55,7 @@ class StoredWindow(Protocol):
 
 
 @dataclasses.dataclass
-class ExportStats:
+class ExportStats(CountedTotals):
     """What an export wrote. `windows` counts a logging window once however many records
     hold it (`windowcount`: a smart window's parts, a window whose stamps go back, a record
     the store split over its 16 MiB limit), as `cclog record` and `cclog info` count them,
@@ -81,18 +81,6 @@ class ExportStats:
         if self._count is None or self._count[0] != len(self._written):
             self._count = len(self._written), count_records(self._written)
         return self._count[1]
-
-    @property
-    def windows(self) -> int:
-        return self.counted.windows
-
-    @property
-    def summaries(self) -> int:
-        return self.counted.summaries
-
-    @property
-    def records(self) -> int:
-        return self.counted.records
 
 
 @dataclasses.dataclass(frozen=True)
