@@ -96,6 +96,9 @@ class RunInfo:
     start: dict[str, Any] = field(repr=False)
     end: dict[str, Any] | None = None
     end_ns: int | None = None
+    # Seqs of the start and end records: the run's windows lie between them.
+    start_seq: int = -1
+    end_seq: int | None = None
 
     @property
     def status(self) -> str:
@@ -124,9 +127,10 @@ def list_runs(store: Store) -> list[RunInfo]:
                 rec = json.loads(text)
                 if rec.get("event") == "start":
                     runs[rec["id"]] = RunInfo(int(rec["run"]), rec["id"], stamp, rec.get("source", "?"),
-                                              rec.get("fingerprint"), rec.get("options", {}), rec)  # fmt: skip
+                                              rec.get("fingerprint"), rec.get("options", {}), rec,
+                                              start_seq=w.seq)  # fmt: skip
                 elif rec.get("event") == "end" and rec.get("id") in runs:
-                    runs[rec["id"]].end, runs[rec["id"]].end_ns = rec, stamp
+                    runs[rec["id"]].end, runs[rec["id"]].end_ns, runs[rec["id"]].end_seq = rec, stamp, w.seq
             except (ValueError, KeyError, TypeError, AttributeError):
                 continue  # someone else's text on the stream: not a run
     return sorted(runs.values(), key=lambda r: (r.start_ns, r.number))
