@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from bisect import bisect_right
 
 from .common import EXIT_SKIPPED, count_windows, human_bytes, iso_ns, newest_window, repair_hint, table, why_records
 
@@ -30,7 +31,7 @@ def store_info(path: str) -> dict:
     """Everything `cclog info` prints, as a dict."""
     # Imported here, not at the top: `cclog --help` imports every subcommand module.
     from ..classifier.summary import SUMMARY_TOPIC
-    from ..runs import hidden_by_default, list_runs
+    from ..runs import hidden_by_default
     from ..store import open_store
     from ..store.store import describe_damage
 
@@ -59,12 +60,59 @@ def store_info(path: str) -> dict:
             "disk_bytes": store.disk_bytes(),
             "json_bytes": sum(s["json_bytes"] for s in streams.values()),
             "streams": streams,
-            "runs": [run.as_dict() for run in list_runs(store)],
+            "runs": _runs(store, streams, damage),
             "recovery": [str(p) for p in store.recovery.problems],
             "damage": [describe_damage(d) for d in damage],
             "damage_repair": [repair_hint(d) for d in damage],  # what clears each stretch
             "unreadable": unreadable,  # records that failed a check when read: each counted as a window
         }
+
+
+def _runs(store, streams: dict, damage: list) -> list[dict]:
+    """The runs as `RunInfo.as_dict` gives them, each with an end record also with
+    "messages_held": the messages of its windows the store holds now. When that is fewer
+    than it kept, "dropped_since" says how many went and "dropped_by" what the store shows
+    could have dropped them: compaction (`compact --max-rate`, `record --age-max-rate`
+    thins windows in place), retention (it drops the oldest segments) or damage (skipped)."""
+    from ..runs import list_runs
+
+    runs = list_runs(store)
+    held = _held(store, runs)
+    out = []
+    for run in runs:
+        r = run.as_dict()
+        if run.id in held:
+            r["messages_held"] = held[run.id]
+            if held[run.id] < run.kept:
+                causes = [cause for cause, seen in (
+                    ("compaction", any(st.get("aged") for st in streams.values())),
+                    ("retention", store.first_seq > run.start_seq + 1),  # a window of the run gone
+                    ("damage", bool(damage))) if seen]  # fmt: skip
+                r["dropped_since"] = run.kept - held[run.id]
+                r["dropped_by"] = " or ".join(causes) or "unknown"
+        out.append(r)
+    return out
+
+
+def _held(store, runs: list) -> dict[str, int]:
+    """Run id -> messages the store holds of the windows the run kept (those between its
+    start and end records; its recorder's summaries apart, as its end record counts them),
+    for runs with an end record. From the time index's counts: only summary windows are
+    read, to tell the recorder's own from messages that came in on that topic."""
+    from ..classifier.summary import SUMMARY_TOPIC
+    from ..runs import hidden_by_default
+
+    spans = sorted((r.start_seq, r.end_seq, r.id) for r in runs if r.end_seq is not None and r.kept is not None)
+    starts = [start for start, _, _ in spans]
+    held = {run_id: 0 for _, _, run_id in spans}
+    for w in store.query(skip_damaged=True) if spans else ():
+        i = bisect_right(starts, w.seq) - 1
+        if i < 0 or w.seq >= spans[i][1] or hidden_by_default(w.name):
+            continue
+        if w.name == SUMMARY_TOPIC and (w.meta or {}).get("kind") == "summary":
+            continue
+        held[spans[i][2]] += w.count
+    return held
 
 
 def summary_totals(store) -> dict:
@@ -109,7 +157,9 @@ def runs_table(runs: list[dict]) -> str:
             status += f" ({r['signal']})"
         took = f"{(r['end_ns'] - r['start_ns']) / 1e9:.1f} s" if r["end_ns"] is not None else "-"
         kept = f"{r['messages_kept']:,} of {r['messages_in']:,}" if "messages_kept" in r else "-"
-        if r.get("retention"):  # the run's records outlive its windows (store/carry.py)
+        if r.get("dropped_since"):  # the store holds fewer now than the run kept: how many, and what dropped them
+            kept += f"; {r['messages_held']:,} held now ({r['dropped_by']} dropped {r['dropped_since']:,})"
+        elif r.get("retention"):  # the run's records outlive its windows (store/carry.py)
             kept += f" ({r['retention']} by retention since)"
         rows.append([r["run"], iso_ns(r["start_ns"]), took, status, kept, _run_windows(r), r["source"],
                      _flags(r["options"])])  # fmt: skip

@@ -39,7 +39,8 @@ since its messages would be stored twice; --append records it again as a new run
 
 JSON Lines: one message per line, {"topic": "/odom", "stamp_ns": 1432235695834049087, "msg": {...}}.
 A damaged ROS 1 bag, MCAP file or ROS 2 .db3 (cut short, index lost) is recorded as far as it
-can be read; stderr says what was lost and the exit code is 4. A ROS 2 bag directory without
+can be read; stderr says what was lost and the exit code is 4. An MCAP chunk that cannot be read
+stops the run naming its offset; --on-error skip records the other chunks (exit 4). A ROS 2 bag directory without
 metadata.yaml is read from its .db3 files (a note on stderr).
 With --model, odometry on the model's topic is scored; each anomaly opens a window of
 --before messages (or seconds, "4s") before it and --after after the last anomaly, over

@@ -21,7 +21,7 @@ from ..errors import SourceError
 from ..jsontext.ros import MessageConverter, message_stamp_ns
 from ..jsontext.roswire import WireError, WireFormatter
 from ..jsontext.rostypes import TypeCheck, ros1_description
-from . import ros1chunks
+from . import mcapchunks, ros1chunks
 from .base import BadMessages, OnError, SourceMessage, check_clock, topic_filter
 
 
@@ -43,6 +43,7 @@ class RosbagSource:
         self._header_clock = check_clock(clock) == "header"
         self._wanted = topic_filter(topics)
         self._converter: MessageConverter | None = None
+        self._lost_chunks: list[str] = []  # MCAP chunks that could not be read (--on-error skip)
         try:
             self._reader = AnyReader([Path(path)])
             if not self._reader.is2:  # the same reader, its index read faster (issue 14)
@@ -73,6 +74,14 @@ class RosbagSource:
     def skipped(self) -> int:
         """Bad messages skipped (on_error="skip")."""
         return self._bad.skipped
+
+    @property
+    def lost(self) -> str | None:
+        """What damage lost (chunks of an MCAP file skipped), None when nothing was."""
+        if not self._lost_chunks:
+            return None
+        return (f"{self.name} is damaged: {len(self._lost_chunks):,} chunks could not be read and were skipped "
+                f"(--on-error skip), their messages not recorded: {'; '.join(self._lost_chunks)}")  # fmt: skip
 
     @property
     def message_count(self) -> int:
@@ -140,7 +149,19 @@ class RosbagSource:
         readers = self._reader.readers
         if len(readers) == 1 and isinstance(readers[0], Bag1Reader):
             return ros1chunks.messages(readers[0], self._connections, self.name)
+        if len(readers) == 1 and (storage := mcapchunks.is_indexed_mcap(readers[0])) is not None:
+            return mcapchunks.messages(storage, self._connections, self._bad_chunk)
         return self._reader.messages(connections=self._connections)
+
+    def _bad_chunk(self, chunk: Any, why: str) -> None:
+        """An MCAP chunk that cannot be read: the error (default), or skipped and counted."""
+        n = mcapchunks.expected(chunk, {c.id for c in self._connections})
+        said = (f"the chunk at byte {chunk.chunk_start_offset:,} ({n:,} messages logged {chunk.message_start_time} "
+                f"to {chunk.message_end_time} ns) cannot be read: {why}")  # fmt: skip
+        if self._bad.on_error == "stop":
+            raise SourceError(f"{self.name}: {said}; the messages before it were read. Record with --on-error skip "
+                              "to keep the other chunks (it says what was lost and exits 4).")  # fmt: skip
+        self._lost_chunks.append(said)
 
     def _convert(self, con: Any, logtime: int, raw: bytes, index: int,
                  err: WireError | None) -> tuple[str, int | None]:

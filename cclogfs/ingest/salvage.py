@@ -122,11 +122,24 @@ class Ros1Salvage(_Salvage):
                 self._stopped(offset, last, count, err)
 
 
+def _statistics(records: Iterator[Any], kind: type) -> Any:
+    """The Statistics record of an MCAP summary section (what is read after DataEnd), or
+    None. Only its counts are taken, to hold the messages read against: the summary's
+    schemas and channels are not (no chunk CRC covers them, and the file is damaged)."""
+    try:
+        for rec in records:
+            if isinstance(rec, kind):
+                return rec
+    except Exception:  # a damaged summary: no counts to check against
+        return None
+    return None
+
+
 class McapSalvage(_Salvage):
     """A ROS 2 MCAP file (CDR messages, ros2msg schemas) read as a stream of records."""
 
     def __iter__(self) -> Iterator[SourceMessage]:
-        from mcap.records import Channel, DataEnd, Message, Schema
+        from mcap.records import Channel, DataEnd, Message, Schema, Statistics
         from mcap.stream_reader import StreamReader
         from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -135,9 +148,12 @@ class McapSalvage(_Salvage):
         schemas: dict[int, str] = {}
         channels: dict[int, tuple[str, str]] = {}
         count, last = 0, None
+        found: dict[int, int] = {}  # channel id -> messages read, to hold against the file's statistics
+        stats = None
         with open(self.name, "rb") as f:
+            records = StreamReader(f, record_size_limit=self.size).records
             try:
-                for rec in StreamReader(f, record_size_limit=self.size).records:
+                for rec in records:
                     if isinstance(rec, Schema):
                         schemas[rec.id] = rec.name
                         if rec.encoding == "ros2msg" and rec.name not in store.fielddefs:
@@ -146,14 +162,30 @@ class McapSalvage(_Salvage):
                         channels[rec.id] = (rec.topic, schemas.get(rec.schema_id, ""))
                     elif isinstance(rec, Message):
                         topic, msgtype = channels[rec.channel_id]
+                        found[rec.channel_id] = found.get(rec.channel_id, 0) + 1
                         if self._wanted is None or topic in self._wanted:
                             last = rec.log_time
                             count += 1
                             yield self._from_bytes(topic, msgtype, last, rec.data, wire)
                     elif isinstance(rec, DataEnd):  # the summary repeats schemas and channels: no message
+                        stats = _statistics(records, Statistics)
                         break
                 raise EOFError("end of file")
             except (EOFError, Exception) as err:
                 self._stopped(f.tell() if not isinstance(err, EOFError) else self.size, last, count, err)
+        if self.lost is None and stats is not None:
+            self._missing(stats.channel_message_counts, found, channels, count)
         if self.lost is None and self.why:  # nothing lost, but the file is damaged: say so (`cli.common.damaged_exit`)
             self.note = f"{self.name}: {self.why}; read record by record instead: every message read ({count:,})"
+
+    def _missing(self, counted: dict[int, int], found: dict[int, int], channels: dict[int, tuple[str, str]],
+                 count: int) -> None:  # fmt: skip
+        """Read to its end, but fewer messages than the file's statistics count (a chunk cut
+        out of the file leaves no trace but that): say what is missing."""
+        short = {cid: n - found.get(cid, 0) for cid, n in counted.items() if n > found.get(cid, 0)
+                 and (self._wanted is None or channels.get(cid, ("",))[0] in self._wanted)}  # fmt: skip
+        if short:
+            per = ", ".join(f"{channels.get(cid, (f'channel {cid}',))[0]} {n:,}" for cid, n in sorted(short.items()))
+            self.lost = (f"{self.name} is damaged ({self.why or 'unreadable index'}): read {count:,} messages to the "
+                         f"end of the file, but its statistics count {sum(short.values()):,} more ({per}): bytes were "
+                         "cut out of it (a whole chunk), and those messages are lost")  # fmt: skip

@@ -196,14 +196,16 @@ class Store:
             self._take_lock()
             manifest.commit(self.fs, self.file_path(MANIFEST))
             return
-        parent, base = os.path.split(os.path.abspath(self.path))
+        # A symbolic link (dangling, or to an empty directory) is followed: rename() does not
+        # follow it, and failed on it naming the temporary directory ("Not a directory").
+        parent, base = os.path.split(os.path.realpath(self.path))
         self.fs.mkdir(parent)  # as before: a store's parent directories are made with it
         _remove_stale_creations(parent, base)
         tmp = os.path.join(parent, f".{base}.creating-{os.getpid()}")
         self.fs.mkdir(tmp)
         try:
             manifest.commit(self.fs, os.path.join(tmp, MANIFEST))
-            self.fs.rename(tmp, self.path)  # the commit point; onto an empty directory too
+            self.fs.rename(tmp, os.path.join(parent, base))  # the commit point; onto an empty directory too
         except BaseException as err:
             import shutil
 

@@ -8,9 +8,13 @@ they were, so a message still parses to the same structure with the same types.
 
 A value is rounded to a grid step q from the 1-2-5 series with q <= 2 * bound, and written
 as a fixed-point decimal (`0.125`, `-3.500`, zero always as `0.000`). Exact decimal
-arithmetic keeps |new - old| <= q / 2 <= bound for the decimal values; read back as
-float64 the two can differ by one more rounding (a relative 1.1e-16). Fixed-point tokens
-are what the columnar codec stores as integers, which is where the space goes.
+arithmetic keeps |new - old| <= q / 2 <= bound for the decimal values, but with q = 2 *
+bound a tie (-24.375 at bound 0.001) sits exactly on the bound, and read back as float64
+the difference can come out one rounding above it (0.0010000000000012). So every rounded
+value is checked as a reader would check it, `abs(float(old) - float(new)) <= bound`;
+one that fails takes the grid point on the other side of the value, and if that fails
+too the token stays as it was. Fixed-point tokens are what the columnar codec stores as
+integers, which is where the space goes.
 
 Field paths are the object keys from the message root joined by dots; array levels do not
 add a part (every element of `pose.covariance` has the path `pose.covariance`). In a
@@ -119,8 +123,9 @@ def grid_step(bound: float) -> Decimal | None:
 class Grid:
     """Rounding to multiples of one step, written with a fixed number of decimals."""
 
-    def __init__(self, step: Decimal):
+    def __init__(self, step: Decimal, bound: float):
         self.step = step
+        self.bound = bound
         exp = step.as_tuple().exponent
         mantissa = int(step.scaleb(-exp))  # 1, 2 or 5
         self.places = max(1, -exp)
@@ -153,6 +158,17 @@ class Grid:
             with localcontext() as ctx:
                 ctx.prec = 60  # |value| < 1e15 over a step >= 1e-18 needs 33 digits
                 m = int((Decimal(token) / self.step).to_integral_value(rounding=ROUND_HALF_EVEN))
+        out = self._fixed(m)
+        moved = float(out) - value
+        if abs(moved) <= self.bound:
+            return out
+        # Over the bound in float64 (a tie or near-tie): the grid point on the value's other
+        # side is as near in decimals and may pass; else the value stays exact.
+        other = self._fixed(m - 1 if moved > 0 else m + 1)
+        return other if abs(float(other) - value) <= self.bound else token
+
+    def _fixed(self, m: int) -> str:
+        """Grid point `m` (m * step) as a fixed-point token."""
         n = m * self.unit
         digits = str(abs(n)).rjust(self.places + 1, "0")
         sign = "-" if n < 0 else ""  # zero is never written "-0.000"
@@ -184,7 +200,7 @@ class Policy:
         """One Grid per bound, so their token caches are shared across shapes."""
         if bound not in self._grids:
             step = grid_step(bound)
-            self._grids[bound] = None if step is None else Grid(step)
+            self._grids[bound] = None if step is None else Grid(step, bound)
         return self._grids[bound]
 
     def unmatched(self, texts: Iterable[str]) -> list[Rule]:

@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 
+import pytest
 from mcap.reader import make_reader
 
 import cclogfs
@@ -161,3 +162,55 @@ def test_library_runs_start_before_and_end_after(tmp_path):
     assert [(r.number, r.status, r.kept) for r in runs] == [(1, "done", 1), (2, "unfinished", None)]
     assert runs[0].options == {"model": "m"} and runs[0].start["master"] == "http://robot:11311"
     assert runs[1].id == second.id != runs[0].id
+
+
+def stream_messages(store_path, names=None) -> int:
+    with cclogfs.open_store(store_path, readonly=True) as store:
+        return sum(st["messages"] for name, st in store.streams().items()
+                   if name != RUNS_STREAM and (names is None or name in names))  # fmt: skip
+
+
+def test_info_says_what_compaction_dropped_of_a_run(shared_data, tmp_path, capsys):
+    """l-atk6: after `compact --max-rate` the runs table still said "8,197 of 8,197 kept"
+    while the store held a few hundred of them."""
+    store = tmp_path / "s"
+    assert main(["record", str(shared_data("nav2_turtlebot.mcap")), "--store", str(store)]) == 0
+    run = info_json(store, capsys)["runs"][0]
+    assert run["messages_held"] == run["messages_kept"] == 8197 and "dropped_since" not in run
+    assert main(["compact", str(store), "--max-rate", "2"]) == 0
+    held = stream_messages(store)
+    assert held < 1000  # ~2 msg/s of each stream over ~97 s
+    run = info_json(store, capsys)["runs"][0]
+    assert run["messages_kept"] == 8197 and run["messages_held"] == held
+    assert run["dropped_since"] == 8197 - held and run["dropped_by"] == "compaction"
+    assert main(["info", str(store)]) == 0
+    assert f"8,197 of 8,197; {held:,} held now (compaction dropped {8197 - held:,})" in capsys.readouterr().out
+
+
+def test_messages_held_counts_each_run_apart(shared_data, tmp_path, capsys):
+    bag, store = str(shared_data("tf_example.bag")), tmp_path / "s"
+    assert main(["record", bag, "--store", str(store)]) == 0
+    assert main(["record", bag, "--store", str(store), "--append", "--topic", "/tf"]) == 0
+    runs = info_json(store, capsys)["runs"]
+    assert [r["messages_held"] for r in runs] == [518, 517] and not any("dropped_since" in r for r in runs)
+
+
+def test_messages_held_leaves_the_recorders_summaries_out(recorded_smart, capsys):
+    run = info_json(recorded_smart / "s", capsys)["runs"][0]
+    assert run["summaries"] > 0 and run["messages_kept"] > 0
+    assert run["messages_held"] == run["messages_kept"] == stream_messages(recorded_smart / "s", {"/odom", "/tf"})
+    assert "dropped_since" not in run
+
+
+@pytest.fixture
+def recorded_smart(shared_data, tmp_path):
+    from cclogfs.jsontext.lines import format_line
+    from cclogfs.pipeline import read_topic
+
+    bag = str(shared_data("nav2_turtlebot.mcap"))
+    train = tmp_path / "train.jsonl"
+    train.write_text("".join(format_line("/odom", s, t) for s, t in read_topic(bag, "/odom")[:400]))
+    assert main(["train", str(train), "--out", str(tmp_path / "m")]) == 0
+    assert main(["record", bag, "--store", str(tmp_path / "s"), "--model", str(tmp_path / "m"), "--force-model",
+                 "--topic", "/tf"]) == 0  # fmt: skip
+    return tmp_path

@@ -176,3 +176,19 @@ def test_two_creating_one_store_at_once_one_wins(tmp_path, monkeypatch):
     assert not [n for n in os.listdir(tmp_path) if ".creating-" in n]
     with cclogfs.open_store(path, readonly=True) as store:
         assert [[tuple(m) for m in w.messages()] for w in store.query()] == [[(1, "{}")]]
+
+
+@pytest.mark.parametrize("target", ["missing/store", "empty"])
+def test_a_store_path_that_is_a_symbolic_link_is_followed(tmp_path, target):
+    """l-atk6: a --store path that is a dangling symbolic link failed with "Not a directory
+    (.../.s.creating-PID)", naming a temporary path (rename() does not follow a link), and
+    so did a link to an empty directory. The store is made where the link points."""
+    (tmp_path / "empty").mkdir()
+    link = tmp_path / "s"
+    link.symlink_to(tmp_path / target)
+    with cclogfs.open_store(link, create=True, sync_every_ms=None) as store:
+        store.put_window("/a", [(1, "{}")])
+    assert link.is_symlink() and (tmp_path / target / "MANIFEST").is_file()
+    assert not [n for n in os.listdir(tmp_path) + os.listdir(link.resolve().parent) if ".creating-" in n]
+    with cclogfs.open_store(link, readonly=True) as store:
+        assert store.streams()["/a"]["messages"] == 1
