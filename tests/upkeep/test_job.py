@@ -464,6 +464,7 @@ def test_retention_keeps_every_run_record_so_a_source_is_still_refused_twice(tmp
     assert main(["info", store]) == 0
     out = capsys.readouterr().out
     assert "runs (2, stream /cclog/runs)" in out
-    assert "40,000 of 40,000 (all dropped by retention since)" in out  # the table said "40,000 kept"
-    assert "20,000 of 20,000 (some dropped by retention since)" in out
+    # the table said "40,000 kept"; now what the store holds of each run and what dropped the rest
+    assert "40,000 of 40,000; 0 held now (retention dropped 40,000)" in out
+    assert "20,000 of 20,000; 12,400 held now (retention dropped 7,600)" in out
     assert not check_store(store, deep=True).findings
