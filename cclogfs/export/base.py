@@ -8,6 +8,7 @@ import itertools
 import os
 import re
 import secrets
+import shutil
 from collections.abc import Callable, Iterable, Iterator
 from operator import attrgetter
 from pathlib import Path
@@ -50,10 +51,12 @@ def _alive(pid: int) -> bool:
 
 def remove_stale_work_files(path: str | Path) -> list[Path]:
     """Remove the work files of `path` whose writer's pid is not alive (an export or convert
-    killed before its rename left a hidden `.OUT.PID.XXXX.tmp`); those of a live writer (a
-    concurrent export to the same output) stay. Which were removed."""
+    killed before its rename left a hidden `.OUT.PID.XXXXXXXX.tmp`, a file, or a directory for
+    a rosbag2 bag); those of a live writer (a concurrent export to the same output) stay.
+    Which were removed."""
     path = Path(path)
-    pattern = re.compile(rf"\.{re.escape(path.name)}\.(\d+)\.[0-9a-f]{{8}}\.tmp")
+    # after the pid, work_file's 8 hex digits or mkdtemp's 8 letters (a rosbag2 export's directory)
+    pattern = re.compile(rf"\.{re.escape(path.name)}\.(\d+)\.[0-9a-z_]{{8}}\.tmp")
     removed = []
     try:
         names = os.listdir(path.parent if str(path.parent) else ".")
@@ -62,8 +65,12 @@ def remove_stale_work_files(path: str | Path) -> list[Path]:
     for name in names:
         m = pattern.fullmatch(name)
         if m and not _alive(int(m.group(1))):
+            stale = path.parent / name
             try:
-                (path.parent / name).unlink()
+                if stale.is_dir() and not stale.is_symlink():
+                    shutil.rmtree(stale)
+                else:
+                    stale.unlink()
             except FileNotFoundError:
                 continue  # another run removed it first
             removed.append(path.parent / name)
