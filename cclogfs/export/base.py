@@ -78,16 +78,21 @@ def remove_stale_work_files(path: str | Path) -> list[Path]:
 
 
 def commit_work_file(tmp: str | Path, path: str | Path) -> None:
-    """Rename the finished work file `tmp` over `path` durably: its data synced before the
-    rename (else a power cut could leave an empty or partial file under the final name) and
-    the directory after (else the rename itself could be lost), as the store does."""
-    fd = os.open(tmp, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
+    """Rename the finished work file (or directory) `tmp` over `path` durably: its data
+    synced before the rename (else a power cut could leave an empty or partial file under the
+    final name) and the directory after (else the rename itself could be lost), as the store
+    does."""
+    if os.path.isdir(tmp):
+        for name in os.listdir(tmp):
+            fsync_path(os.path.join(tmp, name))
+    fsync_path(tmp)
     os.replace(tmp, path)
-    fd = os.open(os.path.dirname(os.path.abspath(path)), os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    fsync_path(os.path.dirname(os.path.abspath(path)))
+
+
+def fsync_path(path: str | Path) -> None:
+    """fsync a file or directory by name."""
+    fd = os.open(path, os.O_RDONLY | (getattr(os, "O_DIRECTORY", 0) if os.path.isdir(path) else 0))
     try:
         os.fsync(fd)
     finally:

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InvalidInputError
-from .base import Progress, StoredWindow, remove_stale_work_files
+from .base import Progress, StoredWindow, commit_work_file, remove_stale_work_files
 from .mcap import McapStats
 from .ros2cdr import AS_JSON_MCAP, Describe, Encode, Ros2Types, message_error, qos, stream_meta
 
@@ -56,7 +56,7 @@ def export_rosbag2(
         _write(windows, work / path.name, ros2, stats, progress, describe)
         if os.path.lexists(path):
             os.replace(path, work / "replaced")
-        os.replace(work / path.name, path)
+        commit_work_file(work / path.name, path)  # synced: a power cut leaves no partial bag
     finally:
         shutil.rmtree(work, ignore_errors=True)
     stats.notes = ros2.notes
