@@ -86,15 +86,12 @@ def test_convert_output_gets_the_mode_a_new_file_gets(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.jsonl", "out.jsonl"]
 
 
-def test_convert_syncs_its_output_before_the_rename_and_the_directory_after(tmp_path, monkeypatch):
+def test_convert_syncs_its_output_before_the_rename_and_the_directory_after(tmp_path, renames_and_fsyncs):
     """Found by attack: convert renamed its work file into place unsynced, so a power cut
     could leave an empty or partial file under the final name."""
     src, out = tmp_path / "in.jsonl", tmp_path / "out.jsonl"
     jsonl(src)
-    ops: list[tuple[str, str]] = []
-    fsync, replace = os.fsync, os.replace
-    monkeypatch.setattr(os, "fsync", lambda fd: (ops.append(("fsync", os.readlink(f"/proc/self/fd/{fd}"))), fsync(fd))[1])
-    monkeypatch.setattr(os, "replace", lambda a, b: (ops.append(("replace", str(b))), replace(a, b))[1])
+    ops = renames_and_fsyncs
     assert main(["convert", str(src), "-o", str(out)]) == 0
     at = ops.index(("replace", str(out)))
     assert any(op == "fsync" and os.path.basename(p).startswith(".out.jsonl.") for op, p in ops[:at]), ops

@@ -86,14 +86,11 @@ def test_a_killed_exports_work_file_goes_at_the_next_run_a_live_ones_stays(tmp_p
         live.wait()
 
 
-def test_the_work_file_is_synced_before_the_rename_and_the_directory_after(tmp_path, monkeypatch):
+def test_the_work_file_is_synced_before_the_rename_and_the_directory_after(tmp_path, renames_and_fsyncs):
     """Found by attack: without an fsync before the rename, a power cut could leave an empty
     or partial file under the final name."""
     out = tmp_path / "out.mcap"
-    ops: list[tuple[str, str]] = []
-    fsync, replace = os.fsync, os.replace
-    monkeypatch.setattr(os, "fsync", lambda fd: (ops.append(("fsync", os.readlink(f"/proc/self/fd/{fd}"))), fsync(fd))[1])
-    monkeypatch.setattr(os, "replace", lambda a, b: (ops.append(("replace", str(b))), replace(a, b))[1])
+    ops = renames_and_fsyncs
     export_mcap(_windows("/a", 10), out)
     at = ops.index(("replace", str(out)))
     assert any(op == "fsync" and os.path.basename(p).startswith(".out.mcap.") for op, p in ops[:at]), ops

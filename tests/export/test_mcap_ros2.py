@@ -411,14 +411,11 @@ def test_rosbag2_export_removes_the_work_directory_a_killed_one_left(shared_data
         live.wait()
 
 
-def test_rosbag2_export_syncs_the_bag_before_the_rename(shared_data, tmp_path, capsys, monkeypatch):
+def test_rosbag2_export_syncs_the_bag_before_the_rename(shared_data, tmp_path, capsys, renames_and_fsyncs):
     """Found by attack: the bag was renamed into place unsynced (a power cut could leave a
     partial bag under the final name)."""
     store = record(shared_data("tf_example.bag"), tmp_path)
-    ops: list[tuple[str, str]] = []
-    fsync, replace = os.fsync, os.replace
-    monkeypatch.setattr(os, "fsync", lambda fd: (ops.append(("fsync", os.readlink(f"/proc/self/fd/{fd}"))), fsync(fd))[1])
-    monkeypatch.setattr(os, "replace", lambda a, b: (ops.append(("replace", str(b))), replace(a, b))[1])
+    ops = renames_and_fsyncs
     assert main(["export", str(store), "--rosbag2", str(tmp_path / "bag")]) == 0
     at = ops.index(("replace", str(tmp_path / "bag")))
     synced = {os.path.basename(p) for op, p in ops[:at] if op == "fsync"}
