@@ -74,3 +74,24 @@ def halves():
     t = odom.stamp_ns
     mid = t[0] + (t[-1] - t[0]) // 2
     return odom.take(t < mid), odom.take(t >= mid)
+
+
+@pytest.fixture
+def renames_and_fsyncs(monkeypatch):
+    """("fsync", file or directory name) and ("replace", destination) of each os.fsync and
+    os.replace, in order: whether an output was synced before its rename and its
+    directory after."""
+    ops: list[tuple[str, str]] = []
+    fsync, replace = os.fsync, os.replace
+
+    def logged_fsync(fd):
+        ops.append(("fsync", os.readlink(f"/proc/self/fd/{fd}")))
+        fsync(fd)
+
+    def logged_replace(a, b):
+        ops.append(("replace", str(b)))
+        replace(a, b)
+
+    monkeypatch.setattr(os, "fsync", logged_fsync)
+    monkeypatch.setattr(os, "replace", logged_replace)
+    return ops

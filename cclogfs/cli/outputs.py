@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Iterator
 
 from ..errors import InvalidInputError
-from ..export.base import work_file
+from ..export.base import commit_work_file, work_file
 
 
 def add_force(p: argparse.ArgumentParser, *aliases: str) -> None:
@@ -67,7 +67,7 @@ def atomic_output(path: str | Path, mode: str = "w") -> Iterator:
     try:
         with open(tmp, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as f:
             yield f
-        os.replace(tmp, path)
+        commit_work_file(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise

@@ -60,7 +60,8 @@ header (tf2_msgs/TFMessage) or whose seq does not count up are listed as not che
 exit status: 0 done, 1 error, 130 interrupted (file input), 4 ros1:// recorded but
 messages were lost (seq gaps, received after the recording stopped, or of another type than
 the topic's first: a publisher restarted with another type; such messages are skipped, not stored),
-3 done but the store is still over --budget (as `cclog compact`).
+3 done but the store is still over --budget (as `cclog compact`), or retention had to
+drop every message this run stored to meet it.
 """
 LOST = 4  # the exit status when a live recording knows it lost messages
 OVER_BUDGET = 3  # as `cclog compact`: done, but the store is larger than --budget
@@ -117,7 +118,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     upkeep = p.add_argument_group("upkeep while recording (as `cclog compact`, each time a segment is sealed)")
     upkeep.add_argument("--budget", metavar="SIZE",
                         help="drop the oldest segments while the store is larger (e.g. 20GiB); segments are "
-                             "then at most 1/8 of it, so the store stays within about 1/8 over it")
+                             "then at most 1/8 of it, so the store stays within about 1/8 over it; at least 32KiB")
     upkeep.add_argument("--age-older-than", metavar="DURATION",
                         help="age windows that ended this long before their stream's newest sealed one "
                              "(e.g. 7d), in a background thread")
@@ -155,6 +156,7 @@ def _write_dataset(args: argparse.Namespace, rows: list) -> None:
 def _upkeep(args: argparse.Namespace) -> Upkeep | None:
     """The Upkeep the flags ask for (None for none)."""
     from ..upkeep import Policy, Upkeep, parse_rule
+    from ..upkeep.background import MIN_BUDGET, MIN_SEGMENT_BYTES
 
     rules = [parse_rule(r) for r in args.age_error]
     aging = bool(rules) or args.age_max_rate is not None
@@ -163,6 +165,10 @@ def _upkeep(args: argparse.Namespace) -> Upkeep | None:
     if aging and not args.age_older_than:
         raise InvalidInputError("Aging while recording needs --age-older-than (else every window ages when sealed).")
     budget = parse_size(args.budget) if args.budget else None
+    if budget is not None and budget < MIN_BUDGET:
+        raise InvalidInputError(f"--budget {args.budget} is too small: segments are 1/8 of the budget and at least "
+                                f"{human_bytes(MIN_SEGMENT_BYTES)}, so retention would drop all of the run; "
+                                f"give --budget {MIN_BUDGET >> 10}KiB or more.")  # fmt: skip
     if not aging and budget is None:
         return None
     policy = Policy(rules, args.age_max_rate) if aging else None
@@ -505,7 +511,16 @@ def _run(args: argparse.Namespace) -> int:
     status = _exit_status(args, source, stats, policy, read_topics, received)
     if status == 0 and upkeep is not None and upkeep.budget is not None and final_bytes > upkeep.budget:
         return OVER_BUDGET  # said on stderr as "NOT met"; a script must not take it for met
+    if status == 0 and _nothing_kept(stats, retention):
+        print(f"cclog: --budget {args.budget} is too small for this run: retention dropped all "
+              f"{stats.messages_kept:,} messages it stored; give a larger budget", file=sys.stderr)  # fmt: skip
+        return OVER_BUDGET  # a run whose every message is gone is not "done" (exit 0 said so)
     return status
+
+
+def _nothing_kept(stats: RecordStats, retention: tuple[int, int, int] | None) -> bool:
+    """True when the run stored messages and retention dropped every one of them."""
+    return retention is not None and stats.messages_kept > 0 and retention[0] == 0
 
 
 def _fit_budget(store, upkeep: Upkeep | None, final_bytes: int | None) -> int | None:
@@ -690,6 +705,8 @@ def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep:
         state = ""
         if upkeep.budget is not None:
             met = "met" if final_bytes <= upkeep.budget else "NOT met (the segment being written is larger)"
+            if _nothing_kept(stats, retention):
+                met = "met only by DROPPING ALL of this run"
             state = f"; budget {human_bytes(upkeep.budget)} {met}"
         print(f"upkeep: {upkeep.dropped_segments} segments dropped, {upkeep.aged_windows:,} windows aged; store "
               f"{human_bytes(final_bytes)}{state}", file=sys.stderr)  # fmt: skip

@@ -6,7 +6,9 @@ import dataclasses
 import heapq
 import itertools
 import os
+import re
 import secrets
+import shutil
 from collections.abc import Callable, Iterable, Iterator
 from operator import attrgetter
 from pathlib import Path
@@ -23,16 +25,78 @@ def work_file(path: str | Path) -> Path:
     it is renamed over `path`. Unique: two exports to one output at once each have their own
     (a fixed OUT.tmp was shared, so each wrote into the other's file, and a file of the user's
     by that name was overwritten). Made with mode 0666 less the umask, as a new file is, not
-    mkstemp's 0600: the rename makes it the output others read."""
+    mkstemp's 0600: the rename makes it the output others read. The name holds the writer's
+    pid, so that the next run removes what a killed one left (`remove_stale_work_files`)."""
     path = Path(path)
+    remove_stale_work_files(path)
     for _ in range(100):
-        tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
         try:
             os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
         except FileExistsError:
             continue
         return tmp
     raise FileExistsError(f"no free work file name beside {path}")
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # EPERM: alive, another user's
+        return True
+    return True
+
+
+def remove_stale_work_files(path: str | Path) -> list[Path]:
+    """Remove the work files of `path` whose writer's pid is not alive (an export or convert
+    killed before its rename left a hidden `.OUT.PID.XXXXXXXX.tmp`, a file, or a directory for
+    a rosbag2 bag); those of a live writer (a concurrent export to the same output) stay.
+    Which were removed."""
+    path = Path(path)
+    # after the pid, work_file's 8 hex digits or mkdtemp's 8 letters (a rosbag2 export's directory)
+    pattern = re.compile(rf"\.{re.escape(path.name)}\.(\d+)\.[0-9a-z_]{{8}}\.tmp")
+    removed = []
+    try:
+        names = os.listdir(path.parent if str(path.parent) else ".")
+    except OSError:
+        return removed
+    for name in names:
+        m = pattern.fullmatch(name)
+        if m and not _alive(int(m.group(1))):
+            stale = path.parent / name
+            try:
+                if stale.is_dir() and not stale.is_symlink():
+                    shutil.rmtree(stale)
+                else:
+                    stale.unlink()
+            except FileNotFoundError:
+                continue  # another run removed it first
+            removed.append(path.parent / name)
+    return removed
+
+
+def commit_work_file(tmp: str | Path, path: str | Path) -> None:
+    """Rename the finished work file (or directory) `tmp` over `path` durably: its data
+    synced before the rename (else a power cut could leave an empty or partial file under the
+    final name) and the directory after (else the rename itself could be lost), as the store
+    does."""
+    if os.path.isdir(tmp):
+        for name in os.listdir(tmp):
+            fsync_path(os.path.join(tmp, name))
+    fsync_path(tmp)
+    os.replace(tmp, path)
+    fsync_path(os.path.dirname(os.path.abspath(path)))
+
+
+def fsync_path(path: str | Path) -> None:
+    """fsync a file or directory by name."""
+    fd = os.open(path, os.O_RDONLY | (getattr(os, "O_DIRECTORY", 0) if os.path.isdir(path) else 0))
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 class StoredWindow(Protocol):

@@ -22,7 +22,7 @@ from pathlib import Path
 from mcap.writer import CompressionType, Writer
 
 from ..errors import InvalidInputError
-from .base import ExportStats, Progress, StoredWindow, work_file
+from .base import ExportStats, Progress, StoredWindow, commit_work_file, work_file
 from .jsonl import continues, merged_runs
 from .jsonschema import message_schema
 from .ros2cdr import Describe, Ros2Types, message_error, stream_meta
@@ -74,7 +74,7 @@ def export_mcap(
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    os.replace(tmp, path)
+    commit_work_file(tmp, path)
     if channels.ros2 is not None:
         stats.notes = channels.ros2.notes
     return stats

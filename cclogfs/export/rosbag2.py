@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InvalidInputError
-from .base import Progress, StoredWindow
+from .base import Progress, StoredWindow, commit_work_file, remove_stale_work_files
 from .mcap import McapStats
 from .ros2cdr import AS_JSON_MCAP, Describe, Encode, Ros2Types, message_error, qos, stream_meta
 
@@ -50,12 +50,13 @@ def export_rosbag2(
         raise InvalidInputError(f"Output {path} exists; pass --force to replace it, or choose another output.")
     stats = McapStats(files=[str(path)])
     ros2 = Ros2Types()
-    work = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    remove_stale_work_files(path)  # a killed export's work directory (its name holds the pid)
+    work = Path(tempfile.mkdtemp(prefix=f".{path.name}.{os.getpid()}.", suffix=".tmp", dir=path.parent))
     try:
         _write(windows, work / path.name, ros2, stats, progress, describe)
         if os.path.lexists(path):
             os.replace(path, work / "replaced")
-        os.replace(work / path.name, path)
+        commit_work_file(work / path.name, path)  # synced: a power cut leaves no partial bag
     finally:
         shutil.rmtree(work, ignore_errors=True)
     stats.notes = ros2.notes

@@ -17,6 +17,10 @@ from .policy import Policy, Rule
 __all__ = ["Upkeep"]
 
 MAX_ERRORS = 20  # background errors kept for the report
+MIN_SEGMENT_BYTES = 4096  # the smallest segment_bytes open_store takes
+# Below this a recording's segments (1/8 of the budget) would be larger than 1/8 of it, and
+# retention, which drops sealed segments whole, could keep none of the run.
+MIN_BUDGET = 8 * MIN_SEGMENT_BYTES
 
 
 def _cutoffs_sealed(store: Store, older_than_ns: int) -> dict[str, int]:
@@ -82,7 +86,10 @@ class Upkeep:
         store close to its budget."""
         if self.budget is None:
             return {}
-        return {"segment_bytes": max(64 << 10, min(64 << 20, self.budget // 8))}
+        # The floor is the store's smallest segment (4 KiB), not 64 KiB: under 512 KiB a
+        # 64 KiB segment was over the budget's eighth, and a budget of 48 KiB dropped every
+        # sealed segment of the run whole (0 of 8,860 messages kept).
+        return {"segment_bytes": max(MIN_SEGMENT_BYTES, min(64 << 20, self.budget // 8))}
 
     def after_put(self, store: Store) -> None:
         # Sealing starts a new active segment: until then, one comparison per put.

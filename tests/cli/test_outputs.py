@@ -2,6 +2,8 @@
 
 import json
 import os
+import subprocess
+import sys
 
 import pytest
 
@@ -81,4 +83,27 @@ def test_convert_output_gets_the_mode_a_new_file_gets(tmp_path, capsys):
     finally:
         os.umask(old)
     assert os.stat(out).st_mode & 0o777 == 0o644
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.jsonl", "out.jsonl"]
+
+
+def test_convert_syncs_its_output_before_the_rename_and_the_directory_after(tmp_path, renames_and_fsyncs):
+    """Found by attack: convert renamed its work file into place unsynced, so a power cut
+    could leave an empty or partial file under the final name."""
+    src, out = tmp_path / "in.jsonl", tmp_path / "out.jsonl"
+    jsonl(src)
+    ops = renames_and_fsyncs
+    assert main(["convert", str(src), "-o", str(out)]) == 0
+    at = ops.index(("replace", str(out)))
+    assert any(op == "fsync" and os.path.basename(p).startswith(".out.jsonl.") for op, p in ops[:at]), ops
+    assert ("fsync", str(tmp_path)) in ops[at:], ops
+
+
+def test_convert_removes_the_work_file_a_killed_convert_left(tmp_path):
+    """Found by attack: a convert killed mid-write left its hidden `.OUT.*.tmp` for good."""
+    src, out = tmp_path / "in.jsonl", tmp_path / "out.jsonl"
+    jsonl(src)
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait()  # a pid no process has now: the writer was killed
+    (tmp_path / f".out.jsonl.{proc.pid}.0badf00d.tmp").write_text("half a convert")
+    assert main(["convert", str(src), "-o", str(out)]) == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.jsonl", "out.jsonl"]

@@ -6,7 +6,10 @@ stream whose type rosbags knows, so rosbags (and `ros2 bag play`, Foxglove) read
 from __future__ import annotations
 
 import json
+import os
 import re
+import subprocess
+import sys
 
 import pytest
 from mcap.reader import make_reader
@@ -387,3 +390,34 @@ def test_a_labs_own_ros1_type_goes_as_cdr_from_its_stored_definition(tmp_path, c
     assert main(["export", str(tmp_path / "j"), "--mcap", str(tmp_path / "j.mcap")]) == 0
     assert "note: /reading exported as JSON, not CDR: its type acme_msgs/msg/Reading is not a ROS 2 type " \
            "rosbags knows, and the window has no definition of it" in capsys.readouterr().err  # fmt: skip
+
+
+def test_rosbag2_export_removes_the_work_directory_a_killed_one_left(shared_data, tmp_path, capsys):
+    """Found by attack: a killed export left its hidden work directory `.OUT.*.tmp` for good;
+    the next removes one whose writer is dead, not one of a live export."""
+    store = record(shared_data("tf_example.bag"), tmp_path)
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        for pid in (dead.pid, live.pid):
+            (tmp_path / f".bag.{pid}.ab_cd123.tmp" / "bag").mkdir(parents=True)
+            (tmp_path / f".bag.{pid}.ab_cd123.tmp" / "bag" / "bag.mcap").write_bytes(b"half a bag")
+        assert main(["export", str(store), "--rosbag2", str(tmp_path / "bag")]) == 0
+        left = sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".bag."))
+        assert left == [f".bag.{live.pid}.ab_cd123.tmp"]
+    finally:
+        live.kill()
+        live.wait()
+
+
+def test_rosbag2_export_syncs_the_bag_before_the_rename(shared_data, tmp_path, capsys, renames_and_fsyncs):
+    """Found by attack: the bag was renamed into place unsynced (a power cut could leave a
+    partial bag under the final name)."""
+    store = record(shared_data("tf_example.bag"), tmp_path)
+    ops = renames_and_fsyncs
+    assert main(["export", str(store), "--rosbag2", str(tmp_path / "bag")]) == 0
+    at = ops.index(("replace", str(tmp_path / "bag")))
+    synced = {os.path.basename(p) for op, p in ops[:at] if op == "fsync"}
+    assert {"bag.mcap", "metadata.yaml", "bag"} <= synced, ops
+    assert ("fsync", str(tmp_path)) in ops[at:], ops

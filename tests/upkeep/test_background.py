@@ -27,7 +27,8 @@ def test_an_incomplete_upkeep_is_refused(kwargs, match):
 
 def test_segments_are_an_eighth_of_the_budget_within_limits():
     assert Upkeep(budget=8 << 20).store_options() == {"segment_bytes": 1 << 20}
-    assert Upkeep(budget=1 << 10).store_options() == {"segment_bytes": 64 << 10}
+    assert Upkeep(budget=1 << 10).store_options() == {"segment_bytes": 4096}
+    assert Upkeep(budget=48 << 10).store_options() == {"segment_bytes": 6 << 10}
     assert Upkeep(budget=1 << 40).store_options() == {"segment_bytes": 64 << 20}
     assert Upkeep(policy=Policy([parse_rule("1e-3")]), older_than_ns=0).store_options() == {}
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import threading
 import time
 
@@ -219,17 +220,35 @@ def test_recorder_summary_counts_what_retention_left_not_what_it_stored(tmp_path
     assert f"{store}: retention also dropped {kept:,} messages of earlier runs to stay within --budget" in err
 
 
-def test_recorder_over_its_budget_at_the_end_exits_3_as_compact_does(tmp_path, capsys):
-    """A budget smaller than the segment being written cannot be met: stderr said NOT met,
-    but the exit status was 0, so a script took it for met (found by attack)."""
-    jsonl(tmp_path / "run.jsonl", 4_050)  # the last 50 in the segment being written, 9 KiB
+def test_recorder_refuses_a_budget_too_small_for_any_segment(tmp_path, capsys):
+    """A budget under 8 of the smallest segments (4 KiB) cannot keep any of a run: it was
+    taken, retention dropped every segment, and the run ended "budget met" (found by
+    attack); it is refused before anything is written, naming the smallest that works."""
+    jsonl(tmp_path / "run.jsonl", 4_050)
     store = str(tmp_path / "s")
     assert main(["record", str(tmp_path / "run.jsonl"), "--store", store, "--budget", "4KiB", "--chunk", "100",
-                 "--codec", "none"]) == 3
-    assert "budget 4.0 KiB NOT met" in capsys.readouterr().err
+                 "--codec", "none"]) == 1
+    err = capsys.readouterr().err
+    assert "--budget 4KiB is too small" in err and "give --budget 32KiB or more" in err, err
+    assert not os.path.exists(store)
+    assert main(["record", str(tmp_path / "run.jsonl"), "--store", store, "--budget", "32KiB", "--chunk", "100",
+                 "--codec", "none"]) == 0
     with cclogfs.open_store(store, readonly=True) as s:
-        assert s.data_bytes() > 4 << 10 and s.dropped()["segments"] >= 1
-    assert main(["compact", store, "--budget", "4KiB"]) == 3
+        assert s.data_bytes() <= 32 << 10 and sum(len(list(w.messages())) for w in s.query("/odom")) > 0
+
+
+def test_recorder_says_loudly_when_retention_dropped_all_of_the_run(tmp_path, capsys):
+    """Messages larger than the budget: each sealed segment is over it and dropped whole.
+    The run said "0 kept ... budget met", exit 0; it must say so loudly, exit 3."""
+    with open(tmp_path / "big.jsonl", "w") as f:
+        for i in range(6):
+            f.write(json.dumps({"topic": "/big", "stamp_ns": i * NS, "msg": {"data": os.urandom(30_000).hex()}}) + "\n")
+    store = str(tmp_path / "s")
+    assert main(["record", str(tmp_path / "big.jsonl"), "--store", store, "--budget", "40KiB",
+                 "--codec", "none"]) == 3
+    err = capsys.readouterr().err
+    assert "met only by DROPPING ALL of this run" in err, err
+    assert "retention dropped all 6 messages it stored" in err, err
 
 
 def test_recorder_ages_in_the_background_within_bounds(tmp_path, capsys):
@@ -468,3 +487,18 @@ def test_retention_keeps_every_run_record_so_a_source_is_still_refused_twice(tmp
     assert "40,000 of 40,000; 0 held now (retention dropped 40,000)" in out
     assert "20,000 of 20,000; 12,400 held now (retention dropped 7,600)" in out
     assert not check_store(store, deep=True).findings
+
+
+def test_a_small_budget_keeps_the_newest_of_the_run(tmp_path, capsys):
+    """Found by attack: under 512 KiB segments stayed 64 KiB, more than a budget of 48 KiB
+    holds, so every sealed segment was dropped whole: 0 messages kept, "budget met", exit 0.
+    Segments follow the budget down (an eighth of it), so the newest of the run stays."""
+    jsonl(tmp_path / "run.jsonl", 8_000)
+    store = str(tmp_path / "s")
+    assert main(["record", str(tmp_path / "run.jsonl"), "--store", store, "--budget", "48KiB", "--chunk", "100"]) == 0
+    err = capsys.readouterr().err
+    assert "budget 48.0 KiB met" in err, err
+    with cclogfs.open_store(store, readonly=True) as s:
+        assert s.data_bytes() <= 48 << 10
+        stamps = [t for w in s.query("/odom") for t, _ in w.messages()]
+    assert len(stamps) > 1_000 and max(stamps) == 7_999 * NS // 20  # the newest stay
