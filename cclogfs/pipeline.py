@@ -497,8 +497,8 @@ class KeepUnscored:
         rows = odom_rows_compiled([messages[i][2] for i in at])
         bad = [i for i, got in zip(at, rows) if got is None or not _finite(got[1])]
         bad = [(i, f) for i in bad if (f := _nonfinite_field(messages[i][2])) is not None]
-        if not bad:
-            return self.policy.push_many(messages)
+        if not bad:  # the policy takes the rows read here: one compiled read of each message, not two
+            return self.policy.push_many(messages, rows=rows)
         out: list[PendingWindow] = []
         start = 0
         for i, field in bad:

@@ -358,23 +358,25 @@ class SmartLogger:
         self._pending.append((topic, stamp_ns, text, row, vec is not None))
         return self._drain() if len(self._pending) >= self.batch else []
 
-    def push_many(self, messages: Sequence) -> list[PendingWindow]:
+    def push_many(self, messages: Sequence, rows: list | None = None) -> list[PendingWindow]:
         """`push` of each (topic, stamp_ns, text, ...) in turn: the same windows in the same
         order, the SVM scoring the same groups of `batch` held messages. For a source that
         hands over many messages at once (issue 14): the compiled reader reads the list's
         odometry in one call, and the windows and summaries take the held odometry a
-        stretch at a time (`_drain`)."""
+        stretch at a time (`_drain`). `rows`: that call's result when the caller made it
+        already (the pipeline reads the odometry first to keep what cannot be scored)."""
         if self.batch == 1 or not messages:
             return [w for m in messages for w in self.push(m[0], m[1], m[2])]
         odom_topic, pending, vectors, batch = self.odom_topic, self._pending, self._vectors, self.batch
         parse, vector = self.detector.parse, self.detector.vector
         if all(map(eq, map(itemgetter(0), messages), repeat(odom_topic))):  # a run of odometry alone
-            got = odom_rows_compiled(list(map(itemgetter(2), messages)))
+            got = rows if rows is not None else odom_rows_compiled(list(map(itemgetter(2), messages)))
             if None not in got:
                 return self._push_odometry(messages, got)
             read = iter(got)
         else:
-            read = iter(odom_rows_compiled([m[2] for m in messages if m[0] == odom_topic]))
+            read = iter(rows if rows is not None else
+                        odom_rows_compiled([m[2] for m in messages if m[0] == odom_topic]))  # fmt: skip
         out: list[PendingWindow] = []
         for m in messages:
             topic, stamp_ns, text = m[0], m[1], m[2]
