@@ -13,7 +13,6 @@ import signal
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from operator import itemgetter
 from typing import TYPE_CHECKING, Any
 
 import xxhash
@@ -37,7 +36,6 @@ from .format import (
     LOCK,
     MANIFEST,
     MAX_NS,
-    MAX_RECORD_RAW,
     MIN_NS,
     RESERVE,
     SEGMENT_HEADER_SIZE,
@@ -51,7 +49,7 @@ from .format import (
     segment_name,
 )
 from .fs import FileSystem
-from .index import OFFSET, RAW_LEN, SEQ, START, STREAM, SegmentIndex, SegmentSpans, merge_stream_stats
+from .index import SEQ, START, SegmentIndex, SegmentSpans, merge_stream_stats
 from .manifest import Manifest, SealedSegment
 from .recovery import Recovery, SegmentOpener
 from .segment import WRITE_BUFFER, Segment, hash_file, lost_seqs
@@ -718,31 +716,6 @@ class Store:
             t["json_bytes"] = t["raw_bytes"] - 4 * t["windows"] - 12 * t["messages"]
             t["aged"] = sum(info.get("aged", {}).get(name, 0) for info in infos)
         return dict(sorted(total.items()))
-
-    def split_parts(self) -> dict[str, int]:
-        """Per stream: records flagged PART (each part of a split window but its last), which
-        `streams()` counts as windows, as it counts records.
-
-        Only the few records that can be parts are read, header only: a part's continuation
-        is the next record of its segment (no seal between them) and begins with a message
-        that did not fit in the part, so the two hold more than MAX_RECORD_RAW raw bytes,
-        and so does their stream in that segment (which the manifest states for sealed ones).
-        """
-        parts: dict[str, int] = {}
-        with self.lock:
-            infos = [info["streams"] for info in self.manifest.segments]
-            for k, seg in enumerate(self._segments()):
-                if k < len(infos) and all(s["raw_bytes"] <= MAX_RECORD_RAW for s in infos[k].values()):
-                    continue
-                index = self._sealed_index(seg) if k < len(infos) else seg.index()
-                entries = sorted(index.entries, key=itemgetter(SEQ))
-                for a, b in zip(entries, entries[1:]):
-                    if a[STREAM] == b[STREAM] and b[SEQ] == a[SEQ] + 1 and a[RAW_LEN] + b[RAW_LEN] > MAX_RECORD_RAW:
-                        header = seg.read_header(a[OFFSET])
-                        if header is not None and header.flags & RecordFlag.PART:
-                            name = index.names[a[STREAM]]
-                            parts[name] = parts.get(name, 0) + 1
-        return parts
 
     def damage(self) -> list[dict[str, Any]]:
         """Damage below the synced point that the store knows of and that was not
