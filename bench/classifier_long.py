@@ -134,6 +134,10 @@ def smart_run(model, odom: OdomArrays, labels: dict, args) -> dict:
     if args.explain:
         explain(model, odom, spans, labels, policy.detector)
     scores, _ = policy.detector.score_batch(odom)
+    e["misses"] = [miss_class(odom.stamp_ns, scores, spans, ev) for ev in labels["events"]
+                   if not event_table(odom.stamp_ns, spans, {"events": [ev]})["recalled"]]  # fmt: skip
+    if e["misses"] and args.misses:
+        add_stages(policy.detector, odom, e["misses"])
     if args.confirm_curve:
         e["confirm"] = confirm_curve(odom.stamp_ns, scores, spans, labels)
     return e | {"kept_parts": kept_parts(odom.stamp_ns, scores, spans, labels, policy.windows.hold_score),
@@ -180,6 +184,82 @@ def kept_parts(stamp_ns: np.ndarray, scores: np.ndarray, spans: list, labels: di
 
 
 PARTS = ("before", "event", "flagged", "held", "gap", "after")
+
+
+def miss_class(stamp_ns: np.ndarray, scores: np.ndarray, spans: list, ev: dict) -> dict:
+    """How a missed event was lost (issue 15, ninth pass): "a" never flagged from its
+    start to 2 s after its end; "b" the window that covers it opens after its first
+    message; "c" the window closes before its last message; "d" a gap between two windows
+    inside it; "e" flagged, yet no window touches it. With the numbers: first flag's delay
+    after the event's start, each touching window's start and end against the event's
+    first and last message (s; negative = before), the peak score over the event."""
+    a = int(np.searchsorted(stamp_ns, ev["start_ns"], "left"))
+    b = int(np.searchsorted(stamp_ns, ev["end_ns"], "right")) - 1
+    h = int(np.searchsorted(stamp_ns, ev["end_ns"] + 2 * NS, "right"))
+    s = np.nan_to_num(scores, nan=-np.inf)
+    hit = np.nonzero(s[a:h] > 0)[0]
+    first, last = int(stamp_ns[a]), int(stamp_ns[b])
+    touching = [(x, y) for x, y in spans if x <= last and y >= first]
+    classes = []
+    if not len(hit):
+        classes.append("a")
+    elif not touching:
+        classes.append("e")
+    else:
+        if touching[0][0] > first:
+            classes.append("b")
+        if touching[-1][1] < last:
+            classes.append("c")
+        if len(touching) > 1:
+            classes.append("d")
+    return {"kind": ev["kind"], "severity": ev["severity"], "class": "+".join(classes) or "e",
+            "event_s": (last - first) / NS,
+            "first_flag_s": float((stamp_ns[a + hit[0]] - first) / NS) if len(hit) else None,
+            "peak_score": float(s[a : b + 1].max()) if b >= a else None,
+            "windows": [((x - first) / NS, (y - last) / NS) for x, y in touching],
+            "start_s": (first - int(stamp_ns[0])) / NS}  # fmt: skip
+
+
+def add_stages(detector, odom: OdomArrays, misses: list[dict]) -> None:
+    """Per missed event: which stage said no. The SVM's peak score over the event and 0.5 s
+    after it, and the limit stage's (largest feature over its limit as grown online up to
+    that row, less 1), with the three features furthest beyond those grown limits."""
+    from cclogfs.classifier.features import DEFAULT_NAMES
+
+    model = detector.model
+    X, valid = detector.features.batch(odom)
+    Xv = X[valid]
+    svm = (model.threshold_ - model.decision_function(Xv)) / max(-model.intercept_, 1e-12)
+    seen = np.where((svm <= 0.0)[:, None], model.limit_growth_ * np.nan_to_num(Xv, nan=0.0), 0.0)
+    np.maximum.accumulate(seen, axis=0, out=seen)
+    np.maximum(seen, model.limits_, out=seen)
+    limits = np.vstack([model.limits_, seen[:-1]])  # the limits each row was judged by
+    t = odom.stamp_ns[valid]
+    for m in misses:
+        a = np.searchsorted(t, odom.stamp_ns[0] + int(m["start_s"] * NS), "left")
+        b = np.searchsorted(t, odom.stamp_ns[0] + int((m["start_s"] + m["event_s"] + 0.5) * NS), "right")
+        if b <= a:
+            continue
+        ratio = np.nan_to_num(Xv[a:b] / limits[a:b])
+        top = np.nanmax(ratio, axis=0)
+        m["svm_peak"] = float(np.max(svm[a:b]))
+        m["limit_peak"] = float(np.max(ratio.max(axis=1)) - 1.0)
+        m["beyond"] = [(DEFAULT_NAMES[k], float(top[k])) for k in np.argsort(-top)[:3]]
+
+
+def miss_lines(name: str, rate: str, misses: list[dict]) -> list[str]:
+    """One line per missed event: run, kind, class and its numbers."""
+    out = []
+    for m in misses:
+        flag = "-" if m["first_flag_s"] is None else f"{m['first_flag_s']:+.2f}"
+        wins = " ".join(f"[{x:+.2f}, {y:+.2f}]" for x, y in m["windows"]) or "none"
+        out.append(f"  miss {name} {rate} {m['kind']}@{m['severity']} class {m['class']}: event "
+                   f"{m['event_s']:.2f} s at {m['start_s']:.1f} s of test, first flag {flag} s, "
+                   f"peak {m['peak_score']:+.2f}, windows (start-first, end-last) {wins}")  # fmt: skip
+        if "svm_peak" in m:
+            out[-1] += (f"; SVM peak {m['svm_peak']:+.2f}, limits peak {m['limit_peak']:+.2f} ("
+                        + ", ".join(f"{k} {v:.2f}x" for k, v in m["beyond"]) + " of the grown limits)")
+    return out
 
 # Window-level confirmations measured by `--confirm-curve` (issue 15, eighth pass): a window
 # is stored only when its peak score reaches P, or its flagged messages span D seconds
@@ -500,6 +580,9 @@ def main() -> None:
                         "flagged seconds reach a level were stored (CONFIRM_RULES)")
     p.add_argument("--plot-stops", type=Path, default=None,
                    help="plot tuc_lecture_hall's own stop and go beside an injected stop here and stop")
+    p.add_argument("--misses", action="store_true",
+                   help="per missed event (80 s schedule), how it was lost: never flagged, window opened "
+                        "late, closed early, split, other (miss_class)")
     p.add_argument("--plot", type=Path, default=None, help="plot the real episodes here and stop")
     p.add_argument("--param", action="append", default=[], metavar="K=V",
                    help="a training parameter (OneClassModel), e.g. false_alarm_rate=0.0005")
@@ -530,6 +613,8 @@ def main() -> None:
                     continue
                 group.append(r)
                 print(line(f"{name} {features} {rate}", r["80s"], r.get("60s"), r.get("600s")), flush=True)
+                if args.misses:
+                    print("\n".join(miss_lines(name, rate, r["80s"]["misses"])), flush=True)
             if group:
                 tot = {s: total(group, s) for s in SCHEDULES}
                 print(line(f"ALL {features} {rate}", tot["80s"], tot["60s"], tot["600s"]), flush=True)
