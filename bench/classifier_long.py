@@ -138,6 +138,7 @@ def smart_run(model, odom: OdomArrays, labels: dict, args) -> dict:
                    if not event_table(odom.stamp_ns, spans, {"events": [ev]})["recalled"]]  # fmt: skip
     if e["misses"] and args.misses:
         add_stages(policy.detector, odom, e["misses"])
+    e["margins"] = recall_margins(odom.stamp_ns, spans, labels)
     if args.confirm_curve:
         e["confirm"] = confirm_curve(odom.stamp_ns, scores, spans, labels)
     return e | {"kept_parts": kept_parts(odom.stamp_ns, scores, spans, labels, policy.windows.hold_score),
@@ -218,6 +219,30 @@ def miss_class(stamp_ns: np.ndarray, scores: np.ndarray, spans: list, ev: dict) 
             "peak_score": float(s[a : b + 1].max()) if b >= a else None,
             "windows": [((x - first) / NS, (y - last) / NS) for x, y in touching],
             "start_s": (first - int(stamp_ns[0])) / NS}  # fmt: skip
+
+
+def recall_margins(stamp_ns: np.ndarray, spans: list, labels: dict) -> list[tuple[float, float]]:
+    """Per recalled event, how close it came to being cut (s): its first message less the
+    start of the window that holds it, and the window's end less its last message."""
+    out = []
+    for ev in labels["events"]:
+        a = int(np.searchsorted(stamp_ns, ev["start_ns"], "left"))
+        b = int(np.searchsorted(stamp_ns, ev["end_ns"], "right")) - 1
+        first, last = int(stamp_ns[a]), int(stamp_ns[b])
+        holding = [(x, y) for x, y in spans if x <= first and y >= last]
+        if holding:
+            out.append(((first - holding[0][0]) / NS, (holding[0][1] - last) / NS))
+    return out
+
+
+def margin_line(rs: list[dict]) -> str:
+    """Over a row group's recalled events: the smallest margins before and after (s)."""
+    m = np.array([x for r in rs for x in r["margins"]]).reshape(-1, 2)
+    if not len(m):
+        return "  margins: none recalled"
+    q = lambda c: "/".join(f"{v:.2f}" for v in (m[:, c].min(), *np.quantile(m[:, c], (0.05, 0.5))))  # noqa: E731
+    return (f"  margins of the {len(m)} recalled events, s (min/5th pct/median): before {q(0)}, after {q(1)}; "
+            f"under 0.2 s before {int(np.sum(m[:, 0] < 0.2))}, after {int(np.sum(m[:, 1] < 0.2))}")
 
 
 def add_stages(detector, odom: OdomArrays, misses: list[dict]) -> None:
@@ -620,6 +645,8 @@ def main() -> None:
                 print(line(f"ALL {features} {rate}", tot["80s"], tot["60s"], tot["600s"]), flush=True)
                 if args.confirm_curve:
                     print("\n".join(confirm_lines([r["80s"] for r in group])), flush=True)
+                if args.misses:
+                    print(margin_line([r["80s"] for r in group]), flush=True)
                 if args.breakdown:
                     for sched in SCHEDULES:
                         if tot[sched]:
