@@ -352,3 +352,36 @@ def test_confirm_curve_counts_what_a_window_level_confirmation_would_keep():
     assert got["flagged >= 0.3 s"] == (0, 1, 1)  # 0.1 s of flags
     assert got["flagged >= 0.9 s"] == (0, 1, 1)  # 10 flags over 0.9 s
     assert got["peak >= 0.1 or flagged >= 0.6 s"] == (0, 1, 1)
+
+
+def test_miss_class_tells_how_an_event_was_lost():
+    """bench/classifier_long.py --misses (issue 15, ninth pass): a missed event is never
+    flagged (a), covered by a window that opens after its first message (b) or closes
+    before its last (c), split between two windows (d), or flagged with no window on it
+    (e); recalled events report how far their window reaches past each end."""
+    from bench.classifier_long import miss_class, recall_margins
+
+    t = np.arange(300, dtype=np.int64) * (NS // 10)  # 30 s at 10 Hz
+    ev = {"start_ns": int(t[100]), "end_ns": int(t[120]), "kind": "twist", "severity": 0.4}
+    quiet = np.full(300, -0.5)
+    flagged = quiet.copy()
+    flagged[105] = 0.2
+
+    def cls(scores, spans):
+        return miss_class(t, scores, spans, ev)
+
+    got = cls(quiet, [(t[10], t[20])])
+    assert got["class"] == "a" and got["first_flag_s"] is None and got["windows"] == []
+    got = cls(flagged, [(t[102], t[130])])
+    assert got["class"] == "b" and got["first_flag_s"] == pytest.approx(0.5) and got["peak_score"] == 0.2
+    assert got["windows"] == [(pytest.approx(0.2), pytest.approx(1.0))]
+    assert cls(flagged, [(t[90], t[115])])["class"] == "c"
+    assert cls(flagged, [(t[102], t[115])])["class"] == "b+c"
+    assert cls(flagged, [(t[90], t[108]), (t[112], t[130])])["class"] == "d"
+    assert cls(flagged, [(t[200], t[210])])["class"] == "e"
+    late = quiet.copy()
+    late[135] = 0.3  # 1.5 s after the event's end: still its flag (2 s horizon)
+    assert cls(late, [])["first_flag_s"] == pytest.approx(3.5)
+    assert recall_margins(t, [(t[90], t[125]), (t[200], t[210])], {"events": [ev]}) == [
+        (pytest.approx(1.0), pytest.approx(0.5))]
+    assert recall_margins(t, [(t[102], t[130])], {"events": [ev]}) == []  # not held: a miss
