@@ -252,13 +252,12 @@ def add_stages(detector, odom: OdomArrays, misses: list[dict]) -> None:
     from cclogfs.classifier.features import DEFAULT_NAMES
 
     model = detector.model
+    if model.limits_ is None:
+        return
     X, valid = detector.features.batch(odom)
     Xv = X[valid]
-    svm = (model.threshold_ - model.decision_function(Xv)) / max(-model.intercept_, 1e-12)
-    seen = np.where((svm <= 0.0)[:, None], model.limit_growth_ * np.nan_to_num(Xv, nan=0.0), 0.0)
-    np.maximum.accumulate(seen, axis=0, out=seen)
-    np.maximum(seen, model.limits_, out=seen)
-    limits = np.vstack([model.limits_, seen[:-1]])  # the limits each row was judged by
+    svm = model.svm_score(Xv)
+    limits = model.row_limits(Xv, svm, model.limits_.copy())  # as scoring the run grows them
     t = odom.stamp_ns[valid]
     for m in misses:
         a = np.searchsorted(t, odom.stamp_ns[0] + int(m["start_s"] * NS), "left")

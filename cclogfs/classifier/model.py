@@ -198,20 +198,29 @@ class OneClassModel:
         of a robot's ordinary manoeuvres; when the SVM later sees them as nominal, the
         limits stop flagging them. A vector the SVM flags never raises a limit, so an
         anomaly is not learnt from."""
-        s = (self.threshold_ - self.decision_function(X)) / max(-self.intercept_, 1e-12)
+        s = self.svm_score(X)
         if self.limits_ is None:
             return s
         X = np.atleast_2d(X)
+        return np.minimum(s, np.max(X / self.row_limits(X, s, limits), axis=1) - 1.0)
+
+    def svm_score(self, X: np.ndarray) -> np.ndarray:
+        """The first stage of `score` alone: how far below the SVM's threshold, in rho."""
+        return (self.threshold_ - self.decision_function(X)) / max(-self.intercept_, 1e-12)
+
+    def row_limits(self, X: np.ndarray, svm: np.ndarray, limits: np.ndarray | None = None) -> np.ndarray:
+        """The limits each row of X is judged by in `score` (`svm`: its `svm_score`):
+        `limits_` when `limits` is None, else `limits` grown row by row (and in place)."""
         if limits is None:
-            limits = self.limits_
-        elif self.limit_growth_ > 0 and len(X):
-            seen = np.where((s <= 0.0)[:, None], self.limit_growth_ * np.nan_to_num(X, nan=0.0), 0.0)
+            return self.limits_
+        if self.limit_growth_ > 0 and len(X):
+            seen = np.where((svm <= 0.0)[:, None], self.limit_growth_ * np.nan_to_num(X, nan=0.0), 0.0)
             np.maximum.accumulate(seen, axis=0, out=seen)
             np.maximum(seen, limits, out=seen)  # the limits after each row
             before = np.vstack([limits, seen[:-1]])
             limits[:] = seen[-1]
-            limits = before
-        return np.minimum(s, np.max(X / limits, axis=1) - 1.0)
+            return before
+        return limits
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         """True where a vector is anomalous."""

@@ -72,3 +72,19 @@ def test_growth_saved_and_old_or_bad_files(tmp_path):
             OneClassModel.load(tmp_path / "g")
     with pytest.raises(ModelError, match="growth"):
         fixed.set_limits(fixed.limits_, -0.5)
+
+
+def test_stages_apart_give_the_score():
+    """`svm_score` and `row_limits` (the two stages apart, for bench/classifier_long.py
+    --misses) give `score` back: the smaller of the SVM's score and the largest feature
+    over the limits each row was judged by, grown row by row as scoring grows them."""
+    odom, grown, _, svm_only = _models()
+    X, ok = make_features(grown.feature_config).batch(odom)
+    X = X[ok]
+    svm = grown.svm_score(X)
+    np.testing.assert_allclose(svm, svm_only.score(X), atol=1e-12)  # the same SVM, no limits
+    rows = grown.row_limits(X, svm, grown.limits_.copy())
+    assert rows.shape == X.shape and (rows[0] == grown.limits_).all() and (np.diff(rows, axis=0) >= 0).all()
+    both = np.minimum(svm, np.max(X / rows, axis=1) - 1.0)
+    np.testing.assert_allclose(both, grown.score(X, grown.limits_.copy()), atol=1e-12)
+    assert grown.row_limits(X, svm) is grown.limits_  # no limits to grow: the trained ones
