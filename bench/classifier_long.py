@@ -17,9 +17,11 @@ Other rates are the run resampled, the pose integrated from the resampled twist
 `--explain` prints, per false window and missed event, the features furthest beyond
 their limits. `--confirm-curve` prints, per row group, recall and false windows if only the
 windows that a confirmation rule accepts (peak score, flagged seconds: CONFIRM_RULES) were
-stored (issue 15, eighth pass: none kept).
+stored (issue 15, eighth pass: none kept). `--misses` prints, per missed event, how it was
+lost (never flagged, window opened late, closed early, split: `miss_class`) and which
+stage said no, and per row group the recalled events' margins (issue 15, ninth pass).
 
-Run: python3 dev.py bench classifier_long [--rates native,30,100] [--sim] [--quick] [--explain]
+Run: python3 dev.py bench classifier_long [--rates native,30,100] [--sim] [--quick] [--explain] [--misses]
 """
 
 from __future__ import annotations
