@@ -141,6 +141,8 @@ def smart_run(model, odom: OdomArrays, labels: dict, args) -> dict:
     if e["misses"] and args.misses:
         add_stages(policy.detector, odom, e["misses"])
     e["margins"] = recall_margins(odom.stamp_ns, spans, labels)
+    if args.bypass_curve:
+        e["bypass"] = bypass_count(policy.detector, odom, labels, flags, e["misses"], args.bypass_curve)
     if args.confirm_curve:
         e["confirm"] = confirm_curve(odom.stamp_ns, scores, spans, labels)
     return e | {"kept_parts": kept_parts(odom.stamp_ns, scores, spans, labels, policy.windows.hold_score),
@@ -245,6 +247,46 @@ def margin_line(rs: list[dict]) -> str:
     q = lambda c: "/".join(f"{v:.2f}" for v in (m[:, c].min(), *np.quantile(m[:, c], (0.05, 0.5))))  # noqa: E731
     return (f"  margins of the {len(m)} recalled events, s (min/5th pct/median): before {q(0)}, after {q(1)}; "
             f"under 0.2 s before {int(np.sum(m[:, 0] < 0.2))}, after {int(np.sum(m[:, 1] < 0.2))}")
+
+
+def bypass_count(detector, odom: OdomArrays, labels: dict, flags: np.ndarray, misses: list[dict],
+                 levels: list[float]) -> dict:  # fmt: skip
+    """Counted offline, not built (issue 15, ninth pass): the flags a bypass of the SVM
+    would add, where the limit stage alone is above L while the SVM says nominal. Per
+    level: stretches of such messages (apart by 6 s or more) more than 2 s from any event,
+    those of them more than 6 s from every flag of the defaults (new windows), and the
+    missed events with such a message from their start to 0.5 s after their end."""
+    model = detector.model
+    if model.limits_ is None:
+        return {}
+    X, valid = detector.features.batch(odom)
+    svm = model.svm_score(X[valid])
+    over = np.max(X[valid] / model.row_limits(X[valid], svm, model.limits_.copy()), axis=1) - 1.0
+    t, flagged = odom.stamp_ns[valid], odom.stamp_ns[flags]
+    events = [(e["start_ns"], e["end_ns"]) for e in labels["events"]]
+    out = {}
+    for level in levels:
+        at = t[(svm <= 0) & (np.nan_to_num(over, nan=-1.0) > level)]
+        starts = np.concatenate([[0], np.nonzero(np.diff(at) >= 6 * NS)[0] + 1]) if len(at) else []
+        stretches = [(at[i], at[j - 1]) for i, j in zip(starts, [*starts[1:], len(at)])]
+        outside = [(a, b) for a, b in stretches if not any(x - 2 * NS <= b and a <= y + 2 * NS for x, y in events)]
+        new = [(a, b) for a, b in outside if not len(flagged) or np.min(np.abs(flagged - (a + b) // 2)) > 6 * NS]
+        first = odom.stamp_ns[0]
+        got = [f"{m['kind']}@{m['severity']}" for m in misses
+               if np.any((at >= first + m["start_s"] * NS) & (at <= first + (m["start_s"] + m["event_s"] + 0.5) * NS))]
+        out[level] = (len(outside), len(new), got)
+    return out
+
+
+def bypass_lines(rs: list[dict], levels: list[float]) -> list[str]:
+    """`bypass_count` of a row group, summed over its runs."""
+    out = []
+    for level in levels:
+        got = [r["bypass"][level] for r in rs if r.get("bypass")]
+        out.append(f"  bypass L={level}: {sum(g[0] for g in got)} stretches outside events, "
+                   f"{sum(g[1] for g in got)} away from every flag; missed events touched: "
+                   f"{' '.join(x for g in got for x in g[2]) or 'none'}")  # fmt: skip
+    return out
 
 
 def add_stages(detector, odom: OdomArrays, misses: list[dict]) -> None:
@@ -609,12 +651,16 @@ def main() -> None:
     p.add_argument("--misses", action="store_true",
                    help="per missed event (80 s schedule), how it was lost: never flagged, window opened "
                         "late, closed early, split, other (miss_class)")
+    p.add_argument("--bypass-curve", default="", metavar="L,L,...",
+                   help="per row group, what flagging where the limit stage alone exceeds L would add "
+                        "(counted offline, not built: bypass_count)")
     p.add_argument("--plot", type=Path, default=None, help="plot the real episodes here and stop")
     p.add_argument("--param", action="append", default=[], metavar="K=V",
                    help="a training parameter (OneClassModel), e.g. false_alarm_rate=0.0005")
     args = p.parse_args()
     args.param = {k: float(v) for k, v in (kv.split("=", 1) for kv in args.param)}
     args.window = {k: float(v) for k, v in (kv.split("=", 1) for kv in args.window)}
+    args.bypass_curve = [float(x) for x in args.bypass_curve.split(",") if x]
     runs = load_runs(args.runs.split(",") if args.runs else None)
     if args.plot_stops:
         plot_stops(runs, args.plot_stops, args.seed_offset or 500)
@@ -648,6 +694,8 @@ def main() -> None:
                     print("\n".join(confirm_lines([r["80s"] for r in group])), flush=True)
                 if args.misses:
                     print(margin_line([r["80s"] for r in group]), flush=True)
+                if args.bypass_curve:
+                    print("\n".join(bypass_lines([r["80s"] for r in group], args.bypass_curve)), flush=True)
                 if args.breakdown:
                     for sched in SCHEDULES:
                         if tot[sched]:
