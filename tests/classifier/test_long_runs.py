@@ -385,3 +385,26 @@ def test_miss_class_tells_how_an_event_was_lost():
     assert recall_margins(t, [(t[90], t[125]), (t[200], t[210])], {"events": [ev]}) == [
         (pytest.approx(1.0), pytest.approx(0.5))]
     assert recall_margins(t, [(t[102], t[130])], {"events": [ev]}) == []  # not held: a miss
+
+
+def test_bypass_count_counts_what_the_limit_stage_alone_would_flag():
+    """bench/classifier_long.py --bypass-curve (issue 15, ninth pass, counted and not
+    built): the messages the SVM calls nominal whose limit stage is above L, grouped in
+    stretches; none above a level no feature reaches, and at L = -1 (every message the SVM
+    calls nominal) a missed event over calm driving is touched and stretches lie outside it."""
+    from bench.classifier_long import bypass_count
+
+    odom = manoeuvres()
+    t = odom.stamp_ns
+    det = Detector(train([odom.take(t < t[0] + 19 * NS)]))
+    run = odom.take(t >= t[0] + 19 * NS)
+    s = (run.stamp_ns - run.stamp_ns[0]) / NS
+    calm = run.stamp_ns[(s >= 14) & (s < 14.8)]  # between the oscillation and the gap
+    labels = {"events": [{"start_ns": int(calm[0]), "end_ns": int(calm[-1]), "kind": "twist"}]}
+    _, flags = det.score_batch(run)
+    assert not flags[(s >= 14) & (s < 15.3)].any()
+    miss = {"kind": "twist", "severity": 0.4, "start_s": float(s[(s >= 14)][0]), "event_s": 0.8}
+    got = bypass_count(det, run, labels, flags, [miss], [1e9, -1.0])
+    assert got[1e9] == (0, 0, [])
+    outside, new, touched = got[-1.0]
+    assert outside >= 1 and new <= outside and touched == ["twist@0.4"]
