@@ -8,6 +8,12 @@ each chunk is read as rosbags reads it (`msgsrc`), then checked against the summ
 chunk record where the index says, as long, holding as many messages per channel as the
 index counts. A chunk that fails goes to `bad(chunk, why)`, which raises (stop) or counts
 it and goes on (`--on-error skip`).
+
+A chunk without message indexes (a writer may leave them out: the `mcap` Writer without
+IndexType.MESSAGE) has an empty channel count in rosbags' chunk index, and rosbags skipped
+it as holding none of the selected channels: every message in it was left out with exit 0
+(3,996 of 8,197 read from a file whose later chunks had none). Such a chunk is read whole,
+as rosbags reads any chunk; its count cannot be checked, as no index counts it.
 """
 
 from __future__ import annotations
@@ -32,12 +38,17 @@ def expected(chunk: Any, channels: Collection[int]) -> int:
     return sum(chunk.channel_count.get(cid, 0) for cid in channels)
 
 
+def unindexed(chunk: Any) -> bool:
+    """Whether `chunk` has no message indexes: which channels it holds is unknown until read."""
+    return not chunk.message_index_offsets
+
+
 def messages(storage: McapReader, connections: Collection[Any],
              bad: Callable[[Any, str], None]) -> Iterator[tuple[Any, int, bytes]]:  # fmt: skip
     """(connection, log time, bytes) of `connections`, in log-time order, as rosbags'
     `McapReader.messages` gives them, but a chunk that cannot be read goes to `bad`."""
     cmap = {c.id: c for c in connections}
-    chunks = [c for c in storage.chunks if expected(c, cmap)]
+    chunks = [c for c in storage.chunks if unindexed(c) or expected(c, cmap)]
     merged = heapq.merge(*(_chunk(storage, c, cmap, bad) for c in chunks))
     for stamp, offset, connection, data in merged:
         if offset:  # each chunk's first item is its start time alone (how rosbags merges)
@@ -54,7 +65,7 @@ def _chunk(storage: McapReader, chunk: Any, cmap: dict[int, Any], bad: Callable[
         except Exception as err:  # rosbags raises ReaderError, zstd/lz4 errors, struct.error
             why = str(err) or type(err).__name__
         else:
-            if len(found) == expected(chunk, cmap):
+            if unindexed(chunk) or len(found) == expected(chunk, cmap):
                 yield from found
                 return
             why = f"it holds {len(found):,} of the {expected(chunk, cmap):,} messages its index counts"

@@ -156,7 +156,8 @@ class RosbagSource:
     def _bad_chunk(self, chunk: Any, why: str) -> None:
         """An MCAP chunk that cannot be read: the error (default), or skipped and counted."""
         n = mcapchunks.expected(chunk, {c.id for c in self._connections})
-        said = (f"the chunk at byte {chunk.chunk_start_offset:,} ({n:,} messages logged {chunk.message_start_time} "
+        count = "messages not counted, as it has no message index," if mcapchunks.unindexed(chunk) else f"{n:,} messages"
+        said = (f"the chunk at byte {chunk.chunk_start_offset:,} ({count} logged {chunk.message_start_time} "
                 f"to {chunk.message_end_time} ns) cannot be read: {why}")  # fmt: skip
         if self._bad.on_error == "stop":
             raise SourceError(f"{self.name}: {said}; the messages before it were read. Record with --on-error skip "
