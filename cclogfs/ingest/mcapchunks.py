@@ -24,7 +24,7 @@ from typing import Any
 
 from rosbags.rosbag2.storage_mcap import McapReader, msgsrc
 
-_CHUNK_OP = 0x06
+from .mcapbad import not_a_chunk
 
 
 def is_indexed_mcap(reader: Any) -> McapReader | None:
@@ -58,7 +58,7 @@ def messages(storage: McapReader, connections: Collection[Any],
 def _chunk(storage: McapReader, chunk: Any, cmap: dict[int, Any], bad: Callable[[Any, str], None]) -> Iterator[Any]:
     items = msgsrc(chunk, cmap, chunk.message_start_time, chunk.message_end_time + 1, storage.bio)
     yield next(items)  # the start time: nothing read yet, so the merge reads chunks in time order
-    why = _not_a_chunk(storage, chunk)
+    why = not_a_chunk(storage.bio, chunk)
     if why is None:
         try:
             found = list(items)  # msgsrc has decompressed and sorted the chunk whole already
@@ -70,17 +70,3 @@ def _chunk(storage: McapReader, chunk: Any, cmap: dict[int, Any], bad: Callable[
                 return
             why = f"it holds {len(found):,} of the {expected(chunk, cmap):,} messages its index counts"
     bad(chunk, why)
-
-
-def _not_a_chunk(storage: McapReader, chunk: Any) -> str | None:
-    """Why the bytes where the index puts `chunk` are not its chunk record (None: they are)."""
-    bio = storage.bio
-    bio.seek(chunk.chunk_start_offset)
-    head = bio.read(9)
-    if len(head) < 9:
-        return "the file ends before it"
-    length = int.from_bytes(head[1:], "little")
-    if head[0] != _CHUNK_OP or length + 9 != chunk.chunk_length:
-        return ("the bytes there are not the chunk record the summary's index describes (bytes cut out of "
-                "or moved in the file)")  # fmt: skip
-    return None
