@@ -31,7 +31,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def store_info(path: str) -> dict:
     """Everything `cclog info` prints, as a dict."""
     # Imported here, not at the top: `cclog --help` imports every subcommand module.
-    from ..classifier.summary import SUMMARY_TOPIC
+    from ..windowcount import SUMMARY_TOPIC
     from ..runs import hidden_by_default, list_runs
     from ..store import open_store
     from ..store.store import describe_damage
@@ -104,7 +104,7 @@ class _Held:
     messages that came in on that topic), read already by the count it passes them to."""
 
     def __init__(self, runs: list) -> None:
-        from ..classifier.summary import SUMMARY_TOPIC
+        from ..windowcount import SUMMARY_TOPIC
 
         self.summary_topic = SUMMARY_TOPIC
         self.spans = sorted((r.start_seq, r.end_seq, r.id) for r in runs if r.end_seq is not None and r.kept is not None)
@@ -133,7 +133,7 @@ class _Held:
 
 def summary_totals(store) -> dict:
     """Totals of the smart-logging summary stream: what the robot did while nothing was stored."""
-    from ..classifier.summary import SUMMARY_TOPIC
+    from ..windowcount import SUMMARY_TOPIC
 
     total = {"minutes": 0, "messages": 0, "distance_m": 0.0, "moving_s": 0.0, "anomalies": 0,
              "peak_speed": 0.0, "peak_accel": 0.0}  # fmt: skip
@@ -192,7 +192,7 @@ def _run_windows(r: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..classifier.summary import SUMMARY_TOPIC
+    from ..windowcount import SUMMARY_TOPIC
 
     info = store_info(args.store)
     if args.json:
