@@ -14,7 +14,7 @@ import numpy as np
 from ..errors import InvalidInputError, ModelError
 from .evidence import EvidenceHistory, evidence_back
 from .features import OdomArrays, TwistFromPoses, make_features, odom_row, odom_rows_compiled, parse_odometry
-from .fit import robot_stats, speed_noise, standing_still
+from .fit import robot_stats, speed_noise
 from .model import OneClassModel
 from .summary import SUMMARY_TOPIC, SummaryBuilder
 from .windows import PendingWindow, WindowBuilder
@@ -179,11 +179,7 @@ def train(
     model.training = robot_stats(sources)
     Xa = np.concatenate(anomalous)
     Xn = np.concatenate(nominal)
-    model.fit(Xn, Xa if len(Xa) else None)  # first: too few vectors is the more basic refusal
-    if (why := standing_still(model.training)) is not None:
-        seconds = sum((odom.stamp_ns[-1] - odom.stamp_ns[0]) / 1e9 for odom in sources if len(odom.stamp_ns))
-        raise ModelError(f"The training odometry ({model.training['messages']:,} messages over {seconds:.1f} s) "
-                         f"shows a robot standing still: {why}; train on runs in which the robot drives.")  # fmt: skip
+    model.fit(Xn, Xa if len(Xa) else None)
     if feature_set.id == "default" and limit_factor:
         model.set_limits(robot_limits(Xn[np.isfinite(Xn).all(axis=1)], limit_factor, tail_factor), limit_growth)
     return model
