@@ -8,7 +8,7 @@ import numpy as np
 
 from .features import OdomArrays
 
-__all__ = ["FAR_FACTOR", "NOISE_LAG_S", "compare", "robot_stats", "speed_noise"]
+__all__ = ["FAR_FACTOR", "NOISE_LAG_S", "compare", "robot_stats", "speed_noise", "standing_still"]
 
 # A statistic this many times larger or smaller than in training is "far outside": the
 # features are per-second quantities calibrated on the training robot, so a 4x faster robot
@@ -35,6 +35,20 @@ def robot_stats(runs: list[OdomArrays]) -> dict:
         "speed_p95": float(np.percentile(speed[ok], 95)) if ok.any() else 0.0,
         "turn_p95": float(np.percentile(turn[ok], 95)) if ok.any() else 0.0,
     }
+
+
+def standing_still(trained: dict) -> str | None:
+    """Why odometry with these statistics cannot train a model (None: it can): a robot that
+    never drives in it. `compare` takes a speed under its floor for standing, so such a
+    model finds every robot driving faster than FAR_FACTOR x the floor unlike it, and
+    `record --model` refused the robot it was trained on once it drove (a model trained on
+    the first 3 s of a simulated run, the robot not yet moving). Said at train time instead."""
+    floor = _FLOORS["speed_p95"]
+    if trained.get("speed_p95", 0.0) >= floor:
+        return None
+    return (f"its 95th percentile speed is {trained.get('speed_p95', 0.0):.3g} m/s, under the {floor:g} m/s a model "
+            f"needs (below it the robot counts as standing, and `cclog record --model` refuses every robot that "
+            f"drives faster than {FAR_FACTOR * floor:g} m/s as unlike it)")  # fmt: skip
 
 
 # The speed's noise is measured over this lag, not from one message to the next: the change

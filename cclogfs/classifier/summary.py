@@ -15,9 +15,10 @@ from operator import add, floordiv, itemgetter, ne
 
 import numpy as np
 
+from ..windowcount import SUMMARY_TOPIC
+
 __all__ = ["SUMMARY_TOPIC", "SummaryBuilder"]
 
-SUMMARY_TOPIC = "/cclog/summary"
 NS = 1_000_000_000
 MAX_HELD = 1024  # samples update_many holds at most: as fast as more, and a live push that takes them waits < 1 ms
 

@@ -25,8 +25,9 @@ EXAMPLES = """examples:
       drop the oldest segments until the store fits in 20 GiB
   cclog compact robot.store --older-than 30d --error 1e-3 --budget 20GiB --dry-run
       what that would age and drop, changing nothing
-exit status: 0 done, 1 error (nothing half-done: every step is crash-safe),
-             3 done but the store is still over its budget.
+exit status: 0 done, 1 error (nothing half-done: every step is crash-safe; a --budget
+             under which every sealed segment would be dropped is refused, naming the
+             smallest that keeps the newest), 3 done but the store is still over its budget.
 
 Field patterns are the JSON keys joined by dots (array levels add no part): `*` matches
 one key, `**` any number. Ages count back from the end of each stream's last window in log
@@ -81,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
     if args.dry_run:
         with open_store(args.store, readonly=True) as store:
             _check_selection(store, options)
+            _check_budget(store, args.budget, budget)
             report = preview(store, **options)
     else:
         try:
@@ -91,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
                                    "(`cclog record --budget` drops old segments while it runs)") from None
         with store:
             _check_selection(store, options)
+            _check_budget(store, args.budget, budget)
             report = compact(store, **options)
     if args.json:
         print(json.dumps(dict(report.to_dict(), dry_run=args.dry_run), indent=2))
@@ -120,6 +123,23 @@ def _check_selection(store, options: dict) -> None:
                                 streams=options["streams"])  # fmt: skip
     if unmatched:
         raise unmatched_rules_error("--error", unmatched, "nothing was aged")
+
+
+def _check_budget(store, text: str | None, budget: int | None) -> None:
+    """Refuse a budget under which retention would drop every sealed segment (one smaller
+    than a segment): it did, with "budget met" and exit 0 when the segment being written
+    fitted (3 segments of nav2_turtlebot, 7,200 messages, gone at --budget 40KiB). Checked
+    on the sizes now, before what aging would save."""
+    from ..upkeep.job import KEPT_STREAMS, check_budget, smallest_budget
+
+    if budget is None:
+        return
+    smallest, sealed = smallest_budget(store)
+    held = sum(st.get("messages", 0) for seg in sealed for name, st in seg.streams.items() if name not in KEPT_STREAMS)
+    if held:
+        check_budget(text, budget, smallest, "retention drops whole segments, and the newest sealed one with the one "
+                     f"being written take {human_bytes(smallest)}",
+                     f"the store's sealed segments ({len(sealed):,}, {held:,} messages)")  # fmt: skip
 
 
 def _aging_line(policy: Policy, args: argparse.Namespace) -> str:

@@ -6,6 +6,7 @@ import argparse
 import json
 from bisect import bisect_right
 
+from ..errors import CorruptionError
 from .common import EXIT_SKIPPED, count_windows, human_bytes, iso_ns, newest_window, repair_hint, table, why_records
 
 EXAMPLES = """examples:
@@ -30,8 +31,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def store_info(path: str) -> dict:
     """Everything `cclog info` prints, as a dict."""
     # Imported here, not at the top: `cclog --help` imports every subcommand module.
-    from ..classifier.summary import SUMMARY_TOPIC
-    from ..runs import hidden_by_default
+    from ..windowcount import SUMMARY_TOPIC
+    from ..runs import hidden_by_default, list_runs
     from ..store import open_store
     from ..store.store import describe_damage
 
@@ -39,9 +40,13 @@ def store_info(path: str) -> dict:
         damage = store.damage()
         # The runs' bookkeeping is listed as runs, not counted as messages
         streams = {name: st for name, st in store.streams().items() if not hidden_by_default(name)}
+        runs = list_runs(store)
+        held = _Held(runs)
         # A window held in several records (a smart window's parts, ...) counts once, as
-        # `record` counted it: every record's meta read (`windowcount`)
-        counted, unreadable = count_windows(w for w in store.query(skip_damaged=True) if w.name in streams)
+        # `record` counted it: every record's meta read (`windowcount`). The same walk
+        # counts what each run's windows hold now (it was a second walk of the store).
+        counted, unreadable = count_windows(held.counting(w for w in store.query(skip_damaged=True)
+                                                          if w.name in streams))  # fmt: skip
         for name, st in streams.items():
             st["records"], st["windows"] = st["windows"], counted.streams.get(name, 0)
             st["stored_as"] = why_records(counted.joined, name)
@@ -60,7 +65,7 @@ def store_info(path: str) -> dict:
             "disk_bytes": store.disk_bytes(),
             "json_bytes": sum(s["json_bytes"] for s in streams.values()),
             "streams": streams,
-            "runs": _runs(store, streams, damage),
+            "runs": _runs(store, streams, damage, runs, held.held),
             "recovery": [str(p) for p in store.recovery.problems],
             "damage": [describe_damage(d) for d in damage],
             "damage_repair": [repair_hint(d) for d in damage],  # what clears each stretch
@@ -68,16 +73,13 @@ def store_info(path: str) -> dict:
         }
 
 
-def _runs(store, streams: dict, damage: list) -> list[dict]:
+def _runs(store, streams: dict, damage: list, runs: list, held: dict[str, int]) -> list[dict]:
     """The runs as `RunInfo.as_dict` gives them, each with an end record also with
     "messages_held": the messages of its windows the store holds now. When that is fewer
     than it kept, "dropped_since" says how many went and "dropped_by" what the store shows
     could have dropped them: compaction (`compact --max-rate`, `record --age-max-rate`
-    thins windows in place), retention (it drops the oldest segments) or damage (skipped)."""
-    from ..runs import list_runs
-
-    runs = list_runs(store)
-    held = _held(store, runs)
+    thins windows in place), retention (it drops the oldest segments) or damage (skipped).
+    `held`: `_Held.held` of `runs`."""
     out = []
     for run in runs:
         r = run.as_dict()
@@ -94,30 +96,44 @@ def _runs(store, streams: dict, damage: list) -> list[dict]:
     return out
 
 
-def _held(store, runs: list) -> dict[str, int]:
+class _Held:
     """Run id -> messages the store holds of the windows the run kept (those between its
     start and end records; its recorder's summaries apart, as its end record counts them),
-    for runs with an end record. From the time index's counts: only summary windows are
-    read, to tell the recorder's own from messages that came in on that topic."""
-    from ..classifier.summary import SUMMARY_TOPIC
-    from ..runs import hidden_by_default
+    for runs with an end record: from the time index's counts of the windows `counting`
+    passes on, whose meta only summary windows need (to tell the recorder's own from
+    messages that came in on that topic), read already by the count it passes them to."""
 
-    spans = sorted((r.start_seq, r.end_seq, r.id) for r in runs if r.end_seq is not None and r.kept is not None)
-    starts = [start for start, _, _ in spans]
-    held = {run_id: 0 for _, _, run_id in spans}
-    for w in store.query(skip_damaged=True) if spans else ():
-        i = bisect_right(starts, w.seq) - 1
-        if i < 0 or w.seq >= spans[i][1] or hidden_by_default(w.name):
-            continue
-        if w.name == SUMMARY_TOPIC and (w.meta or {}).get("kind") == "summary":
-            continue
-        held[spans[i][2]] += w.count
-    return held
+    def __init__(self, runs: list) -> None:
+        from ..windowcount import SUMMARY_TOPIC
+
+        self.summary_topic = SUMMARY_TOPIC
+        self.spans = sorted((r.start_seq, r.end_seq, r.id) for r in runs if r.end_seq is not None and r.kept is not None)
+        self.starts = [start for start, _, _ in self.spans]
+        self.held = {run_id: 0 for _, _, run_id in self.spans}
+
+    def counting(self, windows):
+        """`windows` passed on, each added once the consumer is done with it."""
+        for w in windows:
+            yield w
+            if self.spans:
+                self.add(w)
+
+    def add(self, w) -> None:
+        i = bisect_right(self.starts, w.seq) - 1
+        if i < 0 or w.seq >= self.spans[i][1]:
+            return
+        if w.name == self.summary_topic:
+            try:
+                if (w.meta or {}).get("kind") == "summary":
+                    return
+            except CorruptionError:
+                return  # unreadable: not held (`info` names it as damage)
+        self.held[self.spans[i][2]] += w.count
 
 
 def summary_totals(store) -> dict:
     """Totals of the smart-logging summary stream: what the robot did while nothing was stored."""
-    from ..classifier.summary import SUMMARY_TOPIC
+    from ..windowcount import SUMMARY_TOPIC
 
     total = {"minutes": 0, "messages": 0, "distance_m": 0.0, "moving_s": 0.0, "anomalies": 0,
              "peak_speed": 0.0, "peak_accel": 0.0}  # fmt: skip
@@ -176,7 +192,7 @@ def _run_windows(r: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..classifier.summary import SUMMARY_TOPIC
+    from ..windowcount import SUMMARY_TOPIC
 
     info = store_info(args.store)
     if args.json:

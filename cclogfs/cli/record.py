@@ -157,6 +157,7 @@ def _upkeep(args: argparse.Namespace) -> Upkeep | None:
     """The Upkeep the flags ask for (None for none)."""
     from ..upkeep import Policy, Upkeep, parse_rule
     from ..upkeep.background import MIN_BUDGET, MIN_SEGMENT_BYTES
+    from ..upkeep.job import check_budget
 
     rules = [parse_rule(r) for r in args.age_error]
     aging = bool(rules) or args.age_max_rate is not None
@@ -165,10 +166,9 @@ def _upkeep(args: argparse.Namespace) -> Upkeep | None:
     if aging and not args.age_older_than:
         raise InvalidInputError("Aging while recording needs --age-older-than (else every window ages when sealed).")
     budget = parse_size(args.budget) if args.budget else None
-    if budget is not None and budget < MIN_BUDGET:
-        raise InvalidInputError(f"--budget {args.budget} is too small: segments are 1/8 of the budget and at least "
-                                f"{human_bytes(MIN_SEGMENT_BYTES)}, so retention would drop all of the run; "
-                                f"give --budget {MIN_BUDGET >> 10}KiB or more.")  # fmt: skip
+    if budget is not None:
+        check_budget(args.budget, budget, MIN_BUDGET, "segments are 1/8 of the budget and at least "
+                     f"{human_bytes(MIN_SEGMENT_BYTES)}", "the run")  # fmt: skip
     if not aging and budget is None:
         return None
     policy = Policy(rules, args.age_max_rate) if aging else None

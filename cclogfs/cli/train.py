@@ -78,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
             # Say which messages were missing, not only how few vectors were left.
             said = "; ".join(r.describe(src, args.topic) for src, r in zip(args.sources, reports) if r.left_out)
             raise ModelError(f"{str(err).rstrip('.')}: {said}.") from err
+        _refuse_standing(model, runs)
         total = sum(r.total for r in reports)
         what = (f"{sum(len(r) for r in runs):,}" + (f" of {total:,}" if any(r.left_out for r in reports) else "")
                 + f" {args.topic} messages from {len(runs)} run(s)")  # fmt: skip
@@ -91,6 +92,19 @@ def run(args: argparse.Namespace) -> int:
         print(f"\nvalidation on {args.validate} (per message, as the paper's Table 1):")
         print(format_message_table(message_table(validate.stamp_ns, flags, validate_labels)))
     return 0
+
+
+def _refuse_standing(model, runs: list) -> None:
+    """Refuse a model of a robot that never drives in its training odometry (the rule:
+    `classifier.fit.standing_still`): `record --model` would refuse the robot once it drove.
+    Here, not in `classifier.train`, which may fit such a model on purpose (a model that
+    finds every motion anomalous, for tests)."""
+    from ..classifier.fit import standing_still
+
+    if (why := standing_still(model.training)) is not None:
+        seconds = sum((odom.stamp_ns[-1] - odom.stamp_ns[0]) / 1e9 for odom in runs if len(odom.stamp_ns))
+        raise ModelError(f"The training odometry ({model.training['messages']:,} messages over {seconds:.1f} s) "
+                         f"shows a robot standing still: {why}; train on runs in which the robot drives.")  # fmt: skip
 
 
 def _check_out(args: argparse.Namespace) -> None:

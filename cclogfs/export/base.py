@@ -9,6 +9,7 @@ import os
 import re
 import secrets
 import shutil
+import time
 from collections.abc import Callable, Iterable, Iterator
 from operator import attrgetter
 from pathlib import Path
@@ -49,32 +50,56 @@ def _alive(pid: int) -> bool:
     return True
 
 
+# A work file of an older version holds no pid (`.OUT.XXXXXXXX.tmp`: mkstemp's, or
+# work_file's before the pid): one untouched this long is taken for a killed writer's, as a
+# live one writes on (were it only stalled, its rename fails, loudly).
+OLD_WORK_FILE_S = 3600
+
+
 def remove_stale_work_files(path: str | Path) -> list[Path]:
     """Remove the work files of `path` whose writer's pid is not alive (an export or convert
     killed before its rename left a hidden `.OUT.PID.XXXXXXXX.tmp`, a file, or a directory for
-    a rosbag2 bag); those of a live writer (a concurrent export to the same output) stay.
-    Which were removed."""
+    a rosbag2 bag; a Parquet export `.OUT.partial-PID`, and `.OUT.old-PID` once `path` is
+    back); those of a live writer (a concurrent export to the same output) stay, as does
+    any not named so (OUT.tmp may be the user's). An older version's, without a pid, goes
+    once untouched for OLD_WORK_FILE_S. Which were removed."""
     path = Path(path)
+    name = re.escape(path.name)
     # after the pid, work_file's 8 hex digits or mkdtemp's 8 letters (a rosbag2 export's directory)
-    pattern = re.compile(rf"\.{re.escape(path.name)}\.(\d+)\.[0-9a-z_]{{8}}\.tmp")
+    pattern = re.compile(rf"\.{name}\.(?:(\d+)\.[0-9a-z_]{{8}}\.tmp|partial-(\d+)|(old)-(\d+)|([0-9a-z_]{{8}})\.tmp)")
     removed = []
+    folder = path.parent if str(path.parent) else Path(".")
     try:
-        names = os.listdir(path.parent if str(path.parent) else ".")
+        names = os.listdir(folder)
     except OSError:
         return removed
-    for name in names:
-        m = pattern.fullmatch(name)
-        if m and not _alive(int(m.group(1))):
-            stale = path.parent / name
-            try:
-                if stale.is_dir() and not stale.is_symlink():
-                    shutil.rmtree(stale)
-                else:
-                    stale.unlink()
-            except FileNotFoundError:
-                continue  # another run removed it first
-            removed.append(path.parent / name)
+    for entry in names:
+        m = pattern.fullmatch(entry)
+        if m is None or not _stale(folder / entry, m, path):
+            continue
+        stale = folder / entry
+        try:
+            if stale.is_dir() and not stale.is_symlink():
+                shutil.rmtree(stale)
+            else:
+                stale.unlink()
+        except FileNotFoundError:
+            continue  # another run removed it first
+        removed.append(stale)
     return removed
+
+
+def _stale(work: Path, m: re.Match, path: Path) -> bool:
+    """Whether the work file `work` (matched by `m`) of output `path` is a dead writer's."""
+    pid, partial, old, old_pid, nopid = m.groups()
+    if nopid is not None:  # an older version's: its writer cannot be told, only its age
+        try:
+            return time.time() - work.lstat().st_mtime > OLD_WORK_FILE_S
+        except FileNotFoundError:
+            return False
+    if old is not None and not path.exists():
+        return False  # killed between the renames: the previous export, the only one there is
+    return not _alive(int(pid or partial or old_pid))
 
 
 def commit_work_file(tmp: str | Path, path: str | Path) -> None:

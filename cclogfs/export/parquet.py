@@ -24,7 +24,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from ..errors import InvalidInputError
-from .base import ExportStats, Progress, StoredWindow
+from .base import ExportStats, Progress, StoredWindow, remove_stale_work_files
 
 # Names the export itself uses; a top-level message field with one of them is "msg.NAME".
 RESERVED = frozenset({"stamp_ns", "window_seq", "json", "robot", "stream", "date"})
@@ -91,6 +91,7 @@ def export_parquet(
     # export (a stream name too long for a directory, a damaged window, Ctrl-C) left the
     # partitions written so far, a partial data set, and with --force had deleted the old
     # one first. The dot keeps the work hidden from Hive readers (Spark, `**/*.parquet`).
+    remove_stale_work_files(root)  # a killed export's `.partial-PID` (and `.old-PID`)
     work = root.with_name(f".{root.name}.partial-{os.getpid()}")
     shutil.rmtree(work, ignore_errors=True)
     work.mkdir(parents=True)

@@ -8,6 +8,12 @@ each chunk is read as rosbags reads it (`msgsrc`), then checked against the summ
 chunk record where the index says, as long, holding as many messages per channel as the
 index counts. A chunk that fails goes to `bad(chunk, why)`, which raises (stop) or counts
 it and goes on (`--on-error skip`).
+
+A chunk without message indexes (a writer may leave them out: the `mcap` Writer without
+IndexType.MESSAGE) has an empty channel count in rosbags' chunk index, and rosbags skipped
+it as holding none of the selected channels: every message in it was left out with exit 0
+(3,996 of 8,197 read from a file whose later chunks had none). Such a chunk is read whole,
+as rosbags reads any chunk; its count cannot be checked, as no index counts it.
 """
 
 from __future__ import annotations
@@ -18,7 +24,7 @@ from typing import Any
 
 from rosbags.rosbag2.storage_mcap import McapReader, msgsrc
 
-_CHUNK_OP = 0x06
+from .mcapbad import not_a_chunk
 
 
 def is_indexed_mcap(reader: Any) -> McapReader | None:
@@ -32,12 +38,17 @@ def expected(chunk: Any, channels: Collection[int]) -> int:
     return sum(chunk.channel_count.get(cid, 0) for cid in channels)
 
 
+def unindexed(chunk: Any) -> bool:
+    """Whether `chunk` has no message indexes: which channels it holds is unknown until read."""
+    return not chunk.message_index_offsets
+
+
 def messages(storage: McapReader, connections: Collection[Any],
              bad: Callable[[Any, str], None]) -> Iterator[tuple[Any, int, bytes]]:  # fmt: skip
     """(connection, log time, bytes) of `connections`, in log-time order, as rosbags'
     `McapReader.messages` gives them, but a chunk that cannot be read goes to `bad`."""
     cmap = {c.id: c for c in connections}
-    chunks = [c for c in storage.chunks if expected(c, cmap)]
+    chunks = [c for c in storage.chunks if unindexed(c) or expected(c, cmap)]
     merged = heapq.merge(*(_chunk(storage, c, cmap, bad) for c in chunks))
     for stamp, offset, connection, data in merged:
         if offset:  # each chunk's first item is its start time alone (how rosbags merges)
@@ -47,29 +58,15 @@ def messages(storage: McapReader, connections: Collection[Any],
 def _chunk(storage: McapReader, chunk: Any, cmap: dict[int, Any], bad: Callable[[Any, str], None]) -> Iterator[Any]:
     items = msgsrc(chunk, cmap, chunk.message_start_time, chunk.message_end_time + 1, storage.bio)
     yield next(items)  # the start time: nothing read yet, so the merge reads chunks in time order
-    why = _not_a_chunk(storage, chunk)
+    why = not_a_chunk(storage.bio, chunk)
     if why is None:
         try:
             found = list(items)  # msgsrc has decompressed and sorted the chunk whole already
         except Exception as err:  # rosbags raises ReaderError, zstd/lz4 errors, struct.error
             why = str(err) or type(err).__name__
         else:
-            if len(found) == expected(chunk, cmap):
+            if unindexed(chunk) or len(found) == expected(chunk, cmap):
                 yield from found
                 return
             why = f"it holds {len(found):,} of the {expected(chunk, cmap):,} messages its index counts"
     bad(chunk, why)
-
-
-def _not_a_chunk(storage: McapReader, chunk: Any) -> str | None:
-    """Why the bytes where the index puts `chunk` are not its chunk record (None: they are)."""
-    bio = storage.bio
-    bio.seek(chunk.chunk_start_offset)
-    head = bio.read(9)
-    if len(head) < 9:
-        return "the file ends before it"
-    length = int.from_bytes(head[1:], "little")
-    if head[0] != _CHUNK_OP or length + 9 != chunk.chunk_length:
-        return ("the bytes there are not the chunk record the summary's index describes (bytes cut out of "
-                "or moved in the file)")  # fmt: skip
-    return None

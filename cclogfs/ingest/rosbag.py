@@ -23,6 +23,7 @@ from ..jsontext.roswire import WireError, WireFormatter
 from ..jsontext.rostypes import TypeCheck, ros1_description
 from . import mcapchunks, ros1chunks
 from .base import BadMessages, OnError, SourceMessage, check_clock, topic_filter
+from .mcapbad import BadChunks
 
 
 class RosbagSource:
@@ -43,7 +44,7 @@ class RosbagSource:
         self._header_clock = check_clock(clock) == "header"
         self._wanted = topic_filter(topics)
         self._converter: MessageConverter | None = None
-        self._lost_chunks: list[str] = []  # MCAP chunks that could not be read (--on-error skip)
+        self._bad_chunks = BadChunks(self.name, on_error)  # MCAP chunks that could not be read
         try:
             self._reader = AnyReader([Path(path)])
             if not self._reader.is2:  # the same reader, its index read faster (issue 14)
@@ -78,10 +79,7 @@ class RosbagSource:
     @property
     def lost(self) -> str | None:
         """What damage lost (chunks of an MCAP file skipped), None when nothing was."""
-        if not self._lost_chunks:
-            return None
-        return (f"{self.name} is damaged: {len(self._lost_chunks):,} chunks could not be read and were skipped "
-                f"(--on-error skip), their messages not recorded: {'; '.join(self._lost_chunks)}")  # fmt: skip
+        return self._bad_chunks.lost
 
     @property
     def message_count(self) -> int:
@@ -155,13 +153,8 @@ class RosbagSource:
 
     def _bad_chunk(self, chunk: Any, why: str) -> None:
         """An MCAP chunk that cannot be read: the error (default), or skipped and counted."""
-        n = mcapchunks.expected(chunk, {c.id for c in self._connections})
-        said = (f"the chunk at byte {chunk.chunk_start_offset:,} ({n:,} messages logged {chunk.message_start_time} "
-                f"to {chunk.message_end_time} ns) cannot be read: {why}")  # fmt: skip
-        if self._bad.on_error == "stop":
-            raise SourceError(f"{self.name}: {said}; the messages before it were read. Record with --on-error skip "
-                              "to keep the other chunks (it says what was lost and exits 4).")  # fmt: skip
-        self._lost_chunks.append(said)
+        count = None if mcapchunks.unindexed(chunk) else mcapchunks.expected(chunk, {c.id for c in self._connections})
+        self._bad_chunks(chunk, why, count)
 
     def _convert(self, con: Any, logtime: int, raw: bytes, index: int,
                  err: WireError | None) -> tuple[str, int | None]:

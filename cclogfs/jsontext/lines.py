@@ -38,8 +38,17 @@ _OPTIONAL = ("msgtype",)
 _MIN_STAMP, _MAX_STAMP = -(1 << 63), (1 << 63) - 1  # int64 nanoseconds, as the store keeps them
 
 
-# A log has few topics; json.dumps of the name was a tenth of the time to write a line.
-_topic_json = functools.lru_cache(maxsize=4096)(json.dumps)
+# Characters str.splitlines() (and so many a reader of lines) breaks a line at that JSON
+# leaves raw once not everything is escaped: kept escaped, so a line stays one line.
+_LINE_BREAKS = {0x85: "\\u0085", 0x2028: "\\u2028", 0x2029: "\\u2029"}
+
+
+@functools.lru_cache(maxsize=4096)  # a log has few topics; json.dumps of the name was a tenth of writing a line
+def _topic_json(topic: str) -> str:
+    """The topic as a JSON string, as it came in: UTF-8 (as the msg text beside it), not
+    \\u-escaped ("/c\\u00e1mara" for "/cámara"); quotes, backslashes, control characters and
+    line separators escaped. Topics are valid UTF-8 (a line whose topic is not is refused)."""
+    return json.dumps(topic, ensure_ascii=False).translate(_LINE_BREAKS)
 
 
 def format_line(topic: str, stamp_ns: int, text: str, msgtype: str = "") -> str:

@@ -30,13 +30,14 @@ from dataclasses import dataclass, field
 from fnmatch import fnmatchcase
 from typing import Sequence
 
-from ..errors import StoreError
+from ..errors import InvalidInputError, StoreError
 from ..runs import RUNS_STREAM
 from ..store import RecordFlag, Replacement, Store, Window, file_bytes, merge_stream_stats
 from .policy import Policy
 
-__all__ = ["DEFAULT_EXCLUDE", "CompactReport", "Stopped", "age_segments", "candidate_segments", "compact", "no_space",
-           "passes_of", "preview", "room_to_age", "selected", "unmatched_rules"]  # fmt: skip
+__all__ = ["DEFAULT_EXCLUDE", "CompactReport", "Stopped", "age_segments", "candidate_segments", "check_budget", "compact",
+           "no_space", "passes_of", "preview", "room_to_age", "selected", "smallest_budget",
+           "unmatched_rules"]  # fmt: skip
 
 # The smart-logging summary answers "how far did the robot drive this year"; it is tiny,
 # so it stays exact unless a stream pattern names it.
@@ -148,6 +149,30 @@ def _retain(store: Store, budget: int, keep_from: int | None, report: CompactRep
             break
         report.segments_dropped += 1
         merge_stream_stats(report.dropped, gone.streams)
+
+
+def check_budget(text: str, budget: int, smallest: int, why: str, what: str) -> None:
+    """Refuse, before anything is written or dropped, a budget (`text` as given) under the
+    `smallest` that keeps anything: retention drops whole segments, so under it every one
+    goes (`why` says why, `what` what would go). `cclog record` and `cclog compact` ask this."""
+    if budget < smallest:
+        raise InvalidInputError(f"--budget {text} is too small: {why}, so retention would drop all of {what}; "
+                                f"give --budget {_ceil_kib(smallest)} or more.")  # fmt: skip
+
+
+def smallest_budget(store: Store) -> tuple[int, list]:
+    """The smallest budget retention meets keeping the newest sealed segment (the store's
+    files less every older one), and the sealed segments under it would drop: all of them
+    (none when the store has no sealed segment, whose budget is then its size)."""
+    keep_from = store.active_first_seq
+    sealed = [seg for seg in store.sealed_segments() if keep_from is None or seg.first_seq < keep_from]
+    older = sum(file_bytes(store, seg, seg.gen) for seg in sealed[:-1])
+    return store.data_bytes() - older, sealed
+
+
+def _ceil_kib(n: int) -> str:
+    """`n` bytes as a --budget at least as large: whole KiB (MiB from 10 MiB on)."""
+    return f"{-(-n // 1024)}KiB" if n < 10 << 20 else f"{-(-n // (1 << 20))}MiB"
 
 
 def _due(window: Window, desc: dict, cutoff: dict[str, int] | None, streams) -> bool:

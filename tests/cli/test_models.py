@@ -111,3 +111,24 @@ def test_pose_only_robots_get_twist_from_poses_and_can_be_modelled(tmp_path, cap
     rest = write(tmp_path / "r.jsonl", "/pose", poses[len(poses) // 2:])
     assert main(["record", rest, "--store", str(tmp_path / "s"), "--model", str(tmp_path / "m")]) == 0
     assert not math.isnan(json.loads((tmp_path / "m" / "model.json").read_text())["training"]["speed_p95"])
+
+
+def test_train_refuses_odometry_of_a_robot_standing_still(tmp_path, capsys, odom):
+    """l-left8: `cclog train` took the first 3 s of a run (the robot not yet moving) and
+    `record --model` then refused the same robot driving ("95th percentile speed 0.714 m/s
+    against 0.000505 m/s in training"). Train says so, naming the speed a model needs."""
+    still = []
+    for s, text in odom[:600]:
+        m = json.loads(text)
+        for k in "xyz":
+            m["twist"]["twist"]["linear"][k] = 0.0
+        still.append((s, json.dumps(m)))
+    src = write(tmp_path / "still.jsonl", "/odom", still)
+    assert main(["train", src, "--out", str(tmp_path / "m")]) == 1
+    err = capsys.readouterr().err
+    assert "shows a robot standing still: its 95th percentile speed is 0 m/s, under the 0.05 m/s a model needs" in err
+    assert "Traceback" not in err and not (tmp_path / "m").exists()
+    # The simulator's first 3 s, as found: the robot starts from rest.
+    assert main(["simulate", "--out", str(tmp_path / "sim"), "--duration", "3", "--nominal"]) == 0
+    assert main(["train", str(tmp_path / "sim" / "run.jsonl"), "--out", str(tmp_path / "m")]) == 1
+    assert "standing still" in capsys.readouterr().err

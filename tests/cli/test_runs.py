@@ -214,3 +214,35 @@ def recorded_smart(shared_data, tmp_path):
     assert main(["record", bag, "--store", str(tmp_path / "s"), "--model", str(tmp_path / "m"), "--force-model",
                  "--topic", "/tf"]) == 0  # fmt: skip
     return tmp_path
+
+
+def test_info_walks_the_store_once(shared_data, tmp_path, capsys, monkeypatch):
+    """l-left8: info walked every window twice (the window count, reading each record's
+    meta, then each run's messages held). One walk, the same answer: each run's held
+    messages are its windows' counts, retention having dropped part of the first run."""
+    from cclogfs.store import Store
+
+    store = tmp_path / "s"
+    assert main(["record", str(shared_data("nav2_turtlebot.mcap")), "--store", str(store), "--budget", "512KiB"]) == 0
+    assert main(["record", str(shared_data("tf_example.bag")), "--store", str(store), "--append"]) == 0
+    capsys.readouterr()
+    assert main(["compact", str(store), "--budget", "200KiB"]) == 0
+    whole = []
+    query = Store.query
+
+    def counted(self, name=None, *args, **kw):
+        if name is None:
+            whole.append(name)
+        return query(self, name, *args, **kw)
+
+    monkeypatch.setattr(Store, "query", counted)
+    runs = info_json(store, capsys)["runs"]
+    assert len(whole) == 1  # was 2
+    monkeypatch.undo()
+    with cclogfs.open_store(store, readonly=True) as s:
+        windows = [(w.seq, w.count) for w in s.query() if w.name != RUNS_STREAM]
+        spans = [(r.start_seq, r.end_seq) for r in list_runs(s)]
+    for r, (start, end) in zip(runs, spans, strict=True):
+        assert r["messages_held"] == sum(n for seq, n in windows if start < seq < end)
+    assert runs[0]["messages_held"] < 8197 == runs[0]["messages_kept"] and runs[0]["dropped_by"] == "retention"
+    assert runs[1]["messages_held"] == runs[1]["messages_kept"] == 518

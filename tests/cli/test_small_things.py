@@ -60,3 +60,18 @@ def test_info_shows_stream_types(shared_data, tmp_path, capsys):
     assert main(["info", str(tmp_path / "s")]) == 0
     out = capsys.readouterr().out
     assert "tf2_msgs/msg/TFMessage" in out and " type" in out
+
+
+def test_cat_prints_a_utf8_topic_as_it_came_in(tmp_path, capsys):
+    """l-left8: cat printed "/cámara" as "/c\\u00e1mara" (the msg beside it raw UTF-8)."""
+    import json
+
+    lines = ['{"topic": "/cámara", "stamp_ns": 1, "msg": {"a": "ñ"}}\n',
+             '{"topic": "/línea\\u2028sep", "stamp_ns": 2, "msg": {}}\n']  # fmt: skip
+    (tmp_path / "in.jsonl").write_text("".join(lines), encoding="utf-8")
+    assert main(["record", str(tmp_path / "in.jsonl"), "--store", str(tmp_path / "s")]) == 0
+    capsys.readouterr()
+    assert main(["cat", str(tmp_path / "s")]) == 0
+    out = capsys.readouterr().out
+    assert out.splitlines(keepends=True) == lines  # each line one line, as valid JSON
+    assert [json.loads(line)["topic"] for line in out.splitlines()] == ["/cámara", "/línea\u2028sep"]

@@ -67,3 +67,16 @@ def test_ctrl_c_while_loading_a_command_is_interrupted_not_a_traceback(monkeypat
     monkeypatch.setattr(importlib, "import_module", interrupted)
     assert main(["record", "x.jsonl", "--store", "s"]) == 130
     assert capsys.readouterr().err == "cclog: interrupted\n"
+
+
+def test_info_loads_the_store_and_not_the_classifier(tmp_path):
+    """l-left8: info imported the classifier (and numpy, a quarter second of CPU) for the
+    name of the summary stream; it reads the store alone."""
+    from cclogfs.store import open_store
+
+    with open_store(tmp_path / "s", create=True) as store:
+        store.put_window("/odom", [(i, json.dumps({"x": i / 7})) for i in range(40)])
+        store.put_window("/cclog/summary", [(0, json.dumps({"messages": 40, "distance_m": 1.5}))], meta={"kind": "summary"})
+    got = loaded("info", str(tmp_path / "s"))
+    assert "cclogfs.store" in got
+    assert not got & {"numpy", "pyarrow", "rosbags", "mcap", "sklearn", "cclogfs.classifier", "cclogfs.ingest"}

@@ -95,3 +95,37 @@ def test_the_work_file_is_synced_before_the_rename_and_the_directory_after(tmp_p
     at = ops.index(("replace", str(out)))
     assert any(op == "fsync" and os.path.basename(p).startswith(".out.mcap.") for op, p in ops[:at]), ops
     assert ("fsync", str(tmp_path)) in ops[at:], ops
+
+
+def test_an_older_versions_work_files_go_once_old_and_a_parquet_exports_too(tmp_path):
+    """l-left8: what the pid naming above does not match stayed for good: an older version's
+    `.OUT.XXXXXXXX.tmp` (mkstemp's, or work_file's before the pid; files, or a rosbag2
+    export's directory) and a killed Parquet export's `.robot=R.partial-PID` directory. The
+    old names hold no pid: one untouched for OLD_WORK_FILE_S goes, a fresh one stays."""
+    from cclogfs.export import export_parquet
+    from cclogfs.export.base import OLD_WORK_FILE_S
+
+    out = tmp_path / "out.mcap"
+    old_file, old_dir, fresh = (tmp_path / n for n in (".out.mcap.k2j_x9qa.tmp", ".out.mcap.0badf00d.tmp",
+                                                          ".out.mcap.1234abcd.tmp"))  # fmt: skip
+    old_file.write_bytes(b"half an export")
+    old_dir.mkdir()
+    (old_dir / "metadata.yaml").write_text("half a bag")
+    fresh.write_bytes(b"maybe an older export still writing")
+    when = os.stat(fresh).st_mtime - OLD_WORK_FILE_S - 60
+    for p in (old_file, old_dir):
+        os.utime(p, (when, when))
+    export_mcap(_windows("/a", 10), out)
+    assert sorted(os.listdir(tmp_path)) == sorted(["out.mcap", fresh.name])
+
+    pq = tmp_path / "pq"
+    killed = pq / f".robot=r.partial-{_dead_pid()}"
+    killed.mkdir(parents=True)
+    (killed / "half.parquet").write_bytes(b"half")
+    export_parquet(_windows("/a", 10), pq, robot="r")
+    assert sorted(os.listdir(pq)) == ["robot=r"]
+    # Killed between its two renames: the previous export is only in `.old-PID`, and stays.
+    os.rename(pq / "robot=r", pq / (aside := f".robot=r.old-{_dead_pid()}"))
+    from cclogfs.export.base import remove_stale_work_files
+
+    assert remove_stale_work_files(pq / "robot=r") == [] and (pq / aside).is_dir()

@@ -35,7 +35,10 @@ def test_render_of_parse_gives_the_line_back_byte_for_byte(topic, stamp, msg):
 
 def test_the_rendered_layout_is_pinned():
     assert format_line("/odom", 5, '{"x": 1}') == '{"topic": "/odom", "stamp_ns": 5, "msg": {"x": 1}}\n'
-    assert format_line("/é", -1, "{}", "T") == '{"topic": "/\\u00e9", "stamp_ns": -1, "msg": {}, "msgtype": "T"}\n'
+    # The topic as it came in, UTF-8 (it was \\u-escaped, l-left8); line separators stay escaped.
+    assert format_line("/é", -1, "{}", "T") == '{"topic": "/é", "stamp_ns": -1, "msg": {}, "msgtype": "T"}\n'
+    assert format_line('/"\\\x01\u2028\x85', 0, "{}") == \
+        '{"topic": "/\\"\\\\\\u0001\\u2028\\u0085", "stamp_ns": 0, "msg": {}}\n'
 
 
 def test_the_fast_split_takes_only_the_rendered_layout():

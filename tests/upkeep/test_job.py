@@ -107,10 +107,42 @@ def test_cli_ages_reports_and_exits_by_outcome(tmp_path, capsys):
     assert "windows ending over 30s before their stream's last" in out and "/odom" in out
     assert main(["compact", path, "--older-than", "30s", "--error", "1e-3", "--stream", "/odom"]) == 0
     assert "nothing to age" in capsys.readouterr().out
-    assert main(["compact", path, "--budget", "1B", "--json"]) == 3
-    assert json.loads(capsys.readouterr().out)["over_budget"] is True
+    # A budget smaller than a segment is refused (it dropped every sealed segment, l-left8).
+    assert main(["compact", path, "--budget", "1B", "--json"]) == 1
+    assert "give --budget" in capsys.readouterr().err
     assert main(["info", path]) == 0
-    assert "retention dropped" in capsys.readouterr().out
+    assert "retention dropped" not in capsys.readouterr().out
+    build(tmp_path / "one")  # never sealed: only the segment being written, which retention keeps
+    assert main(["compact", str(tmp_path / "one"), "--budget", "1B", "--json"]) == 3
+    assert json.loads(capsys.readouterr().out)["over_budget"] is True
+
+
+def test_compact_refuses_a_budget_under_which_every_sealed_segment_goes(tmp_path, capsys):
+    """A budget smaller than a segment dropped every sealed segment and said "budget met",
+    exit 0, when the segment being written fitted (nav2_turtlebot recorded with --budget
+    512KiB: 7,200 of 8,197 messages gone at --budget 40KiB). It is refused before anything
+    is dropped, naming the smallest budget that keeps the newest sealed segment, which works."""
+    build(tmp_path / "s", segment_records=4)
+    path = str(tmp_path / "s")
+    with cclogfs.open_store(path, readonly=True) as s:
+        sealed = s.sealed_segments()
+        before = s.data_bytes()
+    assert len(sealed) > 2
+    capsys.readouterr()
+    for dry in ([], ["--dry-run"]):
+        assert main(["compact", path, "--budget", "2KiB", *dry]) == 1
+        err = capsys.readouterr().err
+        m = re.search(r"--budget 2KiB is too small: .* retention would drop all of the store's sealed segments "
+                      r"\((\d+), ([\d,]+) messages\); give --budget (\d+)KiB or more\.", err)
+        assert m is not None and "Traceback" not in err, err
+    with cclogfs.open_store(path, readonly=True) as s:
+        assert s.data_bytes() == before and len(s.sealed_segments()) == len(sealed)  # nothing dropped
+        assert int(m.group(1)) == len(sealed) and int(m.group(2).replace(",", "")) == sum(
+            st["messages"] for seg in sealed for name, st in seg.streams.items() if name != "/cclog/runs")
+    assert main(["compact", path, "--budget", f"{m.group(3)}KiB"]) == 0
+    assert "budget" in capsys.readouterr().out
+    with cclogfs.open_store(path, readonly=True) as s:
+        assert [seg.first_seq for seg in s.sealed_segments()] == [sealed[-1].first_seq]  # the newest kept
 
 
 @pytest.mark.parametrize(
