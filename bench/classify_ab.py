@@ -73,7 +73,7 @@ def main() -> int:
     for i in range(0, len(msgs), 200):
         codec.encode([s for s, _ in msgs[i : i + 200]], [t for _, t in msgs[i : i + 200]])
     encode.classify, encode.classify_joined = classify, joined
-    tokens_of = [tuple(column_tokens(column)) for column, _, _ in columns]  # what --rev's row finder gave
+    tokens_of = [tuple(column_tokens(column, n)) for column, n, _ in columns]  # what --rev's row finder gave
 
     def today(column, n, decimal):
         return now.classify_joined(column, n, decimal) if isinstance(column, str) else now.classify(column, decimal)

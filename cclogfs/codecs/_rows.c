@@ -11,7 +11,8 @@
  * match_columns(literals, kinds, texts) -> the same tokens by slot, one entry per slot, or
  * None if any text does not match. A string slot's entry is a list of one token per text
  * (the rows transposed); a number slot's is one str, its tokens joined by "," (a number
- * token holds no comma, so split(",") gives them back). The encoder works a column at a
+ * token holds no comma, so split(",") gives them back), or its one token when all of them
+ * are the same (a constant column). The encoder works a column at a
  * time, and it parses and compares a number column as that joined text: one object per
  * column instead of one per text (a window of 200 odometry messages has ~2,000 number
  * tokens, whose objects cost more than finding them; issue 14, eighth pass).
@@ -24,10 +25,16 @@
 #include <Python.h>
 #include <string.h>
 
-static int is_number_char(unsigned char c)
+/* The characters of a number token ([-+.0-9A-Za-z]), filled by init_number_chars: one
+ * lookup a character instead of up to six comparisons, in the loop that reads most of
+ * the characters a window's literals do not cover (issue 14, ninth pass). */
+static unsigned char number_char[256];
+
+static void init_number_chars(void)
 {
-    return c == '-' || c == '+' || c == '.' || (c >= '0' && c <= '9') || (c >= 'A' && c <= 'Z') ||
-           (c >= 'a' && c <= 'z');
+    for (unsigned c = 0; c < 256; c++)
+        number_char[c] = c == '-' || c == '+' || c == '.' || (c >= '0' && c <= '9') || (c >= 'A' && c <= 'Z') ||
+                         (c >= 'a' && c <= 'z');
 }
 
 /* The end of the value token starting at s[i], or -1 if none starts there. */
@@ -45,7 +52,7 @@ static Py_ssize_t token_end(const unsigned char *s, Py_ssize_t i, Py_ssize_t n, 
         return -1;
     }
     Py_ssize_t start = i;
-    while (i < n && is_number_char(s[i]))
+    while (i < n && number_char[s[i]])
         i++;
     return i > start ? i : -1;
 }
@@ -194,6 +201,25 @@ static PyObject *joined_tokens(PyObject *texts, const Py_ssize_t *spans, Py_ssiz
     return out;
 }
 
+/* Whether a number slot's tokens at spans[i * k + j] are all the same, then given as that
+ * one token rather than n copies joined: a slot whose value held still for the window.
+ * A shape reused from the window before keeps that window's varying slots, so long runs
+ * carry many (11 of 23 number slots in most windows of `bench speed`'s simulated
+ * odometry); joining them, and joining the first token n times to find them constant,
+ * was most of what such a run costs more per message (issue 14, ninth pass). */
+static int same_tokens(PyObject *texts, const Py_ssize_t *spans, Py_ssize_t k, Py_ssize_t j)
+{
+    Py_ssize_t count = PyList_GET_SIZE(texts), start = spans[2 * j], len = spans[2 * j + 1] - start;
+    const Py_UCS1 *first = PyUnicode_1BYTE_DATA(PyList_GET_ITEM(texts, 0)) + start;
+    for (Py_ssize_t i = 1; i < count; i++) {
+        Py_ssize_t at = spans[2 * (i * k + j)];
+        if (spans[2 * (i * k + j) + 1] - at != len ||
+            memcmp(PyUnicode_1BYTE_DATA(PyList_GET_ITEM(texts, i)) + at, first, len) != 0)
+            return 0;
+    }
+    return 1;
+}
+
 static PyObject *match_columns(PyObject *Py_UNUSED(self), PyObject *args)
 {
     struct shape sh;
@@ -227,6 +253,8 @@ static PyObject *match_columns(PyObject *Py_UNUSED(self), PyObject *args)
                 else
                     PyList_SET_ITEM(column, i, token);
             }
+        } else if (count > 0 && same_tokens(texts, spans, k, j)) {
+            column = PyUnicode_Substring(PyList_GET_ITEM(texts, 0), spans[2 * j], spans[2 * j + 1]);
         } else {
             column = joined_tokens(texts, spans, k, j);
         }
@@ -252,5 +280,6 @@ static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_rows", NULL, -1, me
 
 PyMODINIT_FUNC PyInit__rows(void)
 {
+    init_number_chars();
     return PyModule_Create(&module);
 }

@@ -45,7 +45,7 @@ def _split_by_label(
 
     /tf interleaves transforms of different frames; apart, each frame's values form a
     smooth series that delta coding shrinks, together they alternate and do not.
-    (A column is a sequence of tokens, or a number slot's tokens joined: `classify_joined`.)
+    (A column is a sequence of tokens, or a number slot's str: `classify_joined`.)
     """
     if len(indices) < 2 * _MAX_LABELS:
         return [(literals, indices, columns)]
@@ -54,7 +54,7 @@ def _split_by_label(
             continue
         labels = dict.fromkeys(column)  # in order of first appearance: the parts' order
         if 1 < len(labels) <= _MAX_LABELS:
-            tokens = list(map(column_tokens, columns))
+            tokens = [column_tokens(c, len(indices)) for c in columns]
             parts = []
             for label in labels:
                 rows = [r for r, token in enumerate(column) if token == label]

@@ -162,7 +162,8 @@ def classify(tokens: Sequence[str], decimal: bool = False) -> tuple[ColumnKind, 
 
 def classify_joined(joined: str, n: int, decimal: bool = False) -> tuple[ColumnKind, Any]:
     """`classify` of n number tokens joined by "," (as `shapes._columns` gives a number
-    slot; a number token holds no comma, so `split(",")` gives them back).
+    slot; a number token holds no comma, so `split(",")` gives them back), or of n copies
+    of one token given once (a constant slot, as `shapes._columns` gives it).
 
     The usual columns are decided on the joined text, which is what simdjson parses and
     what orjson's rendering is compared with: a constant, and a column that is INT, or

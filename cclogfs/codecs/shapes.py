@@ -254,8 +254,9 @@ def _columns(shape: tuple, texts: list[str]) -> list[Sequence[str] | str] | None
     """The value tokens of texts in a shape by slot, or None if any text misses: `_rows`
     transposed. A string slot gives a sequence of one token per text; a number slot its
     tokens joined by "," in one str (a number token holds no comma: `split(",")` gives
-    them back), which is how the encoder parses and checks a number column. The compiled
-    helper gives the columns without building rows, or an object per number, in between."""
+    them back), which is how the encoder parses and checks a number column, or its one
+    token when all are the same (`column_tokens` gives them back). The compiled helper
+    gives the columns without building rows, or an object per number, in between."""
     if _match_columns_c is not None:
         columns = _match_columns_c(shape[0], shape[3], texts)
         if columns is not NotImplemented:
@@ -264,12 +265,23 @@ def _columns(shape: tuple, texts: list[str]) -> list[Sequence[str] | str] | None
     if None in rows:
         return None
     columns = transpose(rows, len(shape[3]))
-    return [column if is_string else ",".join(column) for column, is_string in zip(columns, shape[3])]
+    return [column if is_string else _number_column(column) for column, is_string in zip(columns, shape[3])]
 
 
-def column_tokens(column: Sequence[str] | str) -> Sequence[str]:
-    """A value column's tokens, whether a sequence or a number slot's joined (`_columns`)."""
-    return column.split(",") if isinstance(column, str) else column
+def _number_column(tokens: Sequence[str]) -> str:
+    """A number slot's tokens as `_columns` gives them: the one token if all are the same
+    (a constant, found here rather than by joining it n times in the encoder), else all
+    joined by ","."""
+    if tokens and tokens.count(tokens[0]) == len(tokens):
+        return tokens[0]
+    return ",".join(tokens)
+
+
+def column_tokens(column: Sequence[str] | str, n: int) -> Sequence[str]:
+    """The n tokens of a value column, whether a sequence or a number slot's str (`_columns`)."""
+    if not isinstance(column, str):
+        return column
+    return column.split(",") if "," in column else [column] * n
 
 
 def transpose(rows: list[tuple[str, ...]], k: int) -> list[Sequence[str]]:
@@ -330,7 +342,8 @@ class ShapeMatcher:
     def group_window(self, texts: list[str | None]) -> tuple[list[tuple[tuple, list[int], list]], list[int]]:
         """Groups [(literals, indices, value columns)] of a window, and indices without shape.
         A value column is a sequence of tokens, or a number slot's tokens joined by ","
-        (`_columns`, which the encoder checks with `columns.classify_joined`).
+        or its one token if constant (`_columns`, which the encoder checks with
+        `columns.classify_joined`).
 
         Most values of a robot message never change within a window (covariances, frame
         ids, zero axes). The first pending text and a few probes spread over the window

@@ -57,7 +57,8 @@ def test_a_long_text_is_not_compiled_into_a_regex(short_regexes, row_path, text,
         if how == "group":
             groups = [(literals, idx, rows) for literals, (idx, rows) in groups.items()]
         else:  # group_window gives value columns: back to rows (none when every value is baked)
-            groups = [(literals, idx, list(zip(*map(shapes.column_tokens, cols))) if cols else [()] * len(idx)) for literals, idx, cols in groups]
+            groups = [(literals, idx, list(zip(*(shapes.column_tokens(c, len(idx)) for c in cols))) if cols else [()] * len(idx))
+                      for literals, idx, cols in groups]  # fmt: skip
         assert unshaped == []
         for literals, indices, rows in groups:
             for i, row in zip(indices, rows):

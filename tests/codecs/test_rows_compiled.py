@@ -51,14 +51,16 @@ def test_the_same_rows_as_the_regex(text, edits, others):
     want = regex_rows(literals, values, candidates)
     assert got == want
     # By column: the rows transposed when every candidate matches (a number slot's tokens
-    # joined by ","), else None.
+    # joined by ",", or its one token when all are the same), else None.
     columns = COMPILED.match_columns(literals, kinds, candidates)
     if None in want:
         assert columns is None
     else:
         by_slot = shapes.transpose(want, len(kinds))
-        assert columns == [list(c) if s else ",".join(c) for c, s in zip(by_slot, kinds)]
-        assert [c.split(",") for c, s in zip(columns, kinds) if not s] == [list(c) for c, s in zip(by_slot, kinds) if not s]
+        assert columns == [list(c) if s else c[0] if len(set(c)) == 1 else ",".join(c) for c, s in zip(by_slot, kinds)]
+        assert [list(shapes.column_tokens(c, len(candidates))) for c in columns] == [list(c) for c in by_slot]
+        # and the Python path (shapes._columns without the helper) gives the same
+        assert columns == [list(c) if s else shapes._number_column(c) for c, s in zip(by_slot, kinds)]
 
 
 def test_edges_of_string_and_number_tokens():
@@ -69,6 +71,13 @@ def test_edges_of_string_and_number_tokens():
     assert COMPILED.match_rows(literals, kinds, candidates) == want
     assert COMPILED.match_columns(literals, kinds, candidates) is None
     assert COMPILED.match_columns(literals, kinds, [candidates[0], candidates[2]]) == [['"a\\"b"', '"a\\\\"'], "-1.5e+3,1"]
+    # A number slot whose tokens are all the same is that one token; one that only shares
+    # a prefix or a length with the first is not.
+    assert COMPILED.match_columns(literals, kinds, [candidates[2], candidates[2]]) == [['"a\\\\"', '"a\\\\"'], "1"]
+    ones = ['{"s": "x", "n": 1}', '{"s": "x", "n": 1}', '{"s": "x", "n": 10}', '{"s": "x", "n": 2}']
+    assert COMPILED.match_columns(literals, kinds, ones[:2]) == [['"x"', '"x"'], "1"]
+    assert COMPILED.match_columns(literals, kinds, ones[:3]) == [['"x"'] * 3, "1,1,10"]
+    assert COMPILED.match_columns(literals, kinds, ones[1::2]) == [['"x"'] * 2, "1,2"]
     assert COMPILED.match_columns(("[]",), (), ["[]", "[]"]) == []  # no value slots: no columns
     assert want[0] == ('"a\\"b"', "-1.5e+3") and want[1] is None and want[2] == ('"a\\\\"', "1")
 

@@ -55,8 +55,9 @@ def test_grouping_covers_every_text_once_and_rebuilds_it(how):
     groups, unshaped = getattr(ShapeMatcher(), how)(texts)
     if how == "group":
         groups = [(literals, indices, rows) for literals, (indices, rows) in groups.items()]
-    else:  # group_window gives value columns: one per slot, one token per text (a number slot's joined)
-        groups = [(literals, indices, list(zip(*map(column_tokens, columns)))) for literals, indices, columns in groups]
+    else:  # group_window gives value columns: one per slot, one token per text (a number slot's one str)
+        groups = [(literals, indices, list(zip(*(column_tokens(c, len(indices)) for c in columns))))
+                  for literals, indices, columns in groups]  # fmt: skip
     seen = list(unshaped)
     for literals, indices, rows in groups:
         assert len(indices) == len(rows)
@@ -113,7 +114,7 @@ def test_the_compiled_row_finder_reads_every_shape_without_a_regex(monkeypatch, 
             groups, unshaped = matcher.group_window(texts)
             assert unshaped == []
             for literals, indices, columns in groups:
-                for i, row in zip(indices, zip(*map(column_tokens, columns))):
+                for i, row in zip(indices, zip(*(column_tokens(c, len(indices)) for c in columns))):
                     assert rebuild(literals, row) == texts[i]
         if row_path == "python" or windows is wide_windows:
             assert len(compiled) > before  # texts the row finder declines: a regex per shape
