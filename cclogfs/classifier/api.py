@@ -400,7 +400,7 @@ class SmartLogger:
 
     def _push_odometry(self, messages: Sequence, got: list[tuple]) -> list[PendingWindow]:
         """`push_many` of odometry messages all read by the compiled reader (`got`, the
-        (stamp, row) of each): the held messages added a drain's worth at a time."""
+        (stamp, row) of each): the drains their pushes would make, made at once."""
         heads, rows = zip(*got)
         vecs = list(map(self.detector.vector, heads, rows))
         held = list(zip(map(itemgetter(0), messages), map(itemgetter(1), messages), map(itemgetter(2), messages),
