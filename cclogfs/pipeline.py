@@ -15,12 +15,12 @@ import time
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
-from itertools import groupby
-from operator import itemgetter
+from itertools import groupby, repeat
+from operator import eq, itemgetter
 from typing import Any, Protocol
 
 from ._signals import signals_deferred as _signals_deferred
-from .classifier.features import RAW_NAMES, PoseOnly, odom_row, odom_rows_compiled
+from .classifier.features import RAW_NAMES, PoseOnly, odom_row, odom_rows_flagged
 from .classifier.summary import SUMMARY_TOPIC
 from .classifier.windows import PendingWindow
 from .errors import InvalidInputError, StoreError
@@ -493,10 +493,15 @@ class KeepUnscored:
     def push_many(self, messages: Sequence[Any]) -> list[PendingWindow]:
         """`push` of each, the runs between unscored messages handed on at once."""
         odom = self.policy.odom_topic
-        at = [i for i, m in enumerate(messages) if m[0] == odom]
-        rows = odom_rows_compiled([messages[i][2] for i in at])
-        bad = [i for i, got in zip(at, rows) if got is None or not _finite(got[1])]
-        bad = [(i, f) for i in bad if (f := _nonfinite_field(messages[i][2])) is not None]
+        if all(map(eq, map(itemgetter(0), messages), repeat(odom))):  # the usual list: odometry alone
+            rows, flagged = odom_rows_flagged(list(map(itemgetter(2), messages)))
+        else:
+            at = [i for i, m in enumerate(messages) if m[0] == odom]
+            rows, flagged = odom_rows_flagged([messages[i][2] for i in at])
+            flagged = [at[k] for k in flagged]
+        # The compiled reader flags the rows it declined or found a NaN or infinite value in:
+        # only those are read again here, for the field to name (issue 14).
+        bad = [(i, f) for i in flagged if (f := _nonfinite_field(messages[i][2])) is not None]
         if not bad:  # the policy takes the rows read here: one compiled read of each message, not two
             return self.policy.push_many(messages, rows=rows)
         out: list[PendingWindow] = []

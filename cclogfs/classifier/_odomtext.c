@@ -17,10 +17,14 @@
  * None when the text does not have that layout, or has it with a stamp too large for 64
  * bits, or is not one byte per character: the caller then takes the Python path, which
  * gives the same answer (or its error). Optional: cclogfs works without it.
+ *
+ * odom_rows(list of texts) -> (rows, flagged): odom_fields of each, and the positions
+ * whose row is None or holds a NaN or infinite value.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <float.h>
+#include <math.h>
 #include <string.h>
 
 typedef struct {
@@ -232,8 +236,11 @@ static int parse(Cursor *c, long long *sec, long long *nsec, double *v)
            lit(c, "}}") && c->pos == c->n;
 }
 
-static PyObject *odom_fields(PyObject *self, PyObject *text)
+/* (stamp_ns, row) of one text, or None (a new reference either way); *finite unset when
+ * the row holds a NaN or infinite value. NULL with an exception only when out of memory. */
+static PyObject *read_one(PyObject *text, int *finite)
 {
+    *finite = 1;
     if (!PyUnicode_Check(text) || PyUnicode_KIND(text) != PyUnicode_1BYTE_KIND)
         Py_RETURN_NONE;
     Cursor c = {PyUnicode_1BYTE_DATA(text), 0, PyUnicode_GET_LENGTH(text)};
@@ -252,6 +259,7 @@ static PyObject *odom_fields(PyObject *self, PyObject *text)
             return NULL;
         }
         PyTuple_SET_ITEM(row, k, f);
+        *finite &= isfinite(v[k]) != 0;
     }
     PyObject *stamp = PyLong_FromLongLong(sec * 1000000000LL + nsec);
     if (stamp == NULL) {
@@ -261,8 +269,51 @@ static PyObject *odom_fields(PyObject *self, PyObject *text)
     return Py_BuildValue("(NN)", stamp, row);
 }
 
+static PyObject *odom_fields(PyObject *self, PyObject *text)
+{
+    int finite;
+    return read_one(text, &finite);
+}
+
+/* odom_rows(texts) -> (rows, flagged): odom_fields of each text of the list, and the
+ * positions whose row is None or holds a NaN or infinite value, in order. The flags let
+ * the caller (pipeline.KeepUnscored, issue 14) look at those few rows in Python instead of
+ * checking every row's 13 values there. */
+static PyObject *odom_rows(PyObject *self, PyObject *texts)
+{
+    if (!PyList_Check(texts)) {
+        PyErr_SetString(PyExc_TypeError, "odom_rows takes a list of str");
+        return NULL;
+    }
+    Py_ssize_t n = PyList_GET_SIZE(texts);
+    PyObject *rows = PyList_New(n), *flagged = PyList_New(0);
+    if (rows == NULL || flagged == NULL)
+        goto fail;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        int finite;
+        PyObject *got = read_one(PyList_GET_ITEM(texts, i), &finite);
+        if (got == NULL)
+            goto fail;
+        PyList_SET_ITEM(rows, i, got);
+        if (got == Py_None || !finite) {
+            PyObject *at = PyLong_FromSsize_t(i);
+            if (at == NULL || PyList_Append(flagged, at) < 0) {
+                Py_XDECREF(at);
+                goto fail;
+            }
+            Py_DECREF(at);
+        }
+    }
+    return Py_BuildValue("(NN)", rows, flagged);
+fail:
+    Py_XDECREF(rows);
+    Py_XDECREF(flagged);
+    return NULL;
+}
+
 static PyMethodDef methods[] = {
     {"odom_fields", odom_fields, METH_O, "(stamp_ns, 13 floats) of an Odometry's JSON text, or None."},
+    {"odom_rows", odom_rows, METH_O, "(odom_fields of each text of a list, positions of None or non-finite rows)."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import math
-from itertools import chain, repeat
+from itertools import accumulate, chain, repeat
 from operator import eq, is_not, itemgetter
 from pathlib import Path
 from typing import Iterable, Iterator, Sequence
@@ -400,31 +400,42 @@ class SmartLogger:
 
     def _push_odometry(self, messages: Sequence, got: list[tuple]) -> list[PendingWindow]:
         """`push_many` of odometry messages all read by the compiled reader (`got`, the
-        (stamp, row) of each): the held messages added a drain's worth at a time."""
+        (stamp, row) of each): the drains their pushes would make, made at once."""
         heads, rows = zip(*got)
         vecs = list(map(self.detector.vector, heads, rows))
         held = list(zip(map(itemgetter(0), messages), map(itemgetter(1), messages), map(itemgetter(2), messages),
                         rows, map(is_not, vecs, repeat(None))))  # fmt: skip
+        # `push` drains when an odometry message brings the held ones to `batch` (more, when
+        # messages of other topics came in between): the list's drains are done at once,
+        # `_drain` scoring each group as its own drain would; the messages after the last
+        # wait for the next list.
+        p, b, n = len(self._pending), self.batch, len(held)
+        first = max(1, b - p)  # the message whose push drains first
+        if first > n:
+            k, groups = 0, []
+        else:
+            groups = [p + first] + [b] * ((n - first) // b)
+            k = first + (len(groups) - 1) * b
         out: list[PendingWindow] = []
-        i = 0
-        while i < len(held):
-            j = i + self.batch - len(self._pending)
-            self._vectors += [v for v in vecs[i:j] if v is not None]
-            self._pending += held[i:j]
-            if len(self._pending) >= self.batch:
-                out += self._drain()
-            i = j
+        if k:
+            self._vectors += [v for v in vecs[:k] if v is not None]
+            self._pending += held[:k]
+            out = self._drain(groups)
+        self._vectors += [v for v in vecs[k:] if v is not None]
+        self._pending += held[k:]
         return out
 
-    def _drain(self) -> list[PendingWindow]:
-        """Score the held odometry vectors at once, then run the windows over the held messages."""
+    def _drain(self, groups: list[int] | None = None) -> list[PendingWindow]:
+        """Score the held odometry vectors at once, then run the windows over the held
+        messages. `groups`: the held messages as consecutive drains would take them (counts),
+        each scored alone (`_batch_scores`); None: one drain."""
         vectors = self._vectors
         if vectors and type(vectors[0]) is tuple:  # the compiled stream's: 2x faster than np.array
             V = np.fromiter(chain.from_iterable(vectors), np.float64, len(vectors) * len(vectors[0]))
             V = V.reshape(len(vectors), -1)
         else:
             V = np.array(vectors)
-        s = self._scores(V)
+        s = self._batch_scores(V, groups)
         flagged = s > 0
         back = np.zeros(len(s), dtype=np.int64)
         evidence = self.detector.evidence
@@ -482,6 +493,21 @@ class SmartLogger:
             a = k + 1
         return out + self.windows.push_run(stamps[a:], texts[a:], flags[a:], scores[a:], backs[a:])
 
+    def _batch_scores(self, V: np.ndarray, groups: list[int] | None) -> np.ndarray:
+        """`_scores` of the held vectors, each group of held messages (`_drain`) scored as
+        if drained alone: the SVM's last bits depend on the rows scored together. When no
+        score of any can matter, the bound of all at once (row by row, the same numbers)."""
+        if groups is None or len(groups) == 1 or not len(V):
+            return self._scores(V)
+        bound = self._quiet_bound(V)
+        if bound is not None:
+            return bound
+        valid = list(map(itemgetter(4), self._pending))
+        starts = [0, *accumulate(groups)]
+        ends = list(accumulate(valid[a:e].count(True) for a, e in zip(starts, starts[1:])))
+        # each group's rows copied: a fresh array, as a group drained alone scores
+        return np.concatenate([self._scores(V[a:e].copy()) for a, e in zip([0, *ends[:-1]], ends)])
+
     def _scores(self, V: np.ndarray) -> np.ndarray:
         """The held vectors' scores, or where no score can matter, a bound on them.
 
@@ -492,17 +518,23 @@ class SmartLogger:
         the bound stands in: the same flags, holds and windows. Otherwise the whole batch
         is scored as before, never a subset: BLAS gives a subset of rows other last bits,
         and a window's peak_score must not change."""
-        model, limits = self.detector.model, self.detector.limits
         if not len(V):
             return np.empty(0)
+        bound = self._quiet_bound(V)
+        return bound if bound is not None else self.detector.model.score(V, self.detector.limits)
+
+    def _quiet_bound(self, V: np.ndarray) -> np.ndarray | None:
+        """The bound of `_scores` on each vector's score (row by row) when every one is at
+        or below the levels that matter, else None: the SVM must score them."""
+        model, limits = self.detector.model, self.detector.limits
         # Growing limits (`OneClassModel.score`) raise a limit only to `limit_growth_` x a
         # value the SVM judged nominal; with every vector within the limits and a growth of
         # at most 1x, no limit moves, so skipping the SVM leaves them as scoring would.
-        if limits is not None and model.limit_growth_ <= 1.0:
+        if limits is not None and model.limit_growth_ <= 1.0 and len(V):
             bound = np.max(V / limits, axis=1) - 1.0
             if bound.max() <= self._quiet_below:  # False when any is NaN: then scored
                 return bound
-        return model.score(V, limits)
+        return None
 
     def _odom(self, stamp_ns, text, row, score, flag, lookback_ns=0) -> list[PendingWindow]:
         self.scored += 1

@@ -186,8 +186,9 @@ def _stamp_parts(stamp: dict) -> tuple[int, int]:
 # declines (another layout, wide characters), and the Python path below answers.
 try:
     from ._odomtext import odom_fields as _odom_fields_c
+    from ._odomtext import odom_rows as _odom_rows_c
 except ImportError:  # pragma: no cover - no C compiler at install
-    _odom_fields_c = None
+    _odom_fields_c = _odom_rows_c = None
 
 
 def odom_row(msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
@@ -204,9 +205,16 @@ def odom_row(msg: dict | str | bytes) -> tuple[int, tuple[float, ...]]:
 def odom_rows_compiled(texts: list[str]) -> list[tuple[int, tuple[float, ...]] | None]:
     """The compiled reader's (stamp_ns, row) of each text in one call over the list, None
     where it declines or is not built: `odom_row` then reads that text (and names its error)."""
-    if _odom_fields_c is None:  # pragma: no cover - no C compiler at install
-        return [None] * len(texts)
-    return list(map(_odom_fields_c, texts))
+    return odom_rows_flagged(texts)[0]
+
+
+def odom_rows_flagged(texts: list[str]) -> tuple[list[tuple[int, tuple[float, ...]] | None], list[int]]:
+    """`odom_rows_compiled`, and the positions of the rows that are None or hold a NaN or
+    infinite value, found by the compiled reader as it reads (the others need no look in
+    Python for values the features cannot use)."""
+    if _odom_rows_c is None:  # pragma: no cover - no C compiler at install
+        return [None] * len(texts), list(range(len(texts)))
+    return _odom_rows_c(texts)
 
 
 def _odom_row_python(msg: str) -> tuple[int, tuple[float, ...]]:

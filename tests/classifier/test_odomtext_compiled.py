@@ -117,3 +117,15 @@ def test_real_odometry(shared_data):
     texts = [t for _, t in topic_messages(shared_data("nav2_turtlebot.mcap"), "/odom")]
     assert len(texts) > 1000
     assert all(check_same(t) is not None for t in texts)
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.lists(doubles, min_size=13, max_size=13) | st.sampled_from(["{}", "x", "\u20ac"]), max_size=8))
+def test_a_list_at_once_flags_what_the_features_cannot_use(items):
+    """`odom_rows_flagged`: each text's `odom_fields`, and the positions of every row that
+    is None or holds a NaN or infinite value (pipeline.KeepUnscored looks only at those)."""
+    texts = [item if isinstance(item, str) else json.dumps(odometry((3, 4), item)) for item in items]
+    rows, flagged = features.odom_rows_flagged(texts)
+    assert [r is None for r in rows] == [COMPILED(t) is None for t in texts]
+    assert all(r is None or bits(r[1]) == bits(COMPILED(t)[1]) for r, t in zip(rows, texts))
+    assert flagged == [i for i, r in enumerate(rows) if r is None or not all(map(math.isfinite, r[1]))]

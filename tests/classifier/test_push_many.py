@@ -105,7 +105,7 @@ def odom():
     return odom.take(t < t[0] + (t[-1] - t[0]) // 2), odom.take(t >= t[0] + (t[-1] - t[0]) // 2)
 
 
-@pytest.mark.parametrize("size", [1, 5, 64, 300])
+@pytest.mark.parametrize("size", [1, 5, 64, 300, 1000])
 @pytest.mark.parametrize("others", [False, True])
 def test_smart_logger_push_many_is_push_of_each(odom, size, others):
     """Real odometry with a spin and a stop injected, a stamp that goes back and a clock
