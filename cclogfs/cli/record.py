@@ -455,14 +455,27 @@ def _counted(records: list[tuple[int, str, Link, bool, int]] | None, upto: int) 
     return f"{n:,} messages in {count.windows:,} windows"
 
 
+def _check_numbers(args: argparse.Namespace) -> None:
+    """Refuse option values that cannot work, in the option's words, before anything is opened."""
+    import threading
+
+    if args.chunk < 1:
+        raise InvalidInputError(f"--chunk must be at least 1 message, not {args.chunk}")
+    if not args.window_max_s > 0:
+        raise InvalidInputError(f"--window-max-s must be positive, not {args.window_max_s}")
+    # the group-commit thread waits up to this long: NaN made it spin, inf overflowed its timer
+    if not 0 <= args.sync_ms <= threading.TIMEOUT_MAX * 1000:
+        raise InvalidInputError(f"--sync-ms must be a number of milliseconds from 0 to "
+                                f"{threading.TIMEOUT_MAX * 1000:.0f}, not {args.sync_ms}")
+
+
 def _run(args: argparse.Namespace) -> int:
     from ..pipeline import RecordStats, interrupt_handler
     from ..store import open_store
 
+    _check_numbers(args)
     policy, read_topics = _logging_policy(args)
     upkeep = _upkeep(args)
-    if not args.window_max_s > 0:
-        raise InvalidInputError(f"--window-max-s must be positive, not {args.window_max_s}")
     store_options = upkeep.store_options() if upkeep is not None else {}
     source, check = _open(args, read_topics, policy)
     if not args.source.startswith("ros1://"):
