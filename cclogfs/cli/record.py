@@ -459,6 +459,8 @@ def _check_numbers(args: argparse.Namespace) -> None:
     """Refuse option values that cannot work, in the option's words, before anything is opened."""
     import threading
 
+    from ..pipeline import parse_span
+
     if args.chunk < 1:
         raise InvalidInputError(f"--chunk must be at least 1 message, not {args.chunk}")
     if not args.window_max_s > 0:
@@ -467,6 +469,8 @@ def _check_numbers(args: argparse.Namespace) -> None:
     if not 0 <= args.sync_ms <= threading.TIMEOUT_MAX * 1000:
         raise InvalidInputError(f"--sync-ms must be a number of milliseconds from 0 to "
                                 f"{threading.TIMEOUT_MAX * 1000:.0f}, not {args.sync_ms}")
+    if args.model:  # before the model is read
+        parse_span(args.before), parse_span(args.after)
 
 
 def _run(args: argparse.Namespace) -> int:

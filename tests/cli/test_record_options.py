@@ -27,3 +27,14 @@ def test_sync_ms_that_no_timer_can_wait_is_refused(tmp_path, capsys, value):
     err = capsys.readouterr().err
     assert err.startswith("cclog: error: --sync-ms must be") and f"not {float(value)}" in err, err
     assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize("option", ["--before", "--after"])
+@pytest.mark.parametrize("value", ["nans", "infs"])
+def test_window_extent_that_is_not_finite_is_refused(tmp_path, capsys, option, value):
+    # was: a ValueError (nans) or OverflowError (infs) traceback once the model was loaded
+    (tmp_path / "in.jsonl").write_text(LINE)
+    assert main(["record", str(tmp_path / "in.jsonl"), "--store", str(tmp_path / "s"), "--model",
+                 str(tmp_path / "no-model"), option, value]) == 1  # fmt: skip
+    err = capsys.readouterr().err
+    assert err.startswith(f"cclog: error: window extent '{value}'") and "Traceback" not in err, err
