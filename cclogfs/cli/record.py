@@ -473,11 +473,28 @@ def _check_numbers(args: argparse.Namespace) -> None:
         parse_span(args.before), parse_span(args.after)
 
 
+def _check_pairs(args: argparse.Namespace) -> None:
+    """Refuse an option given without the one it goes with, which would ignore it without a word."""
+    given = _options(args)
+    if not args.model:
+        for name in ("before", "after", "no_summary", "force_model"):
+            if name in given:
+                raise InvalidInputError(f"--{name.replace('_', '-')} goes with --model (smart logging); "
+                                        "without it every message is kept")
+        if "odom_topic" in given and not args.features_out:
+            raise InvalidInputError("--odom-topic goes with --model or --features-out")
+    elif "chunk" in given:
+        raise InvalidInputError("--chunk goes without --model: smart logging stores the windows around anomalies")
+    if "features" in given and not args.features_out:
+        raise InvalidInputError("--features goes with --features-out")
+
+
 def _run(args: argparse.Namespace) -> int:
     from ..pipeline import RecordStats, interrupt_handler
     from ..store import open_store
 
     _check_numbers(args)
+    _check_pairs(args)
     policy, read_topics = _logging_policy(args)
     upkeep = _upkeep(args)
     store_options = upkeep.store_options() if upkeep is not None else {}

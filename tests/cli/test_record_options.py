@@ -38,3 +38,21 @@ def test_window_extent_that_is_not_finite_is_refused(tmp_path, capsys, option, v
                  str(tmp_path / "no-model"), option, value]) == 1  # fmt: skip
     err = capsys.readouterr().err
     assert err.startswith(f"cclog: error: window extent '{value}'") and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("options, said", [
+    (["--before", "4s"], "--before goes with --model"),
+    (["--after", "20"], "--after goes with --model"),
+    (["--no-summary"], "--no-summary goes with --model"),
+    (["--force-model"], "--force-model goes with --model"),
+    (["--odom-topic", "/odom"], "--odom-topic goes with --model or --features-out"),
+    (["--features", "paper"], "--features goes with --features-out"),
+    (["--chunk", "10", "--model", "m"], "--chunk goes without --model"),
+])  # fmt: skip
+def test_an_option_without_the_one_it_goes_with_is_refused(tmp_path, capsys, options, said):
+    # was: recorded every message (or the smart windows, for --chunk), exit 0, the option
+    # ignored without a word, as play's --clock without --to ros1:// was
+    (tmp_path / "in.jsonl").write_text(LINE)
+    assert main(["record", str(tmp_path / "in.jsonl"), "--store", str(tmp_path / "s"), *options]) == 1
+    assert capsys.readouterr().err.startswith(f"cclog: error: {said}")
+    assert not (tmp_path / "s").exists()
