@@ -248,7 +248,11 @@ def _warn_damage(store) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Record; a run that fails before storing anything leaves no store it created."""
+    from .outputs import refuse_store_dir
+
     _refuse_store_in_source(args)
+    # a store inside another one would sit among its segments
+    refuse_store_dir(os.path.dirname(os.path.abspath(args.store)), f"--store {args.store}: its directory")
     existed = os.path.exists(args.store)
     try:
         return _run(args)
