@@ -60,3 +60,11 @@ def test_info_shows_stream_types(shared_data, tmp_path, capsys):
     assert main(["info", str(tmp_path / "s")]) == 0
     out = capsys.readouterr().out
     assert "tf2_msgs/msg/TFMessage" in out and " type" in out
+
+
+def test_fsck_help_does_not_say_it_changes_nothing_when_it_repairs(capsys):
+    # its description said "Changes nothing." above its own --repair (found by the attack of l-atk8)
+    with pytest.raises(SystemExit):
+        main(["fsck", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "Changes nothing." not in out and "Changes nothing, unless --repair is given." in out
