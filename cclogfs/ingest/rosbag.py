@@ -44,6 +44,7 @@ class RosbagSource:
         self._wanted = topic_filter(topics)
         self._converter: MessageConverter | None = None
         self._lost_chunks: list[str] = []  # MCAP chunks that could not be read (--on-error skip)
+        self._short: str | None = None  # a ROS 2 sqlite3 bag that gave fewer messages than its metadata counts
         try:
             self._reader = AnyReader([Path(path)])
             if not self._reader.is2:  # the same reader, its index read faster (issue 14)
@@ -79,7 +80,7 @@ class RosbagSource:
     def lost(self) -> str | None:
         """What damage lost (chunks of an MCAP file skipped), None when nothing was."""
         if not self._lost_chunks:
-            return None
+            return self._short
         return (f"{self.name} is damaged: {len(self._lost_chunks):,} chunks could not be read and were skipped "
                 f"(--on-error skip), their messages not recorded: {'; '.join(self._lost_chunks)}")  # fmt: skip
 
@@ -128,6 +129,7 @@ class RosbagSource:
                     except WireError as err:
                         text, stamp = self._convert(con, logtime, raw, index, err)
                 yield make(SourceMessage, (con.topic, (header_clock and stamp) or logtime, text, con.msgtype))
+            self._short = _short_of_metadata(self._reader, self.message_count, index)
         except SourceError:
             raise
         except Exception as err:
@@ -181,3 +183,24 @@ class RosbagSource:
                 f"logged at {logtime} ns): {where}"
             ) from slow
         return self._converter.to_json(msg), message_stamp_ns(msg)
+
+
+def _short_of_metadata(reader: AnyReader, counted: int, read: int) -> str | None:
+    """What a ROS 2 sqlite3 bag lacks when its .db3 files gave fewer messages than its
+    metadata.yaml counts (`counted`, of the selected topics): a split file metadata.yaml
+    does not list (which the bag reader does not open), rows lost; None when none lack.
+    MCAP storage is held against its own statistics (`mcapchunks`), ROS 1 bags are read by
+    their index."""
+    from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
+
+    storage = getattr(reader.readers[0], "storage", None) if len(reader.readers) == 1 else None
+    storages = getattr(storage, "storages", None)
+    if read >= counted or not storages or not all(isinstance(s, Sqlite3Reader) for s in storages):
+        return None
+    listed = {Path(f["path"]).name for f in storage.files}
+    unlisted = sorted(f.name for f in Path(storage.path).glob("*.db3") if f.name not in listed)
+    why = (f"; {', '.join(unlisted)} in the directory {'is' if len(unlisted) == 1 else 'are'} not listed in "
+           "metadata.yaml, so not read (list it there, or move metadata.yaml away to read every .db3)"
+           if unlisted else "")  # fmt: skip
+    return (f"{storage.path}: metadata.yaml counts {counted:,} messages, its .db3 files hold {read:,}: "
+            f"{counted - read:,} missing{why}")
