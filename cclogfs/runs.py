@@ -182,6 +182,19 @@ def grown_run(store: Store, path: str, fingerprint: Mapping[str, Any] | None) ->
     return None
 
 
+def stopped_run(store: Store, path: str) -> RunInfo | None:
+    """The first run of the file `path` (by its absolute path) that stopped before its end
+    (error, interrupted, or no end record) having kept messages: recording the file again
+    once fixed (its bad line, say) would store those twice, and its new content hides it
+    from `earlier_run`. A run that finished is not one: a file rewritten under the same name
+    holds a new recording."""
+    name = os.path.abspath(path)
+    for run in list_runs(store):
+        if run.source == name and run.status != "done" and run.kept != 0:
+            return run
+    return None
+
+
 class Run:
     """A run in progress: `begin_run` wrote its start; `end()` writes its end."""
 

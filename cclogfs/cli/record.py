@@ -320,19 +320,21 @@ def _options(args: argparse.Namespace) -> dict:
 
 def _begin_run(args: argparse.Namespace, store, source):
     """Refuse a source the store has a run of already (unless --append); write this run's start."""
-    from ..runs import begin_run, earlier_run, grown_run, source_fingerprint
+    from ..runs import begin_run, earlier_run, grown_run, source_fingerprint, stopped_run
 
     fingerprint = source_fingerprint(args.source)
     earlier = earlier_run(store, fingerprint)
     grown = None if earlier is not None or args.append else grown_run(store, args.source, fingerprint)
-    if (earlier is not None or grown is not None) and not args.append:
-        run = earlier or grown
+    stopped = None if earlier or grown or args.append or fingerprint is None else stopped_run(store, args.source)
+    if (earlier is not None or grown is not None or stopped is not None) and not args.append:
+        run = earlier or grown or stopped
         kept = "its end not recorded" if run.kept is None else f"{run.kept:,} messages kept"
-        what = "already" if grown is None else f"when it was {run.fingerprint['bytes']:,} bytes (it has grown since)"
+        what = ("already" if earlier is not None else f"when it was {run.fingerprint['bytes']:,} bytes (it has "
+                "grown since)" if grown is not None else "before that run stopped (the file has changed since)")
         raise InvalidInputError(
             f"{args.source} was recorded into {args.store} {what}, as run {run.number} "
             f"({iso_ns(run.start_ns)}, {run.status}, {kept}); recording it again would store "
-            f"{'its' if grown is None else 'those'} messages twice: pass --append to record it again, "
+            f"{'its' if earlier is not None else 'those'} messages twice: pass --append to record it again, "
             "or record into another --store.")  # fmt: skip
     if fingerprint is None:  # stdin or a live master: named as given (a master by its URI)
         name, extra = args.source, ({"master": source.master} if hasattr(source, "master") else {})
