@@ -30,3 +30,28 @@ def test_a_file_rewritten_after_a_run_that_finished_is_recorded(tmp_path, capsys
     assert main(["record", str(src), "--store", str(store)]) == 0
     src.write_text("".join(format_line("/a", i, "{}") for i in range(100, 120)))
     assert main(["record", str(src), "--store", str(store)]) == 0
+
+
+def test_a_bag_directory_that_has_grown_since_its_run_is_refused(shared_data, tmp_path, capsys):
+    # a ROS 2 bag recorded while its recorder was still writing (a .db3 added since) stored
+    # the first file's 259 messages twice, exit 0: the grown-file check was for files only
+    import sqlite3
+
+    from tests.cli.test_damaged_inputs import ros2_bag_copy
+
+    whole = ros2_bag_copy(shared_data, tmp_path, "whole")
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    for name, keep in (("bag_0.db3", "id <= 259"), ("bag_1.db3", "id > 259")):
+        (tmp_path / name).write_bytes((whole / "tf_example.db3").read_bytes())
+        with sqlite3.connect(tmp_path / name) as db:
+            db.execute(f"DELETE FROM messages WHERE NOT ({keep})")
+    (tmp_path / "bag_0.db3").rename(bag / "bag_0.db3")
+    store = tmp_path / "s"
+    assert main(["record", str(bag), "--store", str(store)]) == 0
+    (tmp_path / "bag_1.db3").rename(bag / "bag_1.db3")
+    capsys.readouterr()
+    assert main(["record", str(bag), "--store", str(store)]) == 1
+    err = capsys.readouterr().err
+    assert "as run 1" in err and "twice" in err and "--append" in err, err
+    assert main(["record", str(bag), "--store", str(store), "--append"]) == 0
