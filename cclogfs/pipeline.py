@@ -433,7 +433,7 @@ def parse_span(text: str) -> tuple[int, float | None]:
     try:
         if t.endswith("s"):
             secs = float(t[:-1])
-            if secs < 0:
+            if not 0 <= secs < math.inf:  # NaN and inf passed `secs < 0`, then failed as ints
                 raise ValueError
             return 0, secs
         n = int(t)

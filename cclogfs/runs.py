@@ -164,9 +164,11 @@ def earlier_run(store: Store, fingerprint: Mapping[str, Any] | None) -> RunInfo 
 
 
 def grown_run(store: Store, path: str, fingerprint: Mapping[str, Any] | None) -> RunInfo | None:
-    """The first run that recorded `path` (a file) when it was shorter: the file begins with
+    """The first run that recorded `path` (a file; a ROS 2 bag directory: `_bag_run`) when it was shorter: the file begins with
     the bytes that run saw (an appended log recorded again), so recording it would store
     that run's messages twice. Judged by the first min(size, 1 MiB) bytes the run saw."""
+    if fingerprint is not None and "files" in fingerprint:  # a ROS 2 bag directory
+        return _bag_run(store, path)
     if fingerprint is None or "head" not in fingerprint:
         return None
     import hashlib
@@ -179,6 +181,32 @@ def grown_run(store: Store, path: str, fingerprint: Mapping[str, Any] | None) ->
         with open(path, "rb") as f:
             if hashlib.sha256(f.read(min(old["bytes"], _EDGE))).hexdigest() == old["head"]:
                 return run
+    return None
+
+
+def _bag_run(store: Store, path: str) -> RunInfo | None:
+    """The first run of the ROS 2 bag directory `path` (by its absolute path) that kept
+    messages, its content changed since (else `earlier_run` finds it): a bag recorded while
+    its recorder was still writing has grown (a .db3 added or longer), and a .db3's bytes
+    change where sqlite keeps its header, so no head of a file can tell; a bag directory
+    holds one recording (`ros2 bag record -o` refuses an existing one)."""
+    name = os.path.abspath(path)
+    for run in list_runs(store):
+        if run.source == name and run.kept != 0 and "files" in (run.fingerprint or {}):
+            return run
+    return None
+
+
+def stopped_run(store: Store, path: str) -> RunInfo | None:
+    """The first run of the file `path` (by its absolute path) that stopped before its end
+    (error, interrupted, or no end record) having kept messages: recording the file again
+    once fixed (its bad line, say) would store those twice, and its new content hides it
+    from `earlier_run`. A run that finished is not one: a file rewritten under the same name
+    holds a new recording."""
+    name = os.path.abspath(path)
+    for run in list_runs(store):
+        if run.source == name and run.status != "done" and run.kept != 0:
+            return run
     return None
 
 

@@ -29,7 +29,7 @@ HELP = "verify every record, index and the manifest of a store"
 DESCRIPTION = (
     "Check every record's header CRC and payload hash, sequence "
     "continuity, the manifest's statistics and the time indexes. "
-    "Changes nothing."
+    "Changes nothing, unless --repair is given."
 )
 
 

@@ -38,7 +38,7 @@ def _inside(path: Path, directory: str | Path) -> bool:
 def check_output(path: str | Path, inputs: list[str], *, force: bool, directory: bool = False) -> None:
     """Refuse, before any work, an output that cannot be written where asked (a file where a
     directory is expected or the reverse, a missing parent directory), that is (or is inside)
-    an input, or that exists without --force."""
+    an input, that is inside a store, or that exists without --force."""
     if directory:
         if os.path.exists(path) and not os.path.isdir(path):
             raise InvalidInputError(f"Output {path} is a file; give a directory.")
@@ -54,6 +54,12 @@ def check_output(path: str | Path, inputs: list[str], *, force: bool, directory:
         if _same_file(path, src) or (os.path.isdir(src) and _inside(Path(path), src)):
             raise InvalidInputError(f"Output {path} is the input {src} (or inside it); inputs are never written: "
                                     "choose another output.")  # fmt: skip
+    # inside another store, a file would sit among its segments (or, named like one, be
+    # taken by its next writer for a torn tail and deleted)
+    if directory:
+        refuse_store_dir(path)
+    else:
+        refuse_store_dir(os.path.dirname(os.path.abspath(path)), f"Output {path}: its directory")
     if os.path.lexists(path) and not force:
         raise InvalidInputError(f"Output {path} exists; pass --force to replace it, or choose another output.")
 

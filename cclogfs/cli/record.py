@@ -248,7 +248,11 @@ def _warn_damage(store) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Record; a run that fails before storing anything leaves no store it created."""
+    from .outputs import refuse_store_dir
+
     _refuse_store_in_source(args)
+    # a store inside another one would sit among its segments
+    refuse_store_dir(os.path.dirname(os.path.abspath(args.store)), f"--store {args.store}: its directory")
     existed = os.path.exists(args.store)
     try:
         return _run(args)
@@ -316,19 +320,21 @@ def _options(args: argparse.Namespace) -> dict:
 
 def _begin_run(args: argparse.Namespace, store, source):
     """Refuse a source the store has a run of already (unless --append); write this run's start."""
-    from ..runs import begin_run, earlier_run, grown_run, source_fingerprint
+    from ..runs import begin_run, earlier_run, grown_run, source_fingerprint, stopped_run
 
     fingerprint = source_fingerprint(args.source)
     earlier = earlier_run(store, fingerprint)
     grown = None if earlier is not None or args.append else grown_run(store, args.source, fingerprint)
-    if (earlier is not None or grown is not None) and not args.append:
-        run = earlier or grown
+    stopped = None if earlier or grown or args.append or fingerprint is None else stopped_run(store, args.source)
+    if (earlier is not None or grown is not None or stopped is not None) and not args.append:
+        run = earlier or grown or stopped
         kept = "its end not recorded" if run.kept is None else f"{run.kept:,} messages kept"
-        what = "already" if grown is None else f"when it was {run.fingerprint['bytes']:,} bytes (it has grown since)"
+        what = ("already" if earlier is not None else f"when it was {run.fingerprint['bytes']:,} bytes (it has "
+                "grown since)" if grown is not None else "before that run stopped (the file has changed since)")
         raise InvalidInputError(
             f"{args.source} was recorded into {args.store} {what}, as run {run.number} "
             f"({iso_ns(run.start_ns)}, {run.status}, {kept}); recording it again would store "
-            f"{'its' if grown is None else 'those'} messages twice: pass --append to record it again, "
+            f"{'its' if earlier is not None else 'those'} messages twice: pass --append to record it again, "
             "or record into another --store.")  # fmt: skip
     if fingerprint is None:  # stdin or a live master: named as given (a master by its URI)
         name, extra = args.source, ({"master": source.master} if hasattr(source, "master") else {})
@@ -455,14 +461,48 @@ def _counted(records: list[tuple[int, str, Link, bool, int]] | None, upto: int) 
     return f"{n:,} messages in {count.windows:,} windows"
 
 
+def _check_numbers(args: argparse.Namespace) -> None:
+    """Refuse option values that cannot work, in the option's words, before anything is opened."""
+    import threading
+
+    from ..pipeline import parse_span
+
+    if args.chunk < 1:
+        raise InvalidInputError(f"--chunk must be at least 1 message, not {args.chunk}")
+    if not args.window_max_s > 0:
+        raise InvalidInputError(f"--window-max-s must be positive, not {args.window_max_s}")
+    # the group-commit thread waits up to this long: NaN made it spin, inf overflowed its timer
+    if not 0 <= args.sync_ms <= threading.TIMEOUT_MAX * 1000:
+        raise InvalidInputError(f"--sync-ms must be a number of milliseconds from 0 to "
+                                f"{threading.TIMEOUT_MAX * 1000:.0f}, not {args.sync_ms}")
+    if args.model:  # before the model is read
+        parse_span(args.before), parse_span(args.after)
+
+
+def _check_pairs(args: argparse.Namespace) -> None:
+    """Refuse an option given without the one it goes with, which would ignore it without a word."""
+    given = _options(args)
+    if not args.model:
+        for name in ("before", "after", "no_summary", "force_model"):
+            if name in given:
+                raise InvalidInputError(f"--{name.replace('_', '-')} goes with --model (smart logging); "
+                                        "without it every message is kept")
+        if "odom_topic" in given and not args.features_out:
+            raise InvalidInputError("--odom-topic goes with --model or --features-out")
+    elif "chunk" in given:
+        raise InvalidInputError("--chunk goes without --model: smart logging stores the windows around anomalies")
+    if "features" in given and not args.features_out:
+        raise InvalidInputError("--features goes with --features-out")
+
+
 def _run(args: argparse.Namespace) -> int:
     from ..pipeline import RecordStats, interrupt_handler
     from ..store import open_store
 
+    _check_numbers(args)
+    _check_pairs(args)
     policy, read_topics = _logging_policy(args)
     upkeep = _upkeep(args)
-    if not args.window_max_s > 0:
-        raise InvalidInputError(f"--window-max-s must be positive, not {args.window_max_s}")
     store_options = upkeep.store_options() if upkeep is not None else {}
     source, check = _open(args, read_topics, policy)
     if not args.source.startswith("ros1://"):

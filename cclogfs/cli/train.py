@@ -53,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
     if not 0 <= args.false_alarm_rate <= 1:  # nan and -1 were numpy's traceback after reading every run
         raise InvalidInputError(f"--false-alarm-rate must be a fraction from 0 to 1, not {args.false_alarm_rate}")
     _check_out(args)
+    _check_disjoint(args)
     started = time.perf_counter()
     if args.validate:  # checked before training, so that a bad run fails in seconds, not after
         (validate,), _ = _read_runs([args.validate], args.topic, make_features(args.features), "score")
@@ -105,6 +106,30 @@ def _refuse_standing(model, runs: list) -> None:
         seconds = sum((odom.stamp_ns[-1] - odom.stamp_ns[0]) / 1e9 for odom in runs if len(odom.stamp_ns))
         raise ModelError(f"The training odometry ({model.training['messages']:,} messages over {seconds:.1f} s) "
                          f"shows a robot standing still: {why}; train on runs in which the robot drives.")  # fmt: skip
+
+
+def _check_disjoint(args: argparse.Namespace) -> None:
+    """Refuse one run given twice (same content, any name, as `record` judges a source):
+    as two sources its messages would be trained on twice, as --validate the Table 1 would
+    score the training data itself."""
+    from ..runs import source_fingerprint
+
+    def content(path: str):
+        try:
+            fp = source_fingerprint(path)
+        except OSError:
+            return None  # reading it fails later, with the error that names it
+        return None if fp is None else (fp["bytes"], fp.get("files"), fp["sha256"])
+
+    seen: dict[tuple, str] = {}
+    for src in args.sources:
+        if (key := content(src)) is not None and key in seen:
+            raise InvalidInputError(f"{src} and {seen[key]} are one run (same content): it would be trained on twice; "
+                                    "give each run once.")  # fmt: skip
+        seen.setdefault(key, src)
+    if args.validate and (key := content(args.validate)) is not None and key in seen:
+        raise InvalidInputError(f"--validate {args.validate} is the training run {seen[key]} (same content): "
+                                "validate on a disjoint run.")  # fmt: skip
 
 
 def _check_out(args: argparse.Namespace) -> None:

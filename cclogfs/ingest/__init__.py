@@ -86,8 +86,8 @@ def detect_format(path: str | Path) -> str:
         return "rosbag2"
     if head.startswith(_MAGIC_MCAP):
         return _mcap_format(p)
-    if head.lstrip()[:1] == b"{" or (not head.strip() and p.suffix in (".jsonl", ".ndjson")):
-        return "jsonl"
+    if head.lstrip()[:1] == b"{" or (not head.startswith(b"\xef\xbb\xbf") and p.suffix in (".jsonl", ".ndjson")):
+        return "jsonl"  # by name too: a log cut at its start begins mid-line, which the reader names
     if head.startswith(b"\xef\xbb\xbf") and head[3:].lstrip()[:1] == b"{":  # was "of an unknown file type"
         raise SourceError(f"{p} starts with a UTF-8 byte order mark, which JSON Lines does not allow (nor does "
                           "Python's json); remove those 3 bytes (sed -i '1s/^\\xEF\\xBB\\xBF//' FILE).")  # fmt: skip

@@ -101,6 +101,28 @@ class Ros2DbSalvage(_Salvage):
             upto = f"the last logged at {last} ns" if last is not None else "none"
             self.lost = (f"{self.name} is damaged ({self.why or 'its database is cut short'}): read {count:,} "
                          f"messages ({upto}); could not be read: {'; '.join(losses)}")  # fmt: skip
+        if short := metadata_shortfall(Path(self.name), count, self._wanted):
+            self.lost = f"{self.lost}; {short}" if self.lost else f"{self.name} ({self.why}): {short}"
+
+
+def metadata_shortfall(bag: Path, read: int, wanted: set[str] | None) -> str | None:
+    """What the metadata.yaml of the bag directory `bag` (when it has one) counts beyond the
+    `read` messages of the `wanted` topics: a listed .db3 file that is missing (the bag reader
+    refuses the bag; the others were read without a word, exit 0) or rows lost."""
+    from ruamel.yaml import YAML
+
+    try:
+        info = YAML(typ="safe").load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+        counted = sum(int(t["message_count"]) for t in info["topics_with_message_count"]
+                      if wanted is None or t["topic_metadata"]["name"] in wanted)  # fmt: skip
+        listed = [Path(f).name for f in info.get("relative_file_paths", [])]
+    except (OSError, TypeError, KeyError, ValueError, AttributeError):
+        return None  # no metadata.yaml, or one that says nothing usable
+    missing = [f for f in listed if not (bag / f).exists()]
+    if read >= counted and not missing:
+        return None
+    gone = f" ({', '.join(missing)}, listed in it, {'is' if len(missing) == 1 else 'are'} missing)" if missing else ""
+    return f"metadata.yaml counts {counted:,} messages, its .db3 files hold {read:,}: {max(counted - read, 0):,} missing{gone}"
 
 
 def _openable(f: Path, tmp: Path) -> Path:

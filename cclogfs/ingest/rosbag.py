@@ -45,6 +45,7 @@ class RosbagSource:
         self._wanted = topic_filter(topics)
         self._converter: MessageConverter | None = None
         self._bad_chunks = BadChunks(self.name, on_error)  # MCAP chunks that could not be read
+        self._short: str | None = None  # a ROS 2 sqlite3 bag that gave fewer messages than its metadata counts
         try:
             self._reader = AnyReader([Path(path)])
             if not self._reader.is2:  # the same reader, its index read faster (issue 14)
@@ -78,8 +79,10 @@ class RosbagSource:
 
     @property
     def lost(self) -> str | None:
-        """What damage lost (chunks of an MCAP file skipped), None when nothing was."""
-        return self._bad_chunks.lost
+        """What damage lost (chunks of an MCAP file skipped; messages a ROS 2 bag's metadata counts
+        that its files lack), None when nothing was."""
+        lost = [why for why in (self._bad_chunks.lost, self._short) if why]
+        return "; ".join(lost) if lost else None
 
     @property
     def message_count(self) -> int:
@@ -126,6 +129,7 @@ class RosbagSource:
                     except WireError as err:
                         text, stamp = self._convert(con, logtime, raw, index, err)
                 yield make(SourceMessage, (con.topic, (header_clock and stamp) or logtime, text, con.msgtype))
+            self._short = _short_of_metadata(self._reader, self.message_count, index)
         except SourceError:
             raise
         except Exception as err:
@@ -174,3 +178,24 @@ class RosbagSource:
                 f"logged at {logtime} ns): {where}"
             ) from slow
         return self._converter.to_json(msg), message_stamp_ns(msg)
+
+
+def _short_of_metadata(reader: AnyReader, counted: int, read: int) -> str | None:
+    """What a ROS 2 sqlite3 bag lacks when its .db3 files gave fewer messages than its
+    metadata.yaml counts (`counted`, of the selected topics): a split file metadata.yaml
+    does not list (which the bag reader does not open), rows lost; None when none lack.
+    MCAP storage is held against its own statistics (`mcapchunks`), ROS 1 bags are read by
+    their index."""
+    from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
+
+    storage = getattr(reader.readers[0], "storage", None) if len(reader.readers) == 1 else None
+    storages = getattr(storage, "storages", None)
+    if read >= counted or not storages or not all(isinstance(s, Sqlite3Reader) for s in storages):
+        return None
+    listed = {Path(f["path"]).name for f in storage.files}
+    unlisted = sorted(f.name for f in Path(storage.path).glob("*.db3") if f.name not in listed)
+    why = (f"; {', '.join(unlisted)} in the directory {'is' if len(unlisted) == 1 else 'are'} not listed in "
+           "metadata.yaml, so not read (list it there, or move metadata.yaml away to read every .db3)"
+           if unlisted else "")  # fmt: skip
+    return (f"{storage.path}: metadata.yaml counts {counted:,} messages, its .db3 files hold {read:,}: "
+            f"{counted - read:,} missing{why}")

@@ -865,8 +865,10 @@ def open_store(path: str | os.PathLike[str], *, create: bool = False, readonly: 
     segment whose header is unreadable although the last clean close synced records into it
     (`fsck --repair`, which reports the seqs); without it the writer refuses (DamagedError).
     """
-    if sync_every_ms is not None and sync_every_ms < 0:
-        raise InvalidInputError("sync_every_ms must be >= 0 or None")
+    # the group-commit thread waits up to this long: NaN made it spin, inf overflowed its timer
+    if sync_every_ms is not None and not 0 <= sync_every_ms <= threading.TIMEOUT_MAX * 1000:
+        raise InvalidInputError(f"sync_every_ms must be from 0 to {threading.TIMEOUT_MAX * 1000:.0f} or None, "
+                                f"not {sync_every_ms}")
     if segment_bytes < 4096 or segment_records < 1:
         raise InvalidInputError("segment_bytes must be at least 4096 and segment_records at least 1")
     codecs = Codecs(codec_from_config(codec), {k: codec_from_config(v) for k, v in (stream_codecs or {}).items()})

@@ -42,7 +42,7 @@ def test_train_refuses_labels_outside_its_run(runs, tmp_path, capsys):
     later = labels(tmp_path / "later.json", (1 << 62, (1 << 62) + 10**9))
     assert main(["train", str(runs / "test" / "run.jsonl"), "--labels", later, "--out", str(out)]) == 1
     assert "lies outside" in capsys.readouterr().err and not out.exists()
-    assert main(["train", str(runs / "test" / "run.jsonl"), "--out", str(out), "--validate",
+    assert main(["train", str(runs / "nominal" / "run.jsonl"), "--out", str(out), "--validate",
                  str(runs / "test" / "run.jsonl"), "--validate-labels", later]) == 1  # fmt: skip
     assert "lies outside" in capsys.readouterr().err and not out.exists()  # refused before training
 

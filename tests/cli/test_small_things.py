@@ -75,3 +75,11 @@ def test_cat_prints_a_utf8_topic_as_it_came_in(tmp_path, capsys):
     out = capsys.readouterr().out
     assert out.splitlines(keepends=True) == lines  # each line one line, as valid JSON
     assert [json.loads(line)["topic"] for line in out.splitlines()] == ["/cámara", "/línea\u2028sep"]
+
+
+def test_fsck_help_does_not_say_it_changes_nothing_when_it_repairs(capsys):
+    # its description said "Changes nothing." above its own --repair (found by the attack of l-atk8)
+    with pytest.raises(SystemExit):
+        main(["fsck", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "Changes nothing." not in out and "Changes nothing, unless --repair is given." in out

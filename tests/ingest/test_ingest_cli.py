@@ -61,3 +61,15 @@ def test_help_has_examples(command, capsys):
         build_parser().parse_args([command, "--help"])
     text = capsys.readouterr().out
     assert "examples:" in text and f"cclog {command} " in text
+
+
+def test_jsonl_file_whose_first_line_is_cut_is_read_as_jsonl(tmp_path, capsys):
+    # A log cut at its start (rotated, `tail -c`) begins mid-line: it was "of an unknown
+    # file type" even with --on-error skip, naming no line (found by the attack of l-atk8)
+    good = '{"topic": "/a", "stamp_ns": 1, "msg": {"x": 1}}\n'
+    src = tmp_path / "cut.jsonl"
+    src.write_text('2.5}}}\n' + good)
+    assert main(["convert", str(src), "-o", "-"]) == 1
+    assert "cut.jsonl, line 1: invalid JSON" in capsys.readouterr().err
+    assert main(["convert", str(src), "-o", "-", "--on-error", "skip"]) == 0
+    assert capsys.readouterr().out == good
