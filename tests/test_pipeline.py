@@ -143,7 +143,7 @@ def test_malformed_line_stops_and_keeps_what_came_before(tmp_path):
         assert [t for w in store.query("/odom") for t, _ in w.messages()] == list(range(30))
     proc = run_cli("record", "-", "--store", str(tmp_path / "s2"), "--on-error", "skip")
     out, err = proc.communicate("".join(lines), timeout=60)
-    assert proc.returncode == 0 and "skipped" in err and "line 31" in err
+    assert proc.returncode == 4 and "skipped" in err and "line 31" in err
     with cclogfs.open_store(tmp_path / "s2", readonly=True) as store:
         assert sum(w.count for w in store.query("/odom")) == 50
 

@@ -40,7 +40,7 @@ def test_on_error_skip_skips_and_counts_a_line_on_the_runs_stream(tmp_path, caps
     src = tmp_path / "in.jsonl"
     text = lines(["/odom"] * 3 + [RUNS_STREAM] + ["/odom"] * 3)
     src.write_text(text if layout == "canonical" else text.replace('":', '": '))
-    assert main(["record", str(src), "--store", str(tmp_path / "s"), "--on-error", "skip"]) == 0
+    assert main(["record", str(src), "--store", str(tmp_path / "s"), "--on-error", "skip"]) == 4
     err = capsys.readouterr().err
     assert f"cclog: skipped: {src}, line 4: the message is on {RUNS_STREAM}" in err
     assert f"{src}: 1 bad lines skipped (--on-error skip)" in err
@@ -64,7 +64,7 @@ def test_a_json_mcap_channel_on_the_runs_stream_is_named_and_skippable(tmp_path,
     assert main(["record", str(path), "--store", str(tmp_path / "s")]) == 1
     assert (f"cclog: error: {path}, message 2 (logged at 2 ns): the message is on {RUNS_STREAM}, the stream this "
             "recording writes itself") in capsys.readouterr().err  # fmt: skip
-    assert main(["record", str(path), "--store", str(tmp_path / "skip"), "--on-error", "skip"]) == 0
+    assert main(["record", str(path), "--store", str(tmp_path / "skip"), "--on-error", "skip"]) == 4
     assert f"cclog: skipped: {path}, message 2 (logged at 2 ns)" in capsys.readouterr().err
     with cclogfs.open_store(tmp_path / "skip", readonly=True) as store:
         assert [t for w in store.query("/odom") for t, _ in w.messages()] == [1, 3]
@@ -85,7 +85,7 @@ def test_a_ros1_bag_connection_on_the_runs_stream_is_named(tmp_path, capsys):
     assert main(["record", str(path), "--store", str(tmp_path / "s")]) == 1
     assert (f"cclog: error: {path}, message 2 of the bag (logged at 2 ns): the message is on {RUNS_STREAM}"
             in capsys.readouterr().err)  # fmt: skip
-    assert main(["record", str(path), "--store", str(tmp_path / "skip"), "--on-error", "skip"]) == 0
+    assert main(["record", str(path), "--store", str(tmp_path / "skip"), "--on-error", "skip"]) == 4
     with cclogfs.open_store(tmp_path / "skip", readonly=True) as store:
         assert [t for w in store.query("/chatter") for t, _ in w.messages()] == [1, 3]
 

@@ -403,15 +403,18 @@ DAMAGED_EXIT = 4  # the input was damaged: what could be read was kept
 
 
 def damaged_exit(source) -> int:
-    """0, or DAMAGED_EXIT after saying what a damaged input lost (`ingest.salvage`)."""
+    """0, or DAMAGED_EXIT after saying what a damaged input lost (`ingest.salvage`), or when
+    --on-error skip left bad lines or messages out (the caller has said how many): a script
+    checking the exit code must learn that the output is not the whole input, as it does
+    for a skipped MCAP chunk."""
     note = getattr(source, "note", None)
     if note:
         print(f"cclog: note: {note}", file=sys.stderr)
     lost = getattr(source, "lost", None)
-    if lost is None:
-        return 0
-    print(f"cclog: input damaged, kept what could be read: {lost}", file=sys.stderr)
-    return DAMAGED_EXIT
+    if lost is not None:
+        print(f"cclog: input damaged, kept what could be read: {lost}", file=sys.stderr)
+        return DAMAGED_EXIT
+    return DAMAGED_EXIT if getattr(source, "skipped", 0) else 0
 
 
 # The store's errors name its Python API; on the command line they name the command.

@@ -60,7 +60,8 @@ header (tf2_msgs/TFMessage) or whose seq does not count up are listed as not che
 exit status: 0 done, 1 error, 130 interrupted (file input), 4 ros1:// recorded but
 messages were lost (seq gaps, received after the recording stopped, or of another type than
 the topic's first: a publisher restarted with another type; such messages are skipped, not stored),
-3 done but the store is still over --budget (as `cclog compact`), or retention had to
+or a damaged input was recorded as far as it could be read, or --on-error skip left bad lines or
+messages out (stderr says how many), 3 done but the store is still over --budget (as `cclog compact`), or retention had to
 drop every message this run stored to meet it.
 """
 LOST = 4  # the exit status when a live recording knows it lost messages
@@ -101,7 +102,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--on-error", choices=["stop", "skip"], default="stop",
                    help="a malformed JSONL line, or a message its stream cannot take (another type than the "
                         "topic's first or the store's stream has, a topic the recording writes itself such as "
-                        "/cclog/runs), stops the run (default) or is reported and skipped")
+                        "/cclog/runs), stops the run (default) or is reported and skipped (exit 4)")
     p.add_argument("--sync-ms", type=float, default=200, help="group commit interval (default 200 ms)")
     p.add_argument("--no-summary", action="store_true", help="with --model: no per-minute summary stream")
     p.add_argument("--features-out", metavar="DIR",

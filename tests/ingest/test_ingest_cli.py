@@ -42,7 +42,7 @@ def test_convert_bad_lines(tmp_path, capsys, monkeypatch):
     out = tmp_path / "out.jsonl"
     assert main(["convert", str(bad), "-o", str(out)]) == 1
     assert "bad.jsonl, line 2: invalid JSON" in capsys.readouterr().err
-    assert main(["convert", str(bad), "-o", str(out), "--on-error", "skip"]) == 0
+    assert main(["convert", str(bad), "-o", str(out), "--on-error", "skip"]) == 4  # lines left out: exit 4
     assert "skipped: " in capsys.readouterr().err and out.read_text() == good * 2
     monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(good.encode())))
     assert main(["convert", "-", "-o", "-"]) == 0
@@ -71,5 +71,5 @@ def test_jsonl_file_whose_first_line_is_cut_is_read_as_jsonl(tmp_path, capsys):
     src.write_text('2.5}}}\n' + good)
     assert main(["convert", str(src), "-o", "-"]) == 1
     assert "cut.jsonl, line 1: invalid JSON" in capsys.readouterr().err
-    assert main(["convert", str(src), "-o", "-", "--on-error", "skip"]) == 0
+    assert main(["convert", str(src), "-o", "-", "--on-error", "skip"]) == 4  # a line left out: exit 4
     assert capsys.readouterr().out == good

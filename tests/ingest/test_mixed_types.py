@@ -48,7 +48,7 @@ def test_a_type_change_in_jsonl_is_skipped_and_counted_with_on_error_skip(tmp_pa
     src = tmp_path / "mixed.jsonl"
     mixed_jsonl(src)
     r = record(src, "--store", tmp_path / "s", "--on-error", "skip")
-    assert r.returncode == 0, r.stderr
+    assert r.returncode == 4, r.stderr
     assert f"cclog: skipped: {src}, line 2: the message on /t is a std_msgs/msg/Int32" in r.stderr
     assert f"{src}: SKIPPED 1 bad messages (named above), not stored" in r.stderr
     assert stored(tmp_path / "s") == [("std_msgs/msg/String", ['{"data": "hi"}', '{"data": "ho"}'])]
@@ -68,7 +68,7 @@ def test_a_second_channel_of_another_type_in_a_json_mcap_is_named(tmp_path):
             w.add_message(chan, log_time=t, data=b'{"x": 1}', publish_time=t)
         w.finish()
     r = record(path, "--store", tmp_path / "skip", "--on-error", "skip")
-    assert r.returncode == 0 and f"{path}: SKIPPED 1 bad messages (named above)" in r.stderr, r.stderr
+    assert r.returncode == 4 and f"{path}: SKIPPED 1 bad messages (named above)" in r.stderr, r.stderr
     assert stored(tmp_path / "skip") == [("demo/A", ['{"x": 1}', '{"x": 1}'])]
     r = record(path, "--store", tmp_path / "s")
     assert r.returncode == 1, r.stderr
@@ -91,7 +91,7 @@ def test_a_second_connection_of_another_type_in_a_ros1_bag_is_named(tmp_path):
         bag.write(i, 2, bytes(ts.serialize_ros1(Int32(data=5), "std_msgs/msg/Int32")))
         bag.write(s, 3, bytes(ts.serialize_ros1(String(data="ho"), "std_msgs/msg/String")))
     r = record(path, "--store", tmp_path / "skip", "--on-error", "skip")
-    assert r.returncode == 0 and f"cclog: skipped: {path}, message 2 of the bag" in r.stderr, r.stderr
+    assert r.returncode == 4 and f"cclog: skipped: {path}, message 2 of the bag" in r.stderr, r.stderr
     assert f"{path}: SKIPPED 1 bad messages (named above)" in r.stderr
     assert "bad lines" not in r.stderr, r.stderr  # a bag has no lines
     assert stored(tmp_path / "skip") == [("std_msgs/msg/String", ['{"data": "hi"}', '{"data": "ho"}'])]
@@ -119,7 +119,7 @@ def test_a_type_other_than_the_stores_is_refused_across_runs(tmp_path):
                 "has type std_msgs/msg/String in the store (recorded by an earlier run)") in r.stderr  # fmt: skip
         assert "Traceback" not in r.stderr
     r = record(second, "--store", tmp_path / "s", "--on-error", "skip")
-    assert r.returncode == 0, r.stderr
+    assert r.returncode == 4, r.stderr
     assert f"cclog: skipped: {second}, line 2: the message on /t is a std_msgs/msg/Int32" in r.stderr
     texts = [t for _, ts in stored(tmp_path / "s") for t in ts]
     assert texts == ['{"data": "hi"}', '{"data": "ho"}', '{"data": "hu"}']
