@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 from typing import TextIO
 
-from ..errors import CorruptionError, InvalidInputError
+from ..errors import CorruptionError, DamagedError, InvalidInputError
 from ..textfmt import human_bytes, iso_ns, table
 from ..times import TIME_RULE, parse_time
 
@@ -86,6 +86,15 @@ class Skipped:
         self.skip = bool(getattr(args, "skip_damaged", False))
         self.stretches = store.damage() if self.skip else []
         self.windows: list[str] = []
+        # A torn tail the reader cut with intact records past it is no torn write: the
+        # writer's open keeps those records (a side file `fsck --repair` puts back), so an
+        # answer without them is partial. A plain torn tail (nothing intact after) is not.
+        cut = [str(p) for p in store.recovery.problems if p.intact_after]
+        if cut and not self.skip:
+            raise DamagedError(f"{store.path}: intact records lie past a bad one in the unsynced tail "
+                               f"({'; '.join(cut)}); a read would leave them out, so it refuses: run "
+                               "`cclog fsck --repair` to put them back, or read the rest with --skip-damaged", [])  # fmt: skip
+        self.windows += [f"{p} (past the reader's cut)" for p in cut]
 
     def report(self) -> int:
         """Say on stderr what was skipped; the exit status."""
