@@ -49,3 +49,12 @@ def test_a_plain_torn_tail_is_still_read_without_a_word(tmp_path, capsys):
     flip(tmp_path / "s" / SEG, off + length - 5)
     assert main(["cat", str(tmp_path / "s")]) == 0
     assert capsys.readouterr().err == ""
+
+
+def test_play_and_plot_refuse_it_too(tmp_path, capsys):
+    off = _crashed_with_a_bad_record(tmp_path / "s")
+    assert main(["play", str(tmp_path / "s"), "--rate", "1000"]) == 1
+    out, err = capsys.readouterr()
+    assert out == "" and f"{SEG} at offset {off}" in err, err
+    assert main(["plot", str(tmp_path / "s"), "--out", str(tmp_path / "plots")]) == 1
+    assert f"{SEG} at offset {off}" in capsys.readouterr().err
