@@ -77,13 +77,17 @@ def main():
         if c.returncode != 0 and not (not lines and "holds no messages" in c.stderr):
             problems.append(f"cat rc={c.returncode}: {c.stderr.strip()[:300]}")
         # order check against the reference
-        pos = [] if mode == "keep" else [refpos.get(l, -1) for l in lines]
+        if mode == "stamps":  # aged while recorded: values within bounds, every stamp kept
+            rs = {json.loads(l)["stamp_ns"]: k for k, l in enumerate(ref)}
+            pos = [rs.get(json.loads(l)["stamp_ns"], -1) for l in lines]
+        else:
+            pos = [] if mode == "keep" else [refpos.get(l, -1) for l in lines]
         if -1 in pos:
             problems.append(f"cat gives {pos.count(-1)} lines not in the reference")
         elif pos:
             if mode == "prefix" and pos != list(range(len(pos))):
                 problems.append(f"not a prefix: first={pos[0]} len={len(pos)} last={pos[-1]}")
-            if mode == "slice" and pos != list(range(pos[0], pos[0] + len(pos))):
+            if mode in ("slice", "stamps") and pos != list(range(pos[0], pos[0] + len(pos))):
                 problems.append(f"not a slice: first={pos[0]} len={len(pos)} last={pos[-1]}")
             if mode == "sorted" and any(b <= a for a, b in zip(pos, pos[1:])):
                 problems.append("reordered or duplicated")
