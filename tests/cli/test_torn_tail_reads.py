@@ -58,3 +58,13 @@ def test_play_and_plot_refuse_it_too(tmp_path, capsys):
     assert out == "" and f"{SEG} at offset {off}" in err, err
     assert main(["plot", str(tmp_path / "s"), "--out", str(tmp_path / "plots")]) == 1
     assert f"{SEG} at offset {off}" in capsys.readouterr().err
+
+
+def test_info_counts_without_them_and_exits_3(tmp_path, capsys):
+    # info's totals leave the cut records out; it noted the cut, but exited 0 as for a clean store
+    off = _crashed_with_a_bad_record(tmp_path / "s")
+    assert main(["info", str(tmp_path / "s")]) == 3
+    out = capsys.readouterr().out
+    assert f"{SEG} at offset {off}" in out and "intact records among them" in out
+    assert main(["info", "--json", str(tmp_path / "s")]) == 3
+    capsys.readouterr()
