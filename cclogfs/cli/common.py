@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 from typing import TextIO
 
-from ..errors import CorruptionError, InvalidInputError
+from ..errors import CorruptionError, DamagedError, InvalidInputError
 from ..textfmt import human_bytes, iso_ns, table
 from ..times import TIME_RULE, parse_time
 
@@ -78,6 +78,20 @@ def record_mib(text: str) -> int:
 EXIT_SKIPPED = 3
 
 
+def refuse_cut_tail(store, skip: bool = False) -> list[str]:
+    """The torn tails the reader cut with intact records past them, refused unless `skip`.
+    Such a cut is no torn write: the writer's open keeps those records (a side file that
+    `fsck --repair` puts back), so an answer without them is partial. A plain torn tail
+    (nothing intact after it) is what a crash may lose, and is read without a word."""
+    cut = [str(p) for p in store.recovery.problems if p.intact_after]
+    if cut and not skip:
+        hint = ", or read the rest with --skip-damaged" if skip is not None else ""
+        raise DamagedError(f"{store.path}: intact records lie past a bad one in the unsynced tail "
+                           f"({'; '.join(cut)}); a read would leave them out, so it refuses: run "
+                           f"`cclog fsck --repair` to put them back{hint}", [])  # fmt: skip
+    return cut
+
+
 class Skipped:
     """What a reading command with --skip-damaged left out: stretches the store knows are
     damaged, and windows whose record failed a check when read."""
@@ -86,6 +100,7 @@ class Skipped:
         self.skip = bool(getattr(args, "skip_damaged", False))
         self.stretches = store.damage() if self.skip else []
         self.windows: list[str] = []
+        self.windows += [f"{p} (past the reader's cut)" for p in refuse_cut_tail(store, self.skip)]
 
     def report(self) -> int:
         """Say on stderr what was skipped; the exit status."""

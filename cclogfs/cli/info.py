@@ -67,6 +67,9 @@ def store_info(path: str) -> dict:
             "streams": streams,
             "runs": _runs(store, streams, damage, runs, held.held),
             "recovery": [str(p) for p in store.recovery.problems],
+            # the totals leave out intact records past a cut: stored data (a side file for
+            # `fsck --repair`), not a torn write, so info exits 3 as for damage
+            "cut_intact": [str(p) for p in store.recovery.problems if p.intact_after],
             "damage": [describe_damage(d) for d in damage],
             "damage_repair": [repair_hint(d) for d in damage],  # what clears each stretch
             "unreadable": unreadable,  # records that failed a check when read: each counted as a window
@@ -197,7 +200,7 @@ def run(args: argparse.Namespace) -> int:
     info = store_info(args.store)
     if args.json:
         print(json.dumps(info, indent=2))
-        return EXIT_SKIPPED if info["damage"] or info["unreadable"] else 0
+        return EXIT_SKIPPED if info["damage"] or info["unreadable"] or info["cut_intact"] else 0
     rows = []
     for name, st in info["streams"].items():
         span = (st["end_ns"] - st["start_ns"]) / 1e9
@@ -231,4 +234,4 @@ def run(args: argparse.Namespace) -> int:
         print(f"DAMAGE (not counted above; {fix}): {line}")
     for line in info["unreadable"]:
         print(f"DAMAGE (its record counted above as a window alone; `cclog fsck` names it): {line}")
-    return EXIT_SKIPPED if info["damage"] or info["unreadable"] else 0
+    return EXIT_SKIPPED if info["damage"] or info["unreadable"] or info["cut_intact"] else 0

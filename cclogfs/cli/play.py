@@ -7,7 +7,7 @@ import sys
 import time
 
 from ..errors import InvalidInputError
-from .common import TIME_RULE, check_range, check_store_topics, nothing_matched, time_arg
+from .common import TIME_RULE, check_range, check_store_topics, nothing_matched, refuse_cut_tail, time_arg
 
 # The engine and the players are imported where they are used, not here: `cclog --help`
 # imports every subcommand module.
@@ -67,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
     _refuse_options_of_other_sinks(args)
     check_range(args)
     with open_store(args.store, readonly=True) as store:
+        refuse_cut_tail(store, skip=None)  # no --skip-damaged here: refused outright
         names = sorted(n for n in store.streams() if (n in args.topic if args.topic else not hidden_by_default(n)))
         if not names:
             raise nothing_matched(store, args)

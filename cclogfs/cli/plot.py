@@ -44,8 +44,10 @@ def run(args: argparse.Namespace) -> int:
     from ..plot.store import plot_data, plot_store
     from ..runs import hidden_by_default
     from ..store import open_store
+    from .common import refuse_cut_tail
 
     with open_store(args.store, readonly=True) as store:
+        refuse_cut_tail(store, skip=None)  # no --skip-damaged here: refused outright
         if all(hidden_by_default(n) for n in store.streams()):  # else an empty windows.png and exit 0
             raise InvalidInputError(f"{args.store} holds no messages: nothing to plot")
         data = plot_data(store, args.topic)

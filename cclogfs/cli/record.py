@@ -374,9 +374,10 @@ class _StoreFailed(Exception):
     """The store failed mid-run (disk full, I/O error): carried out of the open store, so that
     the run's end record is tried once the store is closed (`_end_after_failure`)."""
 
-    def __init__(self, err: CclogError, said: str, run, run_seq: int | None, stats: RecordStats) -> None:
+    def __init__(self, err: CclogError, said: str, run, run_seq: int | None, stats: RecordStats, store_id: str) -> None:
         super().__init__(str(err))
         self.err, self.said, self.run, self.run_seq, self.stats = err, said, run, run_seq, stats
+        self.store_id = store_id  # the end record goes into this store only, not whatever took its path
 
 
 def _stored_when_failed(store, run_seq: int | None) -> str:
@@ -406,6 +407,7 @@ def _end_after_failure(path: str, source: str, failed: _StoreFailed) -> CclogErr
     said = (f"{failed.err}. This run's messages stored: {failed.said}; the rest of the "
             f"{failed.stats.messages_in:,} messages it read was lost")  # fmt: skip
     try:
+        _same_store(path, failed.store_id)
         with open_store(path) as store:
             kept = _run_records(store, failed.run_seq, store.synced_seq(written=True))
             if kept is None:
@@ -414,6 +416,8 @@ def _end_after_failure(path: str, source: str, failed: _StoreFailed) -> CclogErr
             Run(store, failed.run.number, failed.run.id).end(
                 "error", messages_in=failed.stats.messages_in, messages_kept=n, windows=count.windows,
                 summaries=count.summaries, records=count.records, error=str(failed.err), store_failed=True)  # fmt: skip
+    except _Moved as moved:
+        error = StoreFailedError(f"{said}, and its end record was not written: {moved}")
     except (CclogError, OSError):
         error = StoreFailedError(f"{said}, and its end record could not be written. Reopening the store (any cclog "
                                  f"command) keeps what is stored; {_again(source, 'messages')}")  # fmt: skip
@@ -423,6 +427,23 @@ def _end_after_failure(path: str, source: str, failed: _StoreFailed) -> CclogErr
                                  f"{_again(source, f'{n:,} messages')}")  # fmt: skip
     error.store_failed = said  # what to say instead when the store turns out empty and is removed (`run`)
     return error
+
+
+class _Moved(Exception):
+    """The path of the failed store holds another store now."""
+
+
+def _same_store(path: str, store_id: str) -> None:
+    """Refuse to reopen `path` for the end record when it holds another store now (the store
+    was moved away and another put in its place while recording: the failure was its LOCK
+    being replaced). Checked by a reader, which changes nothing, before the writer's open."""
+    from ..store import open_store
+
+    with open_store(path, readonly=True) as store:
+        now = store.store_id
+    if now != store_id:
+        raise _Moved(f"{path} holds another store now (id {now}, this run's is {store_id}): the store "
+                     "was moved or replaced while recording; look for it where it was moved")  # fmt: skip
 
 
 def _again(source: str, kept: str) -> str:
@@ -533,7 +554,8 @@ def _run(args: argparse.Namespace) -> int:
             except BaseException as err:
                 _end_run(run, source, stats, received, err)
                 if store.failed is not None and isinstance(err, CclogError):  # disk full, I/O error
-                    raise _StoreFailed(err, _stored_when_failed(store, run_seq), run, run_seq, stats) from err
+                    raise _StoreFailed(err, _stored_when_failed(store, run_seq), run, run_seq, stats,
+                                       store.store_id) from err
                 raise
             refused = _refused_rules(upkeep)
             _end_run(run, source, stats, received, refused)
