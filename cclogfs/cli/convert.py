@@ -60,9 +60,9 @@ def run(args: argparse.Namespace) -> int:
         else:
             with atomic_output(args.output) as out:
                 _write(src, out, args)
-    if src.skipped:
+    if skipped := getattr(src, "skipped", 0):  # a salvaging reader skips nothing
         unit = getattr(src, "bad_unit", "messages")
-        print(f"cclog convert: SKIPPED {src.skipped:,} bad {unit} (named above), not written (exit 4)", file=sys.stderr)
+        print(f"cclog convert: SKIPPED {skipped:,} bad {unit} (named above), not written (exit 4)", file=sys.stderr)
     return damaged_exit(src)
 
 
