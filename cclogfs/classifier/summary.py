@@ -9,9 +9,8 @@ from __future__ import annotations
 import json
 import math
 from collections import deque
-from functools import reduce
 from itertools import repeat
-from operator import add, floordiv, itemgetter, ne
+from operator import floordiv, itemgetter, ne, sub
 
 import numpy as np
 
@@ -21,6 +20,13 @@ __all__ = ["SUMMARY_TOPIC", "SummaryBuilder"]
 
 NS = 1_000_000_000
 MAX_HELD = 1024  # samples update_many holds at most: as fast as more, and a live push that takes them waits < 1 ms
+
+
+def _ordered_sum(start: float, values: np.ndarray) -> float:
+    """start + values[0] + values[1] + ..., added in that order as `update` adds them one
+    by one: `cumsum` (`np.add.accumulate`) adds in order, unlike `np.sum`'s pairwise sum,
+    and without a Python float and an `add` call a value (issue 14)."""
+    return float(np.concatenate(((start,), values)).cumsum()[-1])
 
 
 class SummaryBuilder:
@@ -170,7 +176,7 @@ class SummaryBuilder:
                        anomalous: list[bool]) -> None:  # fmt: skip
         """`update` of each sample of a steady list at once (`t`: the previous sample's
         stamp and theirs, from `_steady`): the same sums, added in the same order
-        (`reduce` of Python floats), and the same maxima. Differences and divisions are
+        (`_ordered_sum`), and the same maxima. Differences and divisions are
         numpy's, which round as Python's do; the steps' lengths stay `math.hypot`'s (C's
         `hypot` differs in the last bit)."""
         n = len(xs)
@@ -184,12 +190,13 @@ class SummaryBuilder:
         if self.first_ns is None:
             self.first_ns = int(t[1])
         self.last_ns = int(t[-1])
-        x, y = np.array(xs, dtype=np.float64), np.array(ys, dtype=np.float64)
-        dx, dy = np.diff(x, prepend=x0).tolist(), np.diff(y, prepend=y0).tolist()
-        steps = filter(math.isfinite, map(math.hypot, dx, dy))
-        s["distance_m"] = reduce(add, steps, s["distance_m"])
+        # The differences as Python floats for `math.hypot` straight from the lists (the
+        # same subtractions; no arrays of x and y made and turned back into lists).
+        dx, dy = list(map(sub, xs, [x0, *xs[:-1]])), list(map(sub, ys, [y0, *ys[:-1]]))
+        steps = np.fromiter(map(math.hypot, dx, dy), np.float64, n)
+        s["distance_m"] = _ordered_sum(s["distance_m"], steps[np.isfinite(steps)])
         moving = fast > self.moving_speed
-        s["moving_s"] = reduce(add, (np.diff(t)[moving] / NS).tolist(), s["moving_s"])
+        s["moving_s"] = _ordered_sum(s["moving_s"], np.diff(t)[moving] / NS)
         self._accelerations(t[1:], v)
         self.prev = (self.last_ns, xs[-1], ys[-1], speeds[-1])
 

@@ -2,7 +2,10 @@
 
 import json
 import math
+from functools import reduce
+from operator import add
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -66,3 +69,14 @@ def test_update_many_is_update_of_each(samples, size, held, start):
     assert repr((many.stats, many.prev, list(many.recent), many.bucket, many.first_ns, many.last_ns)) == repr(
         (one.stats, one.prev, list(one.recent), one.bucket, one.first_ns, one.last_ns))
     assert many.flush() == one.flush()
+
+
+def test_ordered_sum_adds_in_order():
+    """`_ordered_sum` is `update`'s one-by-one sum, bit for bit: on these values numpy's
+    pairwise `sum` gives other last bits, so a sum in another order fails here."""
+    rng = np.random.default_rng(14)
+    values = rng.random(1000) * 10.0 ** rng.integers(-6, 6, 1000)
+    one_by_one = reduce(add, values.tolist(), 0.3)
+    assert float(np.concatenate(((0.3,), values)).sum()) != one_by_one
+    assert summary._ordered_sum(0.3, values) == one_by_one
+    assert summary._ordered_sum(0.3, values[:0]) == 0.3
