@@ -344,6 +344,23 @@ def _begin_run(args: argparse.Namespace, store, source):
     return begin_run(store, name, fingerprint=fingerprint, options=_options(args), **extra)
 
 
+def _refuse_runs_damage(args: argparse.Namespace, store) -> None:
+    """Damage that may have lost a run's start record hides whether this source was
+    recorded: going on with a warning stored its messages twice."""
+    from ..runs import has_fingerprint, runs_damage
+    from ..store.store import describe_damage
+
+    if args.append or not has_fingerprint(args.source):  # stdin or live: never refused as recorded
+        return
+    damage = runs_damage(store)
+    if damage:
+        raise InvalidInputError(
+            f"{args.store} holds damage that may have lost the record of an earlier run "
+            f"({'; '.join(describe_damage(d) for d in damage)}), so it cannot tell whether {args.source} was recorded "
+            f"into it already: pass --append to record it anyway, or {repair_hint(damage[0])} (a run record dropped "
+            "is not known afterwards: recording again then goes on unrefused).")  # fmt: skip
+
+
 def _end_run(run, source, stats: RecordStats, received: list[int], error: BaseException | None) -> None:
     """Write the run's end: what it saw and kept, what the source says it lost, and how it
     ended. After an error the store may have failed too; the error that stopped the run is
@@ -541,6 +558,7 @@ def _run(args: argparse.Namespace) -> int:
         with source, open_store(args.store, create=True, codec=args.codec, sync_every_ms=args.sync_ms,
                                 **store_options) as store, \
                 Progress("recording", total=getattr(source, "message_count", None)) as progress:  # fmt: skip
+            _refuse_runs_damage(args, store)  # before the warning: the refusal is the one line
             _warn_damage(store)
             # A stream keeps one type, also across runs (--append, or another source).
             stored = stored_types(store)
