@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import InvalidInputError, StoreLockedError
 from ..times import parse_duration, parse_time
-from .common import human_bytes, iso_ns, parse_size, table, unmatched_rules_error
+from .common import human_bytes, iso_ns, parse_size, say_dropped_damage, table, unmatched_rules_error
 
 if TYPE_CHECKING:  # the policy module loads only when aging is asked for
     from ..upkeep.policy import Policy
@@ -99,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(dict(report.to_dict(), dry_run=args.dry_run), indent=2))
     else:
         print(format_preview(report, policy, args) if args.dry_run else format_report(report, policy, args))
+    say_dropped_damage(args.store, report.damage_dropped)
     return 3 if report.over_budget else 0
 
 

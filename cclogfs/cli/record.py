@@ -13,7 +13,8 @@ from ..errors import CclogError, InvalidInputError
 from ..times import parse_duration
 from ..windowcount import Link, WindowCount, count_records, link_of
 from .common import (Progress, check_topics_exist, damaged_exit, human_bytes, iso_ns, load_labels, model_fits,
-                     no_source_message, parse_size, repair_hint, stored_types, unmatched_rules_error)
+                     no_source_message, parse_size, repair_hint, say_dropped_damage, stored_types,
+                     unmatched_rules_error)
 
 # The engine, sources and classifier are imported where they are used, not here:
 # `cclog --help` imports every subcommand module.
@@ -612,7 +613,7 @@ def _fit_budget(store, upkeep: Upkeep | None, final_bytes: int | None) -> int | 
 
     if upkeep is None or upkeep.budget is None or final_bytes is None:
         return final_bytes
-    upkeep.dropped_segments += compact(store, budget=upkeep.budget).segments_dropped
+    upkeep.count_drops(compact(store, budget=upkeep.budget))
     return store.data_bytes()
 
 
@@ -669,7 +670,7 @@ def _record_run(args: argparse.Namespace, store, source, policy, upkeep: Upkeep 
         return rows, None
     store.sync()  # first: the active segment's buffered records count toward the budget too
     if upkeep.budget is not None:  # the last records and the final flush come after the last pass
-        upkeep.dropped_segments += compact(store, budget=upkeep.budget).segments_dropped
+        upkeep.count_drops(compact(store, budget=upkeep.budget))
     return rows, store.data_bytes()
 
 
@@ -791,5 +792,6 @@ def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep:
             state = f"; budget {human_bytes(upkeep.budget)} {met}"
         print(f"upkeep: {upkeep.dropped_segments} segments dropped, {upkeep.aged_windows:,} windows aged; store "
               f"{human_bytes(final_bytes)}{state}", file=sys.stderr)  # fmt: skip
+        say_dropped_damage(args.store, upkeep.damage_dropped)
         for error in upkeep.errors:
             print(f"cclog: upkeep failed (recording went on): {error}", file=sys.stderr)

@@ -57,6 +57,7 @@ class CompactReport:
     aged: dict[str, dict[str, int]] = field(default_factory=dict)
     dropped: dict[str, dict[str, int]] = field(default_factory=dict)  # stream_stats sums
     segments_dropped: int = 0
+    damage_dropped: list[dict] = field(default_factory=list)  # named damage of the dropped segments
     disk_before: int = 0
     disk_after: int = 0
     budget: int | None = None
@@ -67,6 +68,7 @@ class CompactReport:
 
     def to_dict(self) -> dict:
         return {"aged": self.aged, "dropped": self.dropped, "segments_dropped": self.segments_dropped,
+                "damage_dropped": self.damage_dropped,
                 "disk_before": self.disk_before, "disk_after": self.disk_after, "budget": self.budget,
                 "over_budget": self.over_budget}  # fmt: skip
 
@@ -149,6 +151,7 @@ def _retain(store: Store, budget: int, keep_from: int | None, report: CompactRep
             break
         report.segments_dropped += 1
         merge_stream_stats(report.dropped, gone.streams)
+        report.damage_dropped += gone.damaged
 
 
 def check_budget(text: str, budget: int, smallest: int, why: str, what: str) -> None:
