@@ -35,8 +35,8 @@ RUNS_STREAM = "/cclog/runs"
 _EDGE = 1 << 20  # bytes hashed at each end of a file: cheap on a 10 GB bag, and a bag's
 # header (first MiB) and index (last MiB) differ between any two recordings
 
-__all__ = ["RUNS_STREAM", "Run", "RunInfo", "begin_run", "earlier_run", "grown_run", "has_fingerprint", "hidden_by_default",
-           "list_runs", "runs_damage", "source_fingerprint"]  # fmt: skip
+__all__ = ["RUNS_STREAM", "Run", "RunInfo", "begin_run", "earlier_run", "grown_run", "has_fingerprint",
+           "hidden_by_default", "list_runs", "runs_damage", "source_fingerprint"]  # fmt: skip
 
 
 def hidden_by_default(name: str) -> bool:

@@ -111,10 +111,17 @@ def _check_selection(store, options: dict) -> None:
     from fnmatch import fnmatchcase
 
     from ..upkeep import unmatched_rules
+    from ..upkeep.job import KEPT_STREAMS
 
     names = store.streams()
     for pattern in options["streams"] or ():
-        if not any(fnmatchcase(name, pattern) for name in names):  # else "nothing to age", as if all were new
+        matched = [name for name in names if fnmatchcase(name, pattern)]
+        # it said "nothing to age (no window old enough...)", which the runs never are
+        if matched and all(name in KEPT_STREAMS for name in matched):
+            raise InvalidInputError(f"--stream {pattern} names only {', '.join(matched)}, which is never aged or "
+                                    "compacted: it is the store's record of its runs (`record` reads their "
+                                    "fingerprints to refuse a source twice), kept exact and kept by retention.")  # fmt: skip
+        if not matched:  # else "nothing to age", as if all were new
             raise InvalidInputError(f"--stream {pattern} matches no stream of {store.path}; it holds "
                                     f"{', '.join(sorted(names)) or 'no streams'}.")  # fmt: skip
     policy = options["policy"]

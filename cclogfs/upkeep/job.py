@@ -74,7 +74,11 @@ class CompactReport:
 
 
 def selected(name: str, streams: Sequence[str] | None) -> bool:
-    """Whether aging applies to a stream: it matches a pattern, or by default is not excluded."""
+    """Whether aging applies to a stream: it matches a pattern, or by default is not excluded.
+    Never to KEPT_STREAMS, even named: a run's fingerprint and counts must stay exact (a
+    --dry-run listed the runs as to be aged, the active segment was sealed for them)."""
+    if name in KEPT_STREAMS:
+        return False
     if streams:
         return any(fnmatchcase(name, p) for p in streams)
     return not any(fnmatchcase(name, p) for p in DEFAULT_EXCLUDE)

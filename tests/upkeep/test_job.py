@@ -574,3 +574,23 @@ def test_retention_while_recording_says_the_damage_it_drops(tmp_path, capsys):
     assert main(["record", str(src), "--store", str(tmp_path / "s"), "--append", "--budget", "32KiB"]) == 0
     err = capsys.readouterr().err
     assert "retention dropped a segment holding damage (00000000000000000000.seg at offset 32" in err
+
+
+@pytest.mark.parametrize("dry", [[], ["--dry-run"]])
+def test_the_runs_stream_is_never_aged_and_compact_says_so(tmp_path, capsys, dry):
+    # `--stream /cclog/runs` said "nothing to age (no window old enough...)" after sealing
+    # the active segment for it, and --dry-run listed the runs as windows it would age.
+    src = tmp_path / "in.jsonl"
+    src.write_text("".join(json.dumps({"topic": "/b", "stamp_ns": 10**12 + i, "msg": {"x": i / 3}}) + "\n"
+                           for i in range(5)))  # fmt: skip
+    assert main(["record", str(src), "--store", str(tmp_path / "s")]) == 0
+    files = {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir()}
+    for pattern in ("/cclog/runs", "/cclog/*"):
+        capsys.readouterr()
+        assert main(["compact", str(tmp_path / "s"), "--stream", pattern, "--error", "0.1", *dry]) == 1
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "/cclog/runs, which is never aged or compacted" in err
+    assert {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir()} == files
+    assert main(["compact", str(tmp_path / "s"), "--stream", "*", "--error", "0.1", "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert "/b" in out and "/cclog/runs" not in out
