@@ -170,11 +170,11 @@ def earlier_run(store: Store, fingerprint: Mapping[str, Any] | None) -> RunInfo 
 
 def runs_damage(store: Store) -> list[dict[str, Any]]:
     """The store's named damage (`Store.damage()`) that may have lost a run's record: a
-    stretch whose first record's header is unreadable, or names /cclog/runs, or that lost
-    more than one seq (the later records' streams are unknown). Without those records
+    stretch that lost seqs and whose first record's header is unreadable, or names
+    /cclog/runs, or that lost more than one seq (the later records' streams are unknown). Without those records
     `earlier_run` cannot tell whether a source was recorded."""
-    return [d for d in store.damage() if d["end_seq"] - d["first_seq"] != 1 or _damaged_stream(store, d) in
-            (None, RUNS_STREAM)]  # fmt: skip
+    return [d for d in store.damage() if d["end_seq"] > d["first_seq"]  # a segment header that lost no record
+            and (d["end_seq"] - d["first_seq"] > 1 or _damaged_stream(store, d) in (None, RUNS_STREAM))]  # fmt: skip
 
 
 def _damaged_stream(store: Store, d: Mapping[str, Any]) -> str | None:
