@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
         else:
             with atomic_output(args.output) as out:
                 _write(src, out, args)
-    if src.skipped:
+    if getattr(src, "skipped", 0):  # a salvage reader (damaged input) skips no line: it has none
         unit = getattr(src, "bad_unit", "messages")
         print(f"cclog convert: SKIPPED {src.skipped:,} bad {unit} (named above), not written (exit 4)", file=sys.stderr)
     return damaged_exit(src)
