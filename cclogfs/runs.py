@@ -35,8 +35,8 @@ RUNS_STREAM = "/cclog/runs"
 _EDGE = 1 << 20  # bytes hashed at each end of a file: cheap on a 10 GB bag, and a bag's
 # header (first MiB) and index (last MiB) differ between any two recordings
 
-__all__ = ["RUNS_STREAM", "Run", "RunInfo", "begin_run", "earlier_run", "grown_run", "hidden_by_default",
-           "list_runs", "source_fingerprint"]  # fmt: skip
+__all__ = ["RUNS_STREAM", "Run", "RunInfo", "begin_run", "earlier_run", "grown_run", "has_fingerprint",
+           "hidden_by_default", "list_runs", "runs_damage", "source_fingerprint"]  # fmt: skip
 
 
 def hidden_by_default(name: str) -> bool:
@@ -56,10 +56,15 @@ def _hash_file(path: str, h: Any) -> int:
     return size
 
 
+def has_fingerprint(path: str) -> bool:
+    """Whether the source `path` has fixed content to fingerprint (not stdin, not live)."""
+    return path != "-" and "://" not in path
+
+
 def source_fingerprint(path: str) -> dict[str, Any] | None:
     """What identifies a file or ROS 2 bag directory's content; None for what has no
     fixed content (stdin `-`, a live `ros1://` source)."""
-    if path == "-" or "://" in path:
+    if not has_fingerprint(path):
         return None
     import hashlib
 
@@ -161,6 +166,30 @@ def earlier_run(store: Store, fingerprint: Mapping[str, Any] | None) -> RunInfo 
         if run.fingerprint is not None and _same_content(run.fingerprint, fingerprint) and run.kept != 0:
             return run
     return None
+
+
+def runs_damage(store: Store) -> list[dict[str, Any]]:
+    """The store's named damage (`Store.damage()`) that may have lost a run's record: a
+    stretch that lost seqs and whose first record's header is unreadable, or names
+    /cclog/runs, or that lost more than one seq (the later records' streams are unknown). Without those records
+    `earlier_run` cannot tell whether a source was recorded."""
+    return [d for d in store.damage() if d["end_seq"] > d["first_seq"]  # a segment header that lost no record
+            and (d["end_seq"] - d["first_seq"] > 1 or _damaged_stream(store, d) in (None, RUNS_STREAM))]  # fmt: skip
+
+
+def _damaged_stream(store: Store, d: Mapping[str, Any]) -> str | None:
+    """The stream the damaged record at `d` names in its header, when its header checks."""
+    from .store.format import RECORD_FIXED_SIZE, RecordError, check_fixed, parse_header
+
+    try:
+        with open(os.path.join(store.path, d["segment"]), "rb") as f:
+            size = os.fstat(f.fileno()).st_size
+            f.seek(d["offset"])
+            header_len = check_fixed(f.read(RECORD_FIXED_SIZE), size - d["offset"])
+            f.seek(d["offset"])
+            return parse_header(f.read(header_len)).name
+    except (OSError, RecordError):
+        return None
 
 
 def grown_run(store: Store, path: str, fingerprint: Mapping[str, Any] | None) -> RunInfo | None:

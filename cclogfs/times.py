@@ -7,16 +7,18 @@ import re
 
 from .errors import InvalidInputError
 
-_NS = re.compile(r"(\d+)ns")
-_BARE = re.compile(r"\d+")
+# A leading "-": before 1970. Stored stamps may be negative (a simulation's clock, a bag's
+# header stamps from a zeroed clock), so a range must be able to name them.
+_NS = re.compile(r"(-?\d+)ns")
+_BARE = re.compile(r"-?\d+")
 # A bare integer is read by its magnitude: below this it is seconds (1e11 s is the year
 # 5138), from it on nanoseconds (1e11 ns is 100 s after 1970). `date +%s` and a simulation's
 # 928 are seconds; a bag's 1432235695834049087 is nanoseconds.
 BARE_SECONDS_BELOW = 10**11
 TIME_RULE = ("TIME: ISO-8601 (2015-05-21T19:14:55.83Z, UTC without a zone), seconds (1432235695.83 "
              "or 12s), nanoseconds (1432235695834049087ns), or a bare integer: seconds below 1e11, "
-             "else nanoseconds")
-_SECONDS = re.compile(r"(\d+\.\d*|\.\d+|\d+(?:\.\d*)?s)")
+             "else nanoseconds; a leading - is before 1970")
+_SECONDS = re.compile(r"-?(\d+\.\d*|\.\d+|\d+(?:\.\d*)?s)")
 # ISO-8601 with up to nanosecond fractions (datetime itself stops at microseconds).
 _ISO = re.compile(
     r"(\d{4}-\d\d-\d\d(?:[T ]\d\d:\d\d(?::\d\d)?)?)(?:\.(\d{1,9}))?(Z|[+-]\d\d:?\d\d)?"
@@ -32,7 +34,7 @@ def parse_time(text: str) -> int:
         return int(m.group(1))
     if _BARE.fullmatch(s):
         n = int(s)
-        return n * 1_000_000_000 if n < BARE_SECONDS_BELOW else n
+        return n * 1_000_000_000 if abs(n) < BARE_SECONDS_BELOW else n
     if _SECONDS.fullmatch(s):
         from decimal import Decimal, InvalidOperation  # here: most times are integers
 

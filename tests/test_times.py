@@ -30,13 +30,20 @@ T = 1432235695834049087
         ("928", 928_000_000_000),
         ("99999999999", 99999999999_000_000_000),
         ("100000000000", 100_000_000_000),  # from 1e11 on: nanoseconds
+        # Before 1970, as stored stamps can be: "-5" was refused although `cat` showed such stamps.
+        ("-5", -5_000_000_000),
+        ("-5ns", -5),
+        ("-0.5", -500_000_000),
+        ("-12s", -12_000_000_000),
+        ("-100000000000", -100_000_000_000),
+        ("1969-12-31T23:59:59Z", -1_000_000_000),
     ],
 )
 def test_forms(text, ns):
     assert parse_time(text) == ns
 
 
-@pytest.mark.parametrize("text", ["", "abc", "-5", "1e9", "12 s", "2015-13-01", "2015-05-21T25:00Z"])
+@pytest.mark.parametrize("text", ["", "abc", "--5", "- 5", "1e9", "12 s", "2015-13-01", "2015-05-21T25:00Z"])
 def test_rejected_with_explanation(text):
     with pytest.raises(InvalidInputError, match=r"Time .* (not understood|not a valid ISO-8601)"):
         parse_time(text)

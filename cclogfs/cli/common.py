@@ -414,6 +414,18 @@ def repair_hint(damage: dict) -> str:
     return store_hint([damage])
 
 
+def say_dropped_damage(store_path, damage: list[dict]) -> None:
+    """Named damage retention dropped with its segment (`CompactReport.damage_dropped`): the
+    windows lost there (a run's record on /cclog/runs, say) are in no stream's count, and
+    the store names the damage no more, so this is the one place it is said."""
+    from ..store.store import describe_damage  # not at the top: `cclog --help` imports this module
+
+    for d in damage:
+        print(f"cclog: warning: {store_path}: retention dropped a segment holding damage ({describe_damage(d)}); "
+              "the windows lost there (messages, or a run's record on /cclog/runs) are counted in no stream "
+              "and are named no more", file=sys.stderr)  # fmt: skip
+
+
 DAMAGED_EXIT = 4  # the input was damaged: what could be read was kept
 
 

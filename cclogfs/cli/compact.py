@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import InvalidInputError, StoreLockedError
 from ..times import parse_duration, parse_time
-from .common import human_bytes, iso_ns, parse_size, table, unmatched_rules_error
+from .common import human_bytes, iso_ns, parse_size, say_dropped_damage, table, unmatched_rules_error
 
 if TYPE_CHECKING:  # the policy module loads only when aging is asked for
     from ..upkeep.policy import Policy
@@ -99,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(dict(report.to_dict(), dry_run=args.dry_run), indent=2))
     else:
         print(format_preview(report, policy, args) if args.dry_run else format_report(report, policy, args))
+    say_dropped_damage(args.store, report.damage_dropped)
     return 3 if report.over_budget else 0
 
 
@@ -110,10 +111,17 @@ def _check_selection(store, options: dict) -> None:
     from fnmatch import fnmatchcase
 
     from ..upkeep import unmatched_rules
+    from ..upkeep.job import KEPT_STREAMS
 
     names = store.streams()
     for pattern in options["streams"] or ():
-        if not any(fnmatchcase(name, pattern) for name in names):  # else "nothing to age", as if all were new
+        matched = [name for name in names if fnmatchcase(name, pattern)]
+        # it said "nothing to age (no window old enough...)", which the runs never are
+        if matched and all(name in KEPT_STREAMS for name in matched):
+            raise InvalidInputError(f"--stream {pattern} names only {', '.join(matched)}, which is never aged or "
+                                    "compacted: it is the store's record of its runs (`record` reads their "
+                                    "fingerprints to refuse a source twice), kept exact and kept by retention.")  # fmt: skip
+        if not matched:  # else "nothing to age", as if all were new
             raise InvalidInputError(f"--stream {pattern} matches no stream of {store.path}; it holds "
                                     f"{', '.join(sorted(names)) or 'no streams'}.")  # fmt: skip
     policy = options["policy"]

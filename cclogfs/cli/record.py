@@ -13,7 +13,8 @@ from ..errors import CclogError, InvalidInputError
 from ..times import parse_duration
 from ..windowcount import Link, WindowCount, count_records, link_of
 from .common import (Progress, check_topics_exist, damaged_exit, human_bytes, iso_ns, load_labels, model_fits,
-                     no_source_message, parse_size, repair_hint, stored_types, unmatched_rules_error)
+                     no_source_message, parse_size, repair_hint, say_dropped_damage, stored_types,
+                     unmatched_rules_error)
 
 # The engine, sources and classifier are imported where they are used, not here:
 # `cclog --help` imports every subcommand module.
@@ -344,6 +345,23 @@ def _begin_run(args: argparse.Namespace, store, source):
     return begin_run(store, name, fingerprint=fingerprint, options=_options(args), **extra)
 
 
+def _refuse_runs_damage(args: argparse.Namespace, store) -> None:
+    """Damage that may have lost a run's start record hides whether this source was
+    recorded: going on with a warning stored its messages twice."""
+    from ..runs import has_fingerprint, runs_damage
+    from ..store.store import describe_damage
+
+    if args.append or not has_fingerprint(args.source):  # stdin or live: never refused as recorded
+        return
+    damage = runs_damage(store)
+    if damage:
+        raise InvalidInputError(
+            f"{args.store} holds damage that may have lost the record of an earlier run "
+            f"({'; '.join(describe_damage(d) for d in damage)}), so it cannot tell whether {args.source} was recorded "
+            f"into it already: pass --append to record it anyway, or {repair_hint(damage[0])} (a run record dropped "
+            "is not known afterwards: recording again then goes on unrefused).")  # fmt: skip
+
+
 def _end_run(run, source, stats: RecordStats, received: list[int], error: BaseException | None) -> None:
     """Write the run's end: what it saw and kept, what the source says it lost, and how it
     ended. After an error the store may have failed too; the error that stopped the run is
@@ -541,6 +559,7 @@ def _run(args: argparse.Namespace) -> int:
         with source, open_store(args.store, create=True, codec=args.codec, sync_every_ms=args.sync_ms,
                                 **store_options) as store, \
                 Progress("recording", total=getattr(source, "message_count", None)) as progress:  # fmt: skip
+            _refuse_runs_damage(args, store)  # before the warning: the refusal is the one line
             _warn_damage(store)
             # A stream keeps one type, also across runs (--append, or another source).
             stored = stored_types(store)
@@ -594,7 +613,7 @@ def _fit_budget(store, upkeep: Upkeep | None, final_bytes: int | None) -> int | 
 
     if upkeep is None or upkeep.budget is None or final_bytes is None:
         return final_bytes
-    upkeep.dropped_segments += compact(store, budget=upkeep.budget).segments_dropped
+    upkeep.count_drops(compact(store, budget=upkeep.budget))
     return store.data_bytes()
 
 
@@ -651,7 +670,7 @@ def _record_run(args: argparse.Namespace, store, source, policy, upkeep: Upkeep 
         return rows, None
     store.sync()  # first: the active segment's buffered records count toward the budget too
     if upkeep.budget is not None:  # the last records and the final flush come after the last pass
-        upkeep.dropped_segments += compact(store, budget=upkeep.budget).segments_dropped
+        upkeep.count_drops(compact(store, budget=upkeep.budget))
     return rows, store.data_bytes()
 
 
@@ -773,5 +792,6 @@ def _print_summary(args: argparse.Namespace, source, stats: RecordStats, upkeep:
             state = f"; budget {human_bytes(upkeep.budget)} {met}"
         print(f"upkeep: {upkeep.dropped_segments} segments dropped, {upkeep.aged_windows:,} windows aged; store "
               f"{human_bytes(final_bytes)}{state}", file=sys.stderr)  # fmt: skip
+        say_dropped_damage(args.store, upkeep.damage_dropped)
         for error in upkeep.errors:
             print(f"cclog: upkeep failed (recording went on): {error}", file=sys.stderr)

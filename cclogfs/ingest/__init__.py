@@ -62,6 +62,16 @@ _MAGIC_SQLITE = b"SQLite format 3\x00"
 _SUFFIX = {"rosbag1": ".bag", "mcap": ".mcap", "sqlite3": ".db3"}
 
 
+def _refuse_store(p: Path) -> None:
+    """A cclogfs store given as a source was "not a ROS 2 bag", which told nothing of
+    what it is, nor how to read it."""
+    from ..store.format import MANIFEST
+
+    if (p / MANIFEST).is_file():
+        raise SourceError(f"{p} is a cclogfs store, not a recording: read its messages with `cclog cat {p}` (JSON "
+                          f"lines, which `cclog record -` takes) or `cclog export {p} --mcap OUT.mcap`.")  # fmt: skip
+
+
 def detect_format(path: str | Path) -> str:
     """The key in FORMATS for `path` ("-" is standard input, read as JSONL)."""
     if str(path) == "-":
@@ -72,6 +82,7 @@ def detect_format(path: str | Path) -> str:
             return "rosbag2"
         if any(p.glob("*.db3")):
             return "rosbag2"  # never indexed: the bag reader refuses it, then ingest.ros2salvage reads it
+        _refuse_store(p)
         raise SourceError(f"{p} is a directory without metadata.yaml, so not a ROS 2 bag.")
     try:
         with open(p, "rb") as f:

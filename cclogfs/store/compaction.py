@@ -111,6 +111,9 @@ class Dropped:
     streams: dict[str, dict[str, int]]  # its stream_stats() (windows, messages, times, bytes), those carried aside
     bytes: int  # segment and index file bytes freed
     carried: list[str] = field(default_factory=list)  # streams whose windows were put again, not lost
+    # Its named damage (Store.damage() entries): windows lost there, their streams unknown (a
+    # run's record among them, say), are in no stream's statistics: the caller must say them.
+    damaged: list[dict[str, Any]] = field(default_factory=list)
 
 
 @dataclass
@@ -468,7 +471,8 @@ def drop_oldest(store: Host, carry: Sequence[str] = ()) -> Dropped | None:
             _finish_drop(store, seg)
             _ensure_reserve_quietly(store)
         lost = {name: st for name, st in info["streams"].items() if name not in kept}
-        return Dropped(info["first_seq"], info["end_seq"], lost, freed, sorted(kept))
+        damaged = [dict(d, segment=os.path.basename(seg.path)) for d in info.get("damaged", [])]
+        return Dropped(info["first_seq"], info["end_seq"], lost, freed, sorted(kept), damaged)
 
 
 def _ensure_reserve_quietly(store: Host) -> None:

@@ -67,6 +67,7 @@ class Upkeep:
         self.sealed_upto = -1  # end seq of the newest sealed segment at the last run
         self.active_seen: int | None = None  # the active segment's first seq at the last put
         self.runs = self.dropped_segments = self.aged_windows = 0
+        self.damage_dropped: list[dict] = []  # named damage of the segments dropped (`say_dropped_damage`)
         self.bytes_before = self.bytes_after = 0  # stored bytes of the segments aged, before and after
         self.messages_thinned = 0  # messages aging left out (max rate)
         self.errors: list[str] = []  # what failed in the background (the first MAX_ERRORS)
@@ -156,9 +157,13 @@ class Upkeep:
         if self.budget is None:
             return 0
         slack = self._pending_savings(store) if pending and self.policy is not None else 0
-        dropped = compact(store, budget=self.budget + slack).segments_dropped
-        self.dropped_segments += dropped
-        return dropped
+        return self.count_drops(compact(store, budget=self.budget + slack))
+
+    def count_drops(self, report: CompactReport) -> int:
+        """Add what a compaction dropped to this upkeep's counts; how many segments."""
+        self.dropped_segments += report.segments_dropped
+        self.damage_dropped += report.damage_dropped
+        return report.segments_dropped
 
     def _pending_savings(self, store: Store) -> int:
         """Bytes aging will save on the segments due and not yet aged, at the ratio it

@@ -57,6 +57,7 @@ class CompactReport:
     aged: dict[str, dict[str, int]] = field(default_factory=dict)
     dropped: dict[str, dict[str, int]] = field(default_factory=dict)  # stream_stats sums
     segments_dropped: int = 0
+    damage_dropped: list[dict] = field(default_factory=list)  # named damage of the dropped segments
     disk_before: int = 0
     disk_after: int = 0
     budget: int | None = None
@@ -67,12 +68,17 @@ class CompactReport:
 
     def to_dict(self) -> dict:
         return {"aged": self.aged, "dropped": self.dropped, "segments_dropped": self.segments_dropped,
+                "damage_dropped": self.damage_dropped,
                 "disk_before": self.disk_before, "disk_after": self.disk_after, "budget": self.budget,
                 "over_budget": self.over_budget}  # fmt: skip
 
 
 def selected(name: str, streams: Sequence[str] | None) -> bool:
-    """Whether aging applies to a stream: it matches a pattern, or by default is not excluded."""
+    """Whether aging applies to a stream: it matches a pattern, or by default is not excluded.
+    Never to KEPT_STREAMS, even named: a run's fingerprint and counts must stay exact (a
+    --dry-run listed the runs as to be aged, the active segment was sealed for them)."""
+    if name in KEPT_STREAMS:
+        return False
     if streams:
         return any(fnmatchcase(name, p) for p in streams)
     return not any(fnmatchcase(name, p) for p in DEFAULT_EXCLUDE)
@@ -149,6 +155,7 @@ def _retain(store: Store, budget: int, keep_from: int | None, report: CompactRep
             break
         report.segments_dropped += 1
         merge_stream_stats(report.dropped, gone.streams)
+        report.damage_dropped += gone.damaged
 
 
 def check_budget(text: str, budget: int, smallest: int, why: str, what: str) -> None:

@@ -15,6 +15,7 @@ from mcap.reader import make_reader
 import cclogfs
 from cclogfs.cli import main
 from cclogfs.runs import RUNS_STREAM, begin_run, list_runs, source_fingerprint
+from helpers import flip, record_at
 
 CCLOG = [sys.executable, "-m", "cclogfs"]
 
@@ -246,3 +247,42 @@ def test_info_walks_the_store_once(shared_data, tmp_path, capsys, monkeypatch):
         assert r["messages_held"] == sum(n for seq, n in windows if start < seq < end)
     assert runs[0]["messages_held"] < 8197 == runs[0]["messages_kept"] and runs[0]["dropped_by"] == "retention"
     assert runs[1]["messages_held"] == runs[1]["messages_kept"] == 518
+
+
+def _record_then_damage_first_start(tmp_path, capsys):
+    """A JSON-lines source recorded once, then the run's start record flipped and named by fsck."""
+    src, store = tmp_path / "in.jsonl", tmp_path / "s"
+    src.write_text("".join(json.dumps({"topic": "/b", "stamp_ns": 10**12 + i, "msg": {"x": i}}) + "\n" for i in range(3)))
+    assert main(["record", str(src), "--store", str(store)]) == 0
+    with cclogfs.open_store(store, readonly=True) as st:
+        (start,) = [w.seq for w in st.query(RUNS_STREAM)][:1]
+    seg, off, length = record_at(store, start)
+    flip(seg, off + length - 5)
+    assert main(["fsck", str(store)]) == 1
+    capsys.readouterr()
+    return src, store, seg.name, off
+
+
+def test_a_damaged_run_record_refuses_recording_without_append(tmp_path, capsys):
+    # It was recorded again with only a damage warning, its messages then stored twice.
+    src, store, seg, off = _record_then_damage_first_start(tmp_path, capsys)
+    assert main(["record", str(src), "--store", str(store)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{seg} at offset {off}" in err
+    assert "cclog fsck --repair" in err and "--append" in err
+    assert messages(store) == 3
+    assert main(["record", str(src), "--store", str(store), "--append"]) == 0
+    assert messages(store) == 6
+
+
+def test_damage_on_a_message_stream_does_not_refuse_recording(tmp_path, capsys):
+    src, store = tmp_path / "in.jsonl", tmp_path / "s"
+    src.write_text(json.dumps({"topic": "/b", "stamp_ns": 10**12, "msg": {"x": 1}}) + "\n")
+    assert main(["record", str(src), "--store", str(store)]) == 0
+    with cclogfs.open_store(store, readonly=True) as st:
+        (seq,) = [w.seq for w in st.query("/b")]
+    seg, off, length = record_at(store, seq)
+    flip(seg, off + length - 5)
+    src.write_text(json.dumps({"topic": "/b", "stamp_ns": 10**12 + 1, "msg": {"x": 2}}) + "\n")
+    assert main(["record", str(src), "--store", str(store)]) == 0
+    assert "damage below the synced point" in capsys.readouterr().err

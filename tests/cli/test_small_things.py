@@ -2,6 +2,8 @@
 messages kept, stream types in `info`."""
 
 
+import json
+
 import pytest
 
 import cclogfs
@@ -83,3 +85,16 @@ def test_fsck_help_does_not_say_it_changes_nothing_when_it_repairs(capsys):
         main(["fsck", "--help"])
     out = " ".join(capsys.readouterr().out.split())
     assert "Changes nothing." not in out and "Changes nothing, unless --repair is given." in out
+
+
+def test_cat_takes_negative_times_as_stored_stamps_can_be(tmp_path, capsys):
+    # `cat --start -1` was refused ("not understood") although such stamps are stored and shown.
+    src = tmp_path / "neg.jsonl"
+    src.write_text("".join(json.dumps({"topic": "/n", "stamp_ns": t, "msg": {"t": t}}) + "\n"
+                           for t in (-3_000_000_000, -500_000_000, 5)))  # fmt: skip
+    assert main(["record", str(src), "--store", str(tmp_path / "s")]) == 0
+    capsys.readouterr()
+    assert main(["cat", str(tmp_path / "s"), "--start", "-1"]) == 0
+    assert [json.loads(line)["stamp_ns"] for line in capsys.readouterr().out.splitlines()] == [-500_000_000, 5]
+    assert main(["cat", str(tmp_path / "s"), "--end=-1000000000ns"]) == 0
+    assert [json.loads(line)["stamp_ns"] for line in capsys.readouterr().out.splitlines()] == [-3_000_000_000]

@@ -106,3 +106,17 @@ def test_unknown_and_missing_inputs(tmp_path, shared_data):
 def test_formats_map_to_source_classes():
     assert set(FORMATS) == {"rosbag1", "rosbag2", "mcap-json", "jsonl"}
     assert all(hasattr(cls, "__iter__") and hasattr(cls, "topics") for cls in FORMATS.values())
+
+
+def test_a_store_given_as_a_source_is_named_as_one(tmp_path, capsys):
+    # It said "not a ROS 2 bag", which told nothing of what it is nor how to read it.
+    import cclogfs
+    from cclogfs.cli import main
+
+    with cclogfs.open_store(tmp_path / "s", create=True) as store:
+        store.put_window("/a", [(1, "{}")])
+    assert main(["record", str(tmp_path / "s"), "--store", str(tmp_path / "o")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is a cclogfs store" in err
+    assert f"cclog cat {tmp_path / 's'}" in err and "cclog export" in err
+    assert not (tmp_path / "o").exists()

@@ -537,3 +537,60 @@ def test_a_small_budget_keeps_the_newest_of_the_run(tmp_path, capsys):
         assert s.data_bytes() <= 48 << 10
         stamps = [t for w in s.query("/odom") for t, _ in w.messages()]
     assert len(stamps) > 1_000 and max(stamps) == 7_999 * NS // 20  # the newest stay
+
+
+def _damaged_run_record_in_oldest_segment(path, pad: int = 0) -> None:
+    """Sealed segments of a run record and a message (of `pad` random hex digits) each; the
+    first run record damaged and named in the manifest by `fsck --repair`."""
+    from helpers import flip, record_at
+
+    with cclogfs.open_store(path, create=True, segment_records=2) as store:
+        for i in range(6):
+            rec = {"event": "start", "run": i + 1, "id": str(i), "source": f"in{i}", "options": {}}
+            store.put_window("/cclog/runs", [(10**12 + i, json.dumps(rec))], {"kind": "run"})
+            store.put_window("/a", [(10**12 + i, json.dumps({"i": i, "pad": os.urandom(pad // 2).hex()}))])
+    seg, off, length = record_at(path, 0)
+    flip(seg, off + length - 5)
+    assert main(["fsck", str(path), "--repair"]) == 4  # damage named, kept
+
+
+def test_retention_says_the_damage_it_drops(tmp_path, capsys):
+    # The damaged run record went with its segment unsaid, and the store was then "clean".
+    _damaged_run_record_in_oldest_segment(tmp_path / "s")
+    capsys.readouterr()
+    assert main(["compact", str(tmp_path / "s"), "--budget", "4KiB", "--json"]) == 0
+    out, err = capsys.readouterr()
+    (d,) = json.loads(out)["damage_dropped"]
+    assert d["segment"] == "00000000000000000000.seg" and d["first_seq"] == 0 and d["end_seq"] == 1
+    assert err.count("\n") == 1 and "retention dropped a segment holding damage" in err
+    assert "00000000000000000000.seg at offset 32" in err and "/cclog/runs" in err
+
+
+def test_retention_while_recording_says_the_damage_it_drops(tmp_path, capsys):
+    _damaged_run_record_in_oldest_segment(tmp_path / "s", pad=16 << 10)  # 6 x 16 KiB: over 32 KiB
+    src = tmp_path / "in.jsonl"
+    src.write_text(json.dumps({"topic": "/b", "stamp_ns": 2 * 10**12, "msg": {"x": 1}}) + "\n")
+    capsys.readouterr()
+    assert main(["record", str(src), "--store", str(tmp_path / "s"), "--append", "--budget", "32KiB"]) == 0
+    err = capsys.readouterr().err
+    assert "retention dropped a segment holding damage (00000000000000000000.seg at offset 32" in err
+
+
+@pytest.mark.parametrize("dry", [[], ["--dry-run"]])
+def test_the_runs_stream_is_never_aged_and_compact_says_so(tmp_path, capsys, dry):
+    # `--stream /cclog/runs` said "nothing to age (no window old enough...)" after sealing
+    # the active segment for it, and --dry-run listed the runs as windows it would age.
+    src = tmp_path / "in.jsonl"
+    src.write_text("".join(json.dumps({"topic": "/b", "stamp_ns": 10**12 + i, "msg": {"x": i / 3}}) + "\n"
+                           for i in range(5)))  # fmt: skip
+    assert main(["record", str(src), "--store", str(tmp_path / "s")]) == 0
+    files = {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir()}
+    for pattern in ("/cclog/runs", "/cclog/*"):
+        capsys.readouterr()
+        assert main(["compact", str(tmp_path / "s"), "--stream", pattern, "--error", "0.1", *dry]) == 1
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "/cclog/runs, which is never aged or compacted" in err
+    assert {p.name: p.read_bytes() for p in (tmp_path / "s").iterdir()} == files
+    assert main(["compact", str(tmp_path / "s"), "--stream", "*", "--error", "0.1", "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert "/b" in out and "/cclog/runs" not in out
