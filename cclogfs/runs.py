@@ -129,7 +129,8 @@ class RunInfo:
         """The run as `cclog info --json` prints it."""
         out = {"run": self.number, "id": self.id, "start_ns": self.start_ns, "end_ns": self.end_ns,
                "status": self.status, **{k: v for k, v in self.start.items() if k not in ("event", "run", "id")},
-               **{k: v for k, v in (self.end or {}).items() if k not in ("event", "run", "id", "status")}}  # fmt: skip
+               **{k: v for k, v in (self.end or {}).items() if k not in ("event", "run", "id", "status")},
+               "source": self.source, "options": self.options}  # fmt: skip
         if self.retention:
             out["retention"] = self.retention
         return out
@@ -147,9 +148,12 @@ def list_runs(store: Store) -> list[RunInfo]:
             try:
                 rec = json.loads(text)
                 if rec.get("event") == "start":
-                    runs[rec["id"]] = RunInfo(int(rec["run"]), rec["id"], stamp, rec.get("source", "?"),
-                                              rec.get("fingerprint"), rec.get("options", {}), rec,
-                                              start_seq=seq, first_seq=store.first_seq)  # fmt: skip
+                    # Another tool's start record may lack the fields ours has, or hold
+                    # them in other shapes: the run is listed with what it says.
+                    options = rec.get("options")
+                    runs[rec["id"]] = RunInfo(int(rec["run"]), rec["id"], stamp, str(rec.get("source", "?")),
+                                              rec.get("fingerprint"), options if isinstance(options, dict) else {},
+                                              rec, start_seq=seq, first_seq=store.first_seq)  # fmt: skip
                 elif rec.get("event") == "end" and rec.get("id") in runs:
                     runs[rec["id"]].end, runs[rec["id"]].end_ns, runs[rec["id"]].end_seq = rec, stamp, seq
             except (ValueError, KeyError, TypeError, AttributeError):

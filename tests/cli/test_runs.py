@@ -286,3 +286,20 @@ def test_damage_on_a_message_stream_does_not_refuse_recording(tmp_path, capsys):
     src.write_text(json.dumps({"topic": "/b", "stamp_ns": 10**12 + 1, "msg": {"x": 2}}) + "\n")
     assert main(["record", str(src), "--store", str(store)]) == 0
     assert "damage below the synced point" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("start", [{}, {"options": ["--topic", "/a"], "source": 7}])
+def test_info_lists_a_start_record_another_tool_wrote_without_our_fields(tmp_path, capsys, start):
+    # A /cclog/runs start record without "options" (written by another tool through the
+    # library) ended `cclog info` in KeyError: 'options' (found by l-left9)
+    store_path = tmp_path / "s"
+    with cclogfs.open_store(store_path, create=True) as store:
+        rec = {"event": "start", "run": 1, "id": "abc", **start}
+        store.put_window(RUNS_STREAM, [(1, json.dumps(rec))], {"kind": "run"})
+        store.put_window("/a", [(2, '{"x": 1}')])
+    capsys.readouterr()
+    assert main(["info", str(store_path)]) == 0
+    out = capsys.readouterr().out
+    assert "no end record" in out
+    (run,) = info_json(store_path, capsys)["runs"]
+    assert run["options"] == {} and isinstance(run["source"], str)
