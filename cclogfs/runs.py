@@ -19,7 +19,7 @@ from __future__ import annotations
 import json
 import os
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -223,11 +223,7 @@ def _bag_run(store: Store, path: str) -> RunInfo | None:
     its recorder was still writing has grown (a .db3 added or longer), and a .db3's bytes
     change where sqlite keeps its header, so no head of a file can tell; a bag directory
     holds one recording (`ros2 bag record -o` refuses an existing one)."""
-    name = os.path.abspath(path)
-    for run in list_runs(store):
-        if run.source == name and run.kept != 0 and "files" in (run.fingerprint or {}):
-            return run
-    return None
+    return _first_run_of(store, path, lambda run: "files" in (run.fingerprint or {}))
 
 
 def stopped_run(store: Store, path: str) -> RunInfo | None:
@@ -236,9 +232,15 @@ def stopped_run(store: Store, path: str) -> RunInfo | None:
     once fixed (its bad line, say) would store those twice, and its new content hides it
     from `earlier_run`. A run that finished is not one: a file rewritten under the same name
     holds a new recording."""
+    return _first_run_of(store, path, lambda run: run.status != "done")
+
+
+def _first_run_of(store: Store, path: str, matches: Callable[[RunInfo], bool]) -> RunInfo | None:
+    """The first run of the source `path` (by its absolute path, as `cclog record` names a file)
+    that kept messages and `matches`."""
     name = os.path.abspath(path)
     for run in list_runs(store):
-        if run.source == name and run.status != "done" and run.kept != 0:
+        if run.source == name and run.kept != 0 and matches(run):
             return run
     return None
 
