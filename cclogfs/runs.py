@@ -35,8 +35,8 @@ RUNS_STREAM = "/cclog/runs"
 _EDGE = 1 << 20  # bytes hashed at each end of a file: cheap on a 10 GB bag, and a bag's
 # header (first MiB) and index (last MiB) differ between any two recordings
 
-__all__ = ["RUNS_STREAM", "Run", "RunInfo", "begin_run", "earlier_run", "grown_run", "has_fingerprint",
-           "hidden_by_default", "list_runs", "runs_damage", "source_fingerprint"]  # fmt: skip
+__all__ = ["RUNS_STREAM", "Run", "RunInfo", "begin_run", "content_key", "earlier_run", "grown_run",
+           "has_fingerprint", "hidden_by_default", "list_runs", "runs_damage", "source_fingerprint"]  # fmt: skip
 
 
 def hidden_by_default(name: str) -> bool:
@@ -82,10 +82,15 @@ def source_fingerprint(path: str) -> dict[str, Any] | None:
     return {"bytes": size, "sha256": h.hexdigest(), "head": head}
 
 
+def content_key(fingerprint: Mapping[str, Any]) -> tuple:
+    """What of a fingerprint names its content: "head" is left out, since runs recorded
+    before it was kept have none."""
+    return tuple(fingerprint.get(k) for k in ("bytes", "files", "sha256"))
+
+
 def _same_content(a: Mapping[str, Any], b: Mapping[str, Any]) -> bool:
-    """Fingerprints of one content: "head" is left out, since runs recorded before it
-    was kept have none."""
-    return all(a.get(k) == b.get(k) for k in ("bytes", "files", "sha256"))
+    """Fingerprints of one content (`content_key`)."""
+    return content_key(a) == content_key(b)
 
 
 @dataclass

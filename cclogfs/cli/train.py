@@ -112,14 +112,14 @@ def _check_disjoint(args: argparse.Namespace) -> None:
     """Refuse one run given twice (same content, any name, as `record` judges a source):
     as two sources its messages would be trained on twice, as --validate the Table 1 would
     score the training data itself."""
-    from ..runs import source_fingerprint
+    from ..runs import content_key, source_fingerprint
 
     def content(path: str):
         try:
             fp = source_fingerprint(path)
         except OSError:
             return None  # reading it fails later, with the error that names it
-        return None if fp is None else (fp["bytes"], fp.get("files"), fp["sha256"])
+        return None if fp is None else content_key(fp)
 
     seen: dict[tuple, str] = {}
     for src in args.sources:
