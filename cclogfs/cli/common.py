@@ -78,12 +78,17 @@ def record_mib(text: str) -> int:
 EXIT_SKIPPED = 3
 
 
-def refuse_cut_tail(store, skip: bool = False) -> list[str]:
-    """The torn tails the reader cut with intact records past them, refused unless `skip`.
-    Such a cut is no torn write: the writer's open keeps those records (a side file that
-    `fsck --repair` puts back), so an answer without them is partial. A plain torn tail
-    (nothing intact after it) is what a crash may lose, and is read without a word."""
-    cut = [str(p) for p in store.recovery.problems if p.intact_after]
+def cut_tail(store) -> list[str]:
+    """The torn tails the reader cut with intact records past them. Such a cut is no torn
+    write: the writer's open keeps those records (a side file that `fsck --repair` puts
+    back), so an answer without them is partial. A plain torn tail (nothing intact after
+    it) is what a crash may lose, and is read without a word."""
+    return [str(p) for p in store.recovery.problems if p.intact_after]
+
+
+def refuse_cut_tail(store, skip: bool | None = False) -> list[str]:
+    """`cut_tail`, refused unless `skip` (None: the command has no --skip-damaged to hint at)."""
+    cut = cut_tail(store)
     if cut and not skip:
         hint = ", or read the rest with --skip-damaged" if skip is not None else ""
         raise DamagedError(f"{store.path}: intact records lie past a bad one in the unsynced tail "

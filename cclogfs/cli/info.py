@@ -7,7 +7,8 @@ import json
 from bisect import bisect_right
 
 from ..errors import CorruptionError
-from .common import EXIT_SKIPPED, count_windows, human_bytes, iso_ns, newest_window, repair_hint, table, why_records
+from .common import (EXIT_SKIPPED, count_windows, cut_tail, human_bytes, iso_ns, newest_window, repair_hint, table,
+                     why_records)
 
 EXAMPLES = """examples:
   cclog info out/demo/store
@@ -69,7 +70,7 @@ def store_info(path: str) -> dict:
             "recovery": [str(p) for p in store.recovery.problems],
             # the totals leave out intact records past a cut: stored data (a side file for
             # `fsck --repair`), not a torn write, so info exits 3 as for damage
-            "cut_intact": [str(p) for p in store.recovery.problems if p.intact_after],
+            "cut_intact": cut_tail(store),
             "damage": [describe_damage(d) for d in damage],
             "damage_repair": [repair_hint(d) for d in damage],  # what clears each stretch
             "unreadable": unreadable,  # records that failed a check when read: each counted as a window
