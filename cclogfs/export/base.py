@@ -65,8 +65,9 @@ def remove_stale_work_files(path: str | Path) -> list[Path]:
     once untouched for OLD_WORK_FILE_S. Which were removed."""
     path = Path(path)
     name = re.escape(path.name)
-    # after the pid, work_file's 8 hex digits or mkdtemp's 8 letters (a rosbag2 export's directory)
-    pattern = re.compile(rf"\.{name}\.(?:(\d+)\.[0-9a-z_]{{8}}\.tmp|partial-(\d+)|(old)-(\d+)|([0-9a-z_]{{8}})\.tmp)")
+    # .OUT.PID.X.tmp (X: work_file's 8 hex digits or mkdtemp's 8 letters, a rosbag2 export's
+    # directory), .OUT.partial-PID, .OUT.old-PID (Parquet), .OUT.X.tmp (an older version's)
+    pattern = re.compile(rf"\.{name}\.(?:(\d+)\.[0-9a-z_]{{8}}\.tmp|partial-(\d+)|old-(\d+)|([0-9a-z_]{{8}})\.tmp)")
     removed = []
     folder = path.parent if str(path.parent) else Path(".")
     try:
@@ -74,10 +75,11 @@ def remove_stale_work_files(path: str | Path) -> list[Path]:
     except OSError:
         return removed
     for entry in names:
-        m = pattern.fullmatch(entry)
-        if m is None or not _stale(folder / entry, m, path):
+        if (m := pattern.fullmatch(entry)) is None:
             continue
         stale = folder / entry
+        if not _stale(stale, m, path):
+            continue
         try:
             if stale.is_dir() and not stale.is_symlink():
                 shutil.rmtree(stale)
@@ -91,13 +93,13 @@ def remove_stale_work_files(path: str | Path) -> list[Path]:
 
 def _stale(work: Path, m: re.Match, path: Path) -> bool:
     """Whether the work file `work` (matched by `m`) of output `path` is a dead writer's."""
-    pid, partial, old, old_pid, nopid = m.groups()
+    pid, partial, old_pid, nopid = m.groups()
     if nopid is not None:  # an older version's: its writer cannot be told, only its age
         try:
             return time.time() - work.lstat().st_mtime > OLD_WORK_FILE_S
         except FileNotFoundError:
             return False
-    if old is not None and not path.exists():
+    if old_pid is not None and not path.exists():
         return False  # killed between the renames: the previous export, the only one there is
     return not _alive(int(pid or partial or old_pid))
 
