@@ -104,8 +104,7 @@ class Skipped:
     def __init__(self, store, args: argparse.Namespace):
         self.skip = bool(getattr(args, "skip_damaged", False))
         self.stretches = store.damage() if self.skip else []
-        self.windows: list[str] = []
-        self.windows += [f"{p} (past the reader's cut)" for p in refuse_cut_tail(store, self.skip)]
+        self.windows = [f"{p} (past the reader's cut)" for p in refuse_cut_tail(store, self.skip)]
 
     def report(self) -> int:
         """Say on stderr what was skipped; the exit status."""
