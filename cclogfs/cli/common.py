@@ -426,8 +426,12 @@ def say_dropped_damage(store_path, damage: list[dict]) -> None:
 
     for d in damage:
         print(f"cclog: warning: {store_path}: retention dropped a segment holding damage ({describe_damage(d)}); "
-              "the windows lost there (messages, or a run's record on /cclog/runs) are counted in no stream "
-              "and are named no more", file=sys.stderr)  # fmt: skip
+              f"{DAMAGE_LOST}", file=sys.stderr)  # fmt: skip
+
+
+# What goes with named damage when retention drops its segment (said by compact and its --dry-run).
+DAMAGE_LOST = ("the windows lost there (messages, or a run's record on /cclog/runs) are counted in no stream "
+               "and are named no more")  # fmt: skip
 
 
 DAMAGED_EXIT = 4  # the input was damaged: what could be read was kept

@@ -8,7 +8,15 @@ from typing import TYPE_CHECKING
 
 from ..errors import InvalidInputError, StoreLockedError
 from ..times import parse_duration, parse_time
-from .common import human_bytes, iso_ns, parse_size, say_dropped_damage, table, unmatched_rules_error
+from .common import (
+    DAMAGE_LOST,
+    human_bytes,
+    iso_ns,
+    parse_size,
+    say_dropped_damage,
+    table,
+    unmatched_rules_error,
+)
 
 if TYPE_CHECKING:  # the policy module loads only when aging is asked for
     from ..upkeep.policy import Policy
@@ -99,7 +107,8 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(dict(report.to_dict(), dry_run=args.dry_run), indent=2))
     else:
         print(format_preview(report, policy, args) if args.dry_run else format_report(report, policy, args))
-    say_dropped_damage(args.store, report.damage_dropped)
+    if not args.dry_run:  # a dry run lists it with what it would drop
+        say_dropped_damage(args.store, report.damage_dropped)
     return 3 if report.over_budget else 0
 
 
@@ -164,6 +173,8 @@ def _aging_line(policy: Policy, args: argparse.Namespace) -> str:
 
 def format_preview(report, policy: Policy | None, args: argparse.Namespace) -> str:
     """What --dry-run prints: what would happen, nothing done."""
+    from ..store.store import describe_damage  # not at the top: `cclog --help` imports this module
+
     lines = ["dry run: nothing changed"]
     if policy is not None:
         lines.append("would be " + _aging_line(policy, args))
@@ -174,6 +185,8 @@ def format_preview(report, policy: Policy | None, args: argparse.Namespace) -> s
     for name, d in sorted(report.dropped.items()):
         lines.append(f"would drop {d['windows']} windows of {name} ({d['messages']} messages) from "
                      f"{iso_ns(d['start_ns'])} to {iso_ns(d['end_ns'])}")  # fmt: skip
+    for d in report.damage_dropped:
+        lines.append(f"would drop a segment holding damage ({describe_damage(d)}): {DAMAGE_LOST}")
     if report.budget is not None:
         saved = " (before what aging saves)" if policy is not None else ""
         lines.append(f"store: {human_bytes(report.disk_before)} -> {human_bytes(report.disk_after)}{saved}, "

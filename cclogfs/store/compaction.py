@@ -39,7 +39,7 @@ from .format import (
 )
 from .fs import FileSystem
 from .index import SegmentIndex, merge_stream_stats
-from .manifest import Manifest
+from .manifest import Manifest, SealedSegment
 from .records import ChunkReader, Record, not_continued, records
 from .segment import Segment, open_segment
 from .window import Window
@@ -471,7 +471,7 @@ def drop_oldest(store: Host, carry: Sequence[str] = ()) -> Dropped | None:
             _finish_drop(store, seg)
             _ensure_reserve_quietly(store)
         lost = {name: st for name, st in info["streams"].items() if name not in kept}
-        damaged = [dict(d, segment=os.path.basename(seg.path)) for d in info.get("damaged", [])]
+        damaged = SealedSegment.from_info(info).damage_dropped()
         return Dropped(info["first_seq"], info["end_seq"], lost, freed, sorted(kept), damaged)
 
 

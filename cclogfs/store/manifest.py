@@ -42,11 +42,18 @@ class SealedSegment:
     gen: int  # how often compaction rewrote it (names its files)
     streams: dict[str, dict[str, int]]  # per stream: windows, messages, start_ns, end_ns, raw_bytes, stored_bytes
     aged: dict[str, int]  # per stream: windows flagged AGED
+    damaged: tuple[dict[str, Any], ...] = ()  # the damage the manifest names in it (Store.damage() entries)
 
     @classmethod
     def from_info(cls, info: Mapping[str, Any]) -> SealedSegment:
         return cls(info["first_seq"], info["end_seq"], info["size"], info.get("gen", 0),
-                   info["streams"], dict(info.get("aged", {})))  # fmt: skip
+                   info["streams"], dict(info.get("aged", {})), tuple(info.get("damaged", ())))  # fmt: skip
+
+    def damage_dropped(self) -> list[dict[str, Any]]:
+        """Its named damage as retention reports it when dropping it (each entry naming the
+        segment file): what `drop_oldest` returns and what `compact --dry-run` foretells."""
+        name = segment_name(self.first_seq, self.gen)
+        return [dict(d, segment=name) for d in self.damaged]
 
 
 class Manifest(Mapping[str, Any]):

@@ -204,7 +204,8 @@ def preview(
 ) -> CompactReport:
     """What `compact` with the same arguments would do, changing nothing (works on a
     read-only store): the windows it would age, with their messages and stored bytes now,
-    and the segments retention would drop were aging to save nothing."""
+    and the segments retention would drop were aging to save nothing, with the damage named
+    in them (which goes with them, as `compact` reports)."""
     report = CompactReport(disk_before=store.data_bytes(), budget=budget)
     if policy is not None:
         desc, cutoff = policy.describe(), _cutoffs(store, before_ns, older_than_ns)
@@ -223,6 +224,7 @@ def preview(
             size -= file_bytes(store, seg, seg.gen)
             report.segments_dropped += 1
             merge_stream_stats(report.dropped, {k: v for k, v in seg.streams.items() if k not in KEPT_STREAMS})
+            report.damage_dropped += seg.damage_dropped()
     report.disk_after = size
     return report
 

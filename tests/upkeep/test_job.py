@@ -566,6 +566,19 @@ def test_retention_says_the_damage_it_drops(tmp_path, capsys):
     assert "00000000000000000000.seg at offset 32" in err and "/cclog/runs" in err
 
 
+def test_a_dry_run_says_the_damage_retention_would_drop(tmp_path, capsys):
+    # The real run listed the damage in `damage_dropped` and warned; the dry run said nothing.
+    _damaged_run_record_in_oldest_segment(tmp_path / "s")
+    capsys.readouterr()
+    assert main(["compact", str(tmp_path / "s"), "--budget", "4KiB", "--dry-run", "--json"]) == 0
+    (d,) = json.loads(capsys.readouterr().out)["damage_dropped"]
+    assert main(["compact", str(tmp_path / "s"), "--budget", "4KiB", "--dry-run"]) == 0
+    out, err = capsys.readouterr()
+    assert "would drop a segment holding damage (00000000000000000000.seg at offset 32" in out and not err
+    assert main(["compact", str(tmp_path / "s"), "--budget", "4KiB", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["damage_dropped"] == [d]  # what the real run then dropped
+
+
 def test_retention_while_recording_says_the_damage_it_drops(tmp_path, capsys):
     _damaged_run_record_in_oldest_segment(tmp_path / "s", pad=16 << 10)  # 6 x 16 KiB: over 32 KiB
     src = tmp_path / "in.jsonl"
