@@ -11,15 +11,20 @@ seqs are never reused), and synced; only then is the segment dropped (FORMAT.md,
 A crash between the sync and the commit leaves the window twice (the old segment is still
 there): the copy names the seq it was first put under (meta key `carried`), and a window
 whose copy is in the store already is not carried again, so repeated crashes add no more.
+Readers never see the two: `once` hides a copy whose original (or an earlier copy of it)
+is in the same answer, as `Store.query` does unless the carry itself asks for both.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
-from typing import Any
+from collections.abc import Iterable, Iterator
+from typing import TYPE_CHECKING, Any
 
 from ..errors import CclogError
 from .format import AGED_META_KEY, SEGMENT_HEADER_SIZE
+
+if TYPE_CHECKING:
+    from .window import Window
 
 CARRIED_META_KEY = "carried"
 # Room a carry leaves free beside its own records: the manifest's temporary copy (twice, as
@@ -33,6 +38,36 @@ def origin(meta: dict[str, Any], seq: int) -> int:
     return mark["seq"] if isinstance(mark, dict) and isinstance(mark.get("seq"), int) else seq
 
 
+def once(windows: Iterable[Window]) -> Iterator[Window]:
+    """`windows` (in (start_ns, seq) order, as a query merges them) less each carried copy
+    whose origin is in them already: the copy a crash between a carry's sync and its drop's
+    commit left beside the original. A copy has its original's stream, stamps and count, so
+    it follows it among the windows of the same start; only windows sharing all four are
+    read (their meta) to be told apart, and an unreadable one is kept for its reader to name."""
+    start, seen = None, {}  # this start's windows by (stream, end, count): their origins (None: unread)
+    for w in windows:
+        if w.start_ns != start:
+            start, seen = w.start_ns, {}
+        key = (w.name, w.end_ns, w.count)
+        earlier = seen.get(key)
+        if earlier is None:
+            seen[key] = [w]
+            yield w
+            continue
+        origins = {_origin_of(e) for e in earlier}
+        if _origin_of(w) not in origins - {None}:
+            earlier.append(w)
+            yield w
+
+
+def _origin_of(w: Window) -> int | None:
+    """The seq `w` was first put under, None when its record cannot be read here."""
+    try:
+        return origin(w.meta, w.seq)
+    except CclogError:
+        return None
+
+
 def carry_forward(store: Any, info: dict[str, Any], names: Iterable[str], manifest_bytes: int) -> set[str]:
     """Put the windows of streams `names` of the segment `info` (a manifest entry, about to
     be dropped) again and sync them. Returns the streams every window of which lives on;
@@ -43,7 +78,7 @@ def carry_forward(store: Any, info: dict[str, Any], names: Iterable[str], manife
     for name in names:
         if name not in info["streams"]:
             continue
-        windows = list(store.query(name, skip_damaged=True))
+        windows = list(store.query(name, skip_damaged=True, copies=True))  # a copy a crash left counts
         here = [w for w in windows if first <= w.seq < end]
         have = {origin(w.meta, w.seq) for w in windows if not first <= w.seq < end}
         todo = [w for w in here if origin(w.meta, w.seq) not in have]

@@ -29,6 +29,7 @@ from ..errors import (
     StoreLockedError,
 )
 from . import planted
+from .carry import once
 from .check import check_stream_name
 from .encode import Codecs, Encoded, encode_parts
 from .format import (
@@ -740,13 +741,22 @@ class Store:
                                reason=damage[0]["reason"])  # fmt: skip
 
     def query(self, name: str | None = None, start_ns: int | None = None,
-              end_ns: int | None = None, *, skip_damaged: bool = False) -> Iterator[Window]:  # fmt: skip
+              end_ns: int | None = None, *, skip_damaged: bool = False, copies: bool = False) -> Iterator[Window]:  # fmt: skip
         """Windows of stream `name` (all streams when None) overlapping [start_ns, end_ns],
         in (start_ns, seq) order. Includes this writer's puts not yet synced.
 
         Raises DamagedError when the store knows of damaged windows (their stream and time
         are lost with them, so any query may miss one), unless `skip_damaged`: then only
-        the intact windows come back and `damage()` says what is missing."""
+        the intact windows come back and `damage()` says what is missing.
+
+        A window retention carried (FORMAT.md, "Carried streams") comes once: the copy a
+        crash left beside its original is left out (`carry.once`), unless `copies` (the
+        carry asks, so as not to put it a third time)."""
+        found = self._query(name, start_ns, end_ns, skip_damaged)
+        return found if copies else once(found)
+
+    def _query(self, name: str | None, start_ns: int | None, end_ns: int | None,
+               skip_damaged: bool) -> Iterator[Window]:  # fmt: skip
         t0 = MIN_NS if start_ns is None else int(start_ns)
         t1 = MAX_NS if end_ns is None else int(end_ns)
         with self.lock:

@@ -470,16 +470,17 @@ store.drop_oldest(carry=["/tf"])
 """
 
 
-def _tf(path):
+def _tf(path, copies=False):
     with cclogfs.open_store(path, readonly=True) as s:
-        return [(w.seq, w.meta, list(w.messages())) for w in s.query("/tf")]
+        return [(w.seq, w.meta, list(w.messages())) for w in s.query("/tf", copies=copies)]
 
 
 @pytest.mark.parametrize("when", ["before", "after"])
 def test_drop_oldest_carries_a_streams_windows_once_even_when_killed_around_its_commit(tmp_path, when):
     """Retention's carry (FORMAT.md, "Compaction and retention"): the windows of the streams
     named are put again before the drop commits, so none is lost; a kill -9 before the
-    commit leaves them twice, and the next drop does not carry them a third time."""
+    commit leaves them twice (queries show them once: the copies only with `copies`), and
+    the next drop does not carry them a third time."""
     import subprocess
     import sys
 
@@ -487,10 +488,12 @@ def test_drop_oldest_carries_a_streams_windows_once_even_when_killed_around_its_
     before = _tf(tmp_path / "s")  # seqs 0, 2 in the oldest segment (0..2)
     proc = subprocess.run([sys.executable, "-c", _KILLED_DROP, str(tmp_path / "s"), when])
     assert proc.returncode == -9
-    after = _tf(tmp_path / "s")
+    after = _tf(tmp_path / "s", copies=True)
     copies = [(meta, msgs) for seq, meta, msgs in after if seq >= 10]
     assert copies == [(dict(meta, carried={"seq": seq}), msgs) for seq, meta, msgs in before if seq < 3]
     assert [seq for seq, _m, _w in after if seq < 10] == ([0, 2, 4, 6, 8] if when == "before" else [4, 6, 8])
+    # Each window once: the originals while they are there, else their copies.
+    assert [seq for seq, _m, _w in _tf(tmp_path / "s")] == ([0, 2, 4, 6, 8] if when == "before" else [10, 11, 4, 6, 8])
     assert not check_store(str(tmp_path / "s")).errors
     with cclogfs.open_store(tmp_path / "s", **OPTS) as store:
         gone = store.drop_oldest(carry=["/tf"])

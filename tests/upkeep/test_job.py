@@ -566,6 +566,50 @@ def test_retention_says_the_damage_it_drops(tmp_path, capsys):
     assert "00000000000000000000.seg at offset 32" in err and "/cclog/runs" in err
 
 
+_COMPACT_KILLED_BEFORE_ITS_DROP = """
+import os, signal, sys
+from cclogfs.store.fs import FileSystem
+
+def rename(self, src, dst):  # the carried run records synced, the drop not committed
+    os.kill(os.getpid(), signal.SIGKILL)
+
+FileSystem.rename = rename
+from cclogfs.cli import main
+main(["compact", sys.argv[1], "--budget", sys.argv[2]])
+"""
+
+
+def test_a_kill_between_the_carry_and_its_drop_shows_each_run_record_once(tmp_path, capsys):
+    # The carried copies sat beside their originals: `cat --topic /cclog/runs` printed the
+    # first run's start and end twice (info, by run id, once), until the next drop.
+    import subprocess
+    import sys
+
+    jsonl(tmp_path / "run.jsonl", 4_000)
+    jsonl(tmp_path / "run2.jsonl", 4_000, hz=40)
+    store = str(tmp_path / "s")
+    for src in ("run.jsonl", "run2.jsonl"):
+        assert main(["record", str(tmp_path / src), "--store", store, "--budget", "512KiB", "--chunk", "100"]) == 0
+    with cclogfs.open_store(store, readonly=True) as s:
+        assert s.sealed_segments()[0].streams["/cclog/runs"]["windows"] == 1  # the first run's start
+        budget = f"{s.data_bytes() // 1024 - 1}KiB"  # retention drops the oldest segment, carrying it
+    capsys.readouterr()
+    assert main(["cat", store, "--topic", "/cclog/runs"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 4
+    assert subprocess.run([sys.executable, "-c", _COMPACT_KILLED_BEFORE_ITS_DROP, store, budget]).returncode == -9
+    assert main(["cat", store, "--topic", "/cclog/runs"]) == 0
+    assert capsys.readouterr().out.splitlines() == lines
+    with cclogfs.open_store(store, readonly=True) as s:  # the copy is there, beside its original
+        assert len(list(s.query("/cclog/runs", copies=True))) == 5
+    assert main(["compact", store, "--budget", budget]) == 0  # the drop done: the copy is the one left
+    capsys.readouterr()
+    assert main(["cat", store, "--topic", "/cclog/runs"]) == 0
+    assert sorted(capsys.readouterr().out.splitlines()) == sorted(lines)
+    with cclogfs.open_store(store, readonly=True) as s:
+        assert len(list(s.query("/cclog/runs", copies=True))) == 4
+
+
 def test_a_dry_run_says_the_damage_retention_would_drop(tmp_path, capsys):
     # The real run listed the damage in `damage_dropped` and warned; the dry run said nothing.
     _damaged_run_record_in_oldest_segment(tmp_path / "s")
