@@ -11,7 +11,9 @@ is named (`hidden_by_default`), so a store's messages read back exactly as they 
 A file source is identified by a fingerprint of its content (size and SHA-256 of its first
 and last MiB, per file for a ROS 2 bag directory), not by its path: a copy of a bag is the
 same source, a bag rewritten under the same name is not. `earlier_run` finds the run that
-recorded a source already, so that the CLI can refuse to store it twice.
+recorded a source already, so that the CLI can refuse to store it twice. The checks take
+the runs `list_runs` read (a query and a decode of the whole stream), so that `record`
+reads them once.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from __future__ import annotations
 import json
 import os
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -166,12 +168,13 @@ def list_runs(store: Store) -> list[RunInfo]:
     return sorted(runs.values(), key=lambda r: (r.start_ns, r.number))
 
 
-def earlier_run(store: Store, fingerprint: Mapping[str, Any] | None) -> RunInfo | None:
-    """The first run that recorded a source with this fingerprint and may have kept some of
-    it (a run that ended keeping nothing does not count); None for none, or no fingerprint."""
+def earlier_run(runs: Sequence[RunInfo], fingerprint: Mapping[str, Any] | None) -> RunInfo | None:
+    """The first of `runs` (`list_runs`) that recorded a source with this fingerprint and may
+    have kept some of it (a run that ended keeping nothing does not count); None for none,
+    or no fingerprint."""
     if fingerprint is None:
         return None
-    for run in list_runs(store):
+    for run in runs:
         if run.fingerprint is not None and _same_content(run.fingerprint, fingerprint) and run.kept != 0:
             return run
     return None
@@ -201,18 +204,18 @@ def _damaged_stream(store: Store, d: Mapping[str, Any]) -> str | None:
         return None
 
 
-def grown_run(store: Store, path: str, fingerprint: Mapping[str, Any] | None) -> RunInfo | None:
-    """The first run that recorded `path` (a file; a ROS 2 bag directory: `_bag_run`) when it was shorter: the file begins with
+def grown_run(runs: Sequence[RunInfo], path: str, fingerprint: Mapping[str, Any] | None) -> RunInfo | None:
+    """The first of `runs` (`list_runs`) that recorded `path` (a file; a ROS 2 bag directory: `_bag_run`) when it was shorter: the file begins with
     the bytes that run saw (an appended log recorded again), so recording it would store
     that run's messages twice. Judged by the first min(size, 1 MiB) bytes the run saw."""
     if fingerprint is not None and "files" in fingerprint:  # a ROS 2 bag directory
-        return _bag_run(store, path)
+        return _bag_run(runs, path)
     if fingerprint is None or "head" not in fingerprint:
         return None
     import hashlib
 
     size = fingerprint["bytes"]
-    for run in list_runs(store):
+    for run in runs:
         old = run.fingerprint or {}
         if run.kept == 0 or not isinstance(old.get("bytes"), int) or not old.get("head") or not old["bytes"] < size:
             continue
@@ -222,29 +225,29 @@ def grown_run(store: Store, path: str, fingerprint: Mapping[str, Any] | None) ->
     return None
 
 
-def _bag_run(store: Store, path: str) -> RunInfo | None:
+def _bag_run(runs: Sequence[RunInfo], path: str) -> RunInfo | None:
     """The first run of the ROS 2 bag directory `path` (by its absolute path) that kept
     messages, its content changed since (else `earlier_run` finds it): a bag recorded while
     its recorder was still writing has grown (a .db3 added or longer), and a .db3's bytes
     change where sqlite keeps its header, so no head of a file can tell; a bag directory
     holds one recording (`ros2 bag record -o` refuses an existing one)."""
-    return _first_run_of(store, path, lambda run: "files" in (run.fingerprint or {}))
+    return _first_run_of(runs, path, lambda run: "files" in (run.fingerprint or {}))
 
 
-def stopped_run(store: Store, path: str) -> RunInfo | None:
-    """The first run of the file `path` (by its absolute path) that stopped before its end
+def stopped_run(runs: Sequence[RunInfo], path: str) -> RunInfo | None:
+    """The first of `runs` (`list_runs`) of the file `path` (by its absolute path) that stopped before its end
     (error, interrupted, or no end record) having kept messages: recording the file again
     once fixed (its bad line, say) would store those twice, and its new content hides it
     from `earlier_run`. A run that finished is not one: a file rewritten under the same name
     holds a new recording."""
-    return _first_run_of(store, path, lambda run: run.status != "done")
+    return _first_run_of(runs, path, lambda run: run.status != "done")
 
 
-def _first_run_of(store: Store, path: str, matches: Callable[[RunInfo], bool]) -> RunInfo | None:
-    """The first run of the source `path` (by its absolute path, as `cclog record` names a file)
+def _first_run_of(runs: Sequence[RunInfo], path: str, matches: Callable[[RunInfo], bool]) -> RunInfo | None:
+    """The first of `runs` of the source `path` (by its absolute path, as `cclog record` names a file)
     that kept messages and `matches`."""
     name = os.path.abspath(path)
-    for run in list_runs(store):
+    for run in runs:
         if run.source == name and run.kept != 0 and matches(run):
             return run
     return None
@@ -269,14 +272,18 @@ class Run:
 
 
 def begin_run(store: Store, source: str, *, fingerprint: Mapping[str, Any] | None = None,
-              options: Mapping[str, Any] | None = None, **extra: Any) -> Run:  # fmt: skip
+              options: Mapping[str, Any] | None = None, runs: Sequence[RunInfo] | None = None,
+              **extra: Any) -> Run:  # fmt: skip
     """Write a run's start record (source, fingerprint, options, cclog version, host, pid,
     and `extra`, e.g. the master of a live source) and sync it, so that even a run killed
-    at once is seen. Its number is one past the highest in the store."""
+    at once is seen. Its number is one past the highest of `runs` (the store's, read now
+    when not given)."""
     import socket
     import uuid
 
-    number = max((r.number for r in list_runs(store)), default=0) + 1
+    if runs is None:
+        runs = list_runs(store)
+    number = max((r.number for r in runs), default=0) + 1
     run = Run(store, number, uuid.uuid4().hex)
     rec = {"event": "start", "run": number, "id": run.id, "source": source,
            "fingerprint": None if fingerprint is None else dict(fingerprint),

@@ -322,12 +322,13 @@ def _options(args: argparse.Namespace) -> dict:
 
 def _begin_run(args: argparse.Namespace, store, source):
     """Refuse a source the store has a run of already (unless --append); write this run's start."""
-    from ..runs import begin_run, earlier_run, grown_run, source_fingerprint, stopped_run
+    from ..runs import begin_run, earlier_run, grown_run, list_runs, source_fingerprint, stopped_run
 
     fingerprint = source_fingerprint(args.source)
-    earlier = earlier_run(store, fingerprint)
-    grown = None if earlier is not None or args.append else grown_run(store, args.source, fingerprint)
-    stopped = None if earlier or grown or args.append or fingerprint is None else stopped_run(store, args.source)
+    runs = list_runs(store)  # once: each check below, and the new run's number, look at them
+    earlier = earlier_run(runs, fingerprint)
+    grown = None if earlier is not None or args.append else grown_run(runs, args.source, fingerprint)
+    stopped = None if earlier or grown or args.append or fingerprint is None else stopped_run(runs, args.source)
     if (earlier is not None or grown is not None or stopped is not None) and not args.append:
         run = earlier or grown or stopped
         kept = "its end not recorded" if run.kept is None else f"{run.kept:,} messages kept"
@@ -342,7 +343,7 @@ def _begin_run(args: argparse.Namespace, store, source):
         name, extra = args.source, ({"master": source.master} if hasattr(source, "master") else {})
     else:
         name, extra = os.path.abspath(args.source), {}
-    return begin_run(store, name, fingerprint=fingerprint, options=_options(args), **extra)
+    return begin_run(store, name, fingerprint=fingerprint, options=_options(args), runs=runs, **extra)
 
 
 def _refuse_runs_damage(args: argparse.Namespace, store) -> None:

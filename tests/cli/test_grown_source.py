@@ -6,7 +6,7 @@ import json
 
 import cclogfs
 from cclogfs.cli import main
-from cclogfs.runs import begin_run, earlier_run, source_fingerprint
+from cclogfs.runs import begin_run, earlier_run, list_runs, source_fingerprint
 
 
 def lines(first, n):
@@ -48,7 +48,7 @@ def test_a_run_fingerprinted_before_head_was_kept_still_counts_as_the_same_conte
     old = {k: v for k, v in new.items() if k != "head"}  # as versions before this one wrote it
     with cclogfs.open_store(tmp_path / "s", create=True) as store:
         begin_run(store, str(log), fingerprint=old, options={}).end(messages_kept=5)
-        assert earlier_run(store, new).number == 1
+        assert earlier_run(list_runs(store), new).number == 1
 
 
 def test_a_store_inside_the_source_bag_directory_is_refused(tmp_path, capsys):
@@ -63,3 +63,21 @@ def test_a_store_inside_the_source_bag_directory_is_refused(tmp_path, capsys):
         assert main(["record", str(bag), "--store", str(store)]) == 1
         assert "is inside the source" in capsys.readouterr().err
     assert sorted(p.name for p in bag.iterdir()) == before
+
+
+def test_record_reads_the_runs_once_to_check_its_source(tmp_path, monkeypatch):
+    # It read the whole /cclog/runs stream four times before its first message: for the
+    # same content, a grown file, a stopped run, and the new run's number.
+    import cclogfs.runs
+
+    log, store = tmp_path / "log.jsonl", str(tmp_path / "s")
+    log.write_text(lines(0, 5))
+    assert main(["record", str(log), "--store", store]) == 0
+    reads = []
+    real = cclogfs.runs.list_runs
+    monkeypatch.setattr(cclogfs.runs, "list_runs", lambda store: reads.append(1) or real(store))
+    log.write_text(lines(10, 5))  # another content: every check runs, none refuses
+    assert main(["record", str(log), "--store", store]) == 0
+    assert len(reads) == 1
+    with cclogfs.open_store(store, readonly=True) as s:
+        assert [r.number for r in real(s)] == [1, 2]
