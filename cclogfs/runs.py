@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from . import __version__
+from .growth import EDGE as _EDGE
+from .growth import head as _head
 
 if TYPE_CHECKING:
     from .store import Store
@@ -34,8 +36,8 @@ if TYPE_CHECKING:
 # reader imports this module for `hidden_by_default`, and they were a tenth of its start-up.
 
 RUNS_STREAM = "/cclog/runs"
-_EDGE = 1 << 20  # bytes hashed at each end of a file: cheap on a 10 GB bag, and a bag's
-# header (first MiB) and index (last MiB) differ between any two recordings
+# _EDGE: bytes hashed at each end of a file: cheap on a 10 GB bag, and a bag's header
+# (first MiB) and index (last MiB) differ between any two recordings
 
 __all__ = ["RUNS_STREAM", "Run", "RunInfo", "begin_run", "content_key", "earlier_run", "grown_run",
            "has_fingerprint", "hidden_by_default", "list_runs", "runs_damage", "source_fingerprint"]  # fmt: skip
@@ -79,9 +81,8 @@ def source_fingerprint(path: str) -> dict[str, Any] | None:
             size += _hash_file(name, h)
         return {"bytes": size, "files": len(names), "sha256": h.hexdigest()}
     size = _hash_file(path, h)
-    with open(path, "rb") as f:  # "head": to know the file again once it has grown
-        head = hashlib.sha256(f.read(min(size, _EDGE))).hexdigest()
-    return {"bytes": size, "sha256": h.hexdigest(), "head": head}
+    # "head": to know the file again once it has grown (a bag closed since, say: growth.head)
+    return {"bytes": size, "sha256": h.hexdigest(), "head": _head(path, size)}
 
 
 def content_key(fingerprint: Mapping[str, Any]) -> tuple:
@@ -206,22 +207,21 @@ def _damaged_stream(store: Store, d: Mapping[str, Any]) -> str | None:
 
 def grown_run(runs: Sequence[RunInfo], path: str, fingerprint: Mapping[str, Any] | None) -> RunInfo | None:
     """The first of `runs` (`list_runs`) that recorded `path` (a file; a ROS 2 bag directory: `_bag_run`) when it was shorter: the file begins with
-    the bytes that run saw (an appended log recorded again), so recording it would store
-    that run's messages twice. Judged by the first min(size, 1 MiB) bytes the run saw."""
+    what that run saw (an appended log, or a bag recorded in writing, recorded again), so
+    recording it would store that run's messages twice. Judged by `growth.head` of the
+    first min(size, 1 MiB) bytes the run saw: for a ROS 1 bag its records past the bag
+    header (which closing rewrites), for a .db3 its first message row."""
     if fingerprint is not None and "files" in fingerprint:  # a ROS 2 bag directory
         return _bag_run(runs, path)
     if fingerprint is None or "head" not in fingerprint:
         return None
-    import hashlib
-
     size = fingerprint["bytes"]
     for run in runs:
         old = run.fingerprint or {}
         if run.kept == 0 or not isinstance(old.get("bytes"), int) or not old.get("head") or not old["bytes"] < size:
             continue
-        with open(path, "rb") as f:
-            if hashlib.sha256(f.read(min(old["bytes"], _EDGE))).hexdigest() == old["head"]:
-                return run
+        if _head(path, old["bytes"]) == old["head"]:
+            return run
     return None
 
 

@@ -4,6 +4,8 @@ twice, exit 0, without a word (found by the attack of l-atk6). --append records 
 
 import json
 
+import pytest
+
 import cclogfs
 from cclogfs.cli import main
 from cclogfs.runs import begin_run, earlier_run, list_runs, source_fingerprint
@@ -81,3 +83,82 @@ def test_record_reads_the_runs_once_to_check_its_source(tmp_path, monkeypatch):
     assert len(reads) == 1
     with cclogfs.open_store(store, readonly=True) as s:
         assert [r.number for r in real(s)] == [1, 2]
+
+
+def _bag_copied_in_writing(shared_data, tmp_path):
+    """tf_example.bag written again by rosbags' Writer (16 KiB chunks): its bytes when 300
+    of its 518 messages were written, and once closed (the bag header record rewritten)."""
+    from rosbags.rosbag1 import Reader, Writer
+
+    with Reader(shared_data("tf_example.bag")) as reader:
+        messages = list(reader.messages())
+    path, conns = tmp_path / "w.bag", {}
+    writer = Writer(path)
+    writer.chunk_threshold = 16 << 10
+    writer.open()
+    for i, (c, stamp, raw) in enumerate(messages):
+        if c.topic not in conns:
+            conns[c.topic] = writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest)
+        writer.write(conns[c.topic], stamp, raw)
+        if i == 300:
+            in_writing = path.read_bytes()
+    writer.close()
+    return in_writing, path.read_bytes()
+
+
+def _db3_copied_in_writing(shared_data, tmp_path):
+    """tf_example's messages written by rosbags' ROS 2 Writer (sqlite3): the .db3 when 300
+    of them were committed, and once closed."""
+    from rosbags.rosbag2 import Reader, Writer
+
+    with Reader(shared_data("tf_example")) as reader:
+        messages = list(reader.messages())
+    path, conns = tmp_path / "w", {}
+    writer = Writer(path, version=8)
+    writer.open()
+    for i, (c, stamp, raw) in enumerate(messages):
+        if c.topic not in conns:
+            conns[c.topic] = writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data, rihs01=c.digest,
+                                                   offered_qos_profiles=c.ext.offered_qos_profiles)  # fmt: skip
+        writer.write(conns[c.topic], stamp, raw)
+        if i == 300:
+            writer.storage.conn.commit()  # as rosbag2 commits as it goes
+            in_writing = (path / "w.db3").read_bytes()
+    writer.close()
+    return in_writing, (path / "w.db3").read_bytes()
+
+
+@pytest.mark.parametrize("make, name", [(_bag_copied_in_writing, "run.bag"), (_db3_copied_in_writing, "run.db3")])
+def test_a_bag_recorded_in_writing_is_known_once_closed(shared_data, tmp_path, capsys, make, name):
+    # Closing rewrites a ROS 1 bag's header record (index position, counts) and a .db3's
+    # sqlite header and pages, so the first MiB differed: the 301 messages recorded from the
+    # copy in writing were stored again with the closed bag, exit 0.
+    in_writing, closed = make(shared_data, tmp_path)
+    src, store = tmp_path / name, str(tmp_path / "s")
+    src.write_bytes(in_writing)
+    assert main(["record", str(src), "--store", store]) == 0
+    kept = messages_in(store)
+    assert 100 < kept < 518  # what was written out (a bag: its closed chunks)
+    src.write_bytes(closed)
+    capsys.readouterr()
+    assert main(["record", str(src), "--store", store]) == 1
+    err = capsys.readouterr().err
+    assert "(it has grown since), as run 1" in err and "--append" in err and err.count("\n") == 1
+    assert messages_in(store) == kept
+    assert main(["record", str(src), "--store", store, "--append"]) == 0
+    assert messages_in(store) == kept + 518
+
+
+def test_another_bag_with_the_same_messages_is_not_refused(shared_data, tmp_path):
+    # The head of a ROS 1 bag is its records past the bag header: tf_example.bag holds the
+    # same messages in other chunks, so it is another recording.
+    _in_writing, closed = _bag_copied_in_writing(shared_data, tmp_path)
+    (tmp_path / "run.bag").write_bytes(closed)
+    store = str(tmp_path / "s")
+    assert main(["record", str(shared_data("tf_example.bag")), "--store", store]) == 0
+    assert main(["record", str(tmp_path / "run.bag"), "--store", store]) == 0
+
+
+def messages_in(store):
+    with cclogfs.open_store(store, readonly=True) as s:
+        return sum(st["messages"] for name, st in s.streams().items() if not name.startswith("/cclog/"))
