@@ -64,8 +64,8 @@ def _rosbag1_span(f, limit: int) -> tuple[int, int] | None:
             break
         header = f.read(header_len)
         raw = f.read(_U32.size)
-        if len(header) < header_len or len(raw) < _U32.size:
-            break
+        if len(header) < header_len or len(raw) < _U32.size or b"op=" not in header:
+            break  # cut, or not a record (every record's header names its op): no more
         end = pos + 2 * _U32.size + header_len + _U32.unpack(raw)[0]
         if end > limit:
             break

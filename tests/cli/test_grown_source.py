@@ -162,3 +162,32 @@ def test_another_bag_with_the_same_messages_is_not_refused(shared_data, tmp_path
 def messages_in(store):
     with cclogfs.open_store(store, readonly=True) as s:
         return sum(st["messages"] for name, st in s.streams().items() if not name.startswith("/cclog/"))
+
+
+def test_a_ros1_bag_head_stops_at_the_chunk_rosbag_still_has_open(shared_data, tmp_path):
+    """rosbag's recorder writes a chunk's header with its sizes 0 (the `size` field and the
+    data length) and its messages after it, filling the sizes in when the chunk closes: the
+    head of a bag copied then is its chunks before that one, as they stay once closed."""
+    import struct
+
+    from cclogfs.growth import head
+
+    _in_writing, closed = _bag_copied_in_writing(shared_data, tmp_path)
+    chunks, pos = [], 13
+    while pos < len(closed):
+        (header_len,) = struct.unpack_from("<I", closed, pos)
+        (data_len,) = struct.unpack_from("<I", closed, pos + 4 + header_len)
+        if b"op=\x05" in closed[pos + 4:pos + 4 + header_len]:
+            chunks.append((pos, header_len, data_len))
+        pos += 8 + header_len + data_len
+    pos, header_len, data_len = chunks[2]
+    open_chunk = bytearray(closed[:pos + 8 + header_len + data_len // 2])
+    size_at = open_chunk.index(b"size=", pos) + 5  # the chunk header's uncompressed size
+    open_chunk[size_at:size_at + 4] = bytes(4)
+    open_chunk[pos + 4 + header_len:pos + 8 + header_len] = bytes(4)  # its data length
+    (tmp_path / "open.bag").write_bytes(open_chunk)
+    (tmp_path / "closed.bag").write_bytes(closed)
+    seen = len(open_chunk)
+    assert head(str(tmp_path / "open.bag"), seen) == head(str(tmp_path / "closed.bag"), seen) is not None
+    (tmp_path / "other.bag").write_bytes(closed[:chunks[1][0]] + bytes(seen - chunks[1][0]))
+    assert head(str(tmp_path / "other.bag"), seen) != head(str(tmp_path / "closed.bag"), seen)
