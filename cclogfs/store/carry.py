@@ -44,7 +44,7 @@ def once(windows: Iterable[Window]) -> Iterator[Window]:
     commit left beside the original. A copy has its original's stream, stamps and count, so
     it follows it among the windows of the same start; only windows sharing all four are
     read (their meta) to be told apart, and an unreadable one is kept for its reader to name."""
-    start, seen = None, {}  # this start's windows by (stream, end, count): their origins (None: unread)
+    start, seen = None, {}  # the windows of this start given so far, by (stream, end, count)
     for w in windows:
         if w.start_ns != start:
             start, seen = w.start_ns, {}
