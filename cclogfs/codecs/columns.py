@@ -22,7 +22,7 @@ except ImportError:  # the fast float parser is optional: float() gives the same
 
 from ..errors import CodecError
 from .columns_read import Reader, b64_token as _b64_token, read_blob as _read_blob, read_column, read_decimal, read_packed  # noqa: F401 (tests reach _read_blob here)
-from .columns_read import orjson_differs, orjson_text, render_decimals as _render_decimals, render_floats, respell
+from .columns_read import orjson_differs, orjson_text, render_decimals as _render_decimals, render_floats, respell_joined
 from .columnar_format import (
     DECIMAL_DIGITS,
     DECIMAL_ORDERS,
@@ -78,7 +78,7 @@ def _render_joined(values: np.ndarray) -> str:
     tokens joined, one string compare per column (orjson's text as it is, in the usual
     column)."""
     text = orjson_text(values)
-    return ",".join(respell(text, values)) if orjson_differs(text) else text
+    return respell_joined(text, values) if orjson_differs(text) else text
 
 
 def _simdjson_parser():
