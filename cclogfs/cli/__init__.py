@@ -1,6 +1,6 @@
 """The `cclog` command line. Each subcommand is a module in this package that defines
-HELP, DESCRIPTION, EXAMPLES, `add_arguments(parser)` and `run(args)`; the module list
-below is the only place that names them.
+DESCRIPTION, EXAMPLES, `add_arguments(parser)` and `run(args)`; the table below is the
+only place that names them, with the line `cclog --help` shows for each.
 
 Start-up time is part of every command (a one-second `cclog cat` is mostly start-up), so
 a subcommand module imports only light modules at its top and its engine, sources or
@@ -14,8 +14,24 @@ import sys
 
 from ..errors import CclogError
 
-# One module per subcommand, in the order `cclog --help` lists them.
-COMMANDS: list[str] = ["demo", "record", "play", "plot", "cat", "info", "fsck", "compact", "export", "convert", "simulate", "train", "eval"]
+# One module per subcommand, in the order `cclog --help` lists them, with its help line:
+# here, so that `cclog --help` imports none of them (it took 13 modules and, through their
+# imports, dataclasses, inspect, secrets and datetime: most of its time; issue 14).
+COMMANDS: dict[str, str] = {
+    "demo": "train, smart-log and report on simulated runs",
+    "record": "log a bag, MCAP file or JSONL stream into a store",
+    "play": "publish a store's messages at their recorded pace (JSONL or ROS 1)",
+    "plot": "PNG plots of a store: trajectory, speed, windows, anomaly scores",
+    "cat": "print stored messages as JSON Lines",
+    "info": "streams, windows, messages, time span and sizes of a store",
+    "fsck": "verify every record, index and the manifest of a store",
+    "compact": "age old windows to lower fidelity and fit a storage budget",
+    "export": "export stored windows to MCAP, a rosbag2 bag or Parquet",
+    "convert": "convert a bag, MCAP or JSONL file to JSON Lines",
+    "simulate": "simulate a robot run with labelled anomalies",
+    "train": "learn mode: fit an anomaly model on nominal odometry",
+    "eval": "score a labelled run: Table 1, events recalled, bytes kept",
+}
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
@@ -32,15 +48,17 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 
     parser.add_argument("--version", action="version", version=f"cclog {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for name in COMMANDS:
+    for name, help_line in COMMANDS.items():
         if command and name != command:
             continue
+        if command == "":  # the list alone: no module needed
+            sub.add_parser(name, help=help_line)
+            continue
         mod = importlib.import_module(f"{__name__}.{name}")
-        p = sub.add_parser(name, help=mod.HELP, description=mod.DESCRIPTION, epilog=mod.EXAMPLES,
+        p = sub.add_parser(name, help=help_line, description=mod.DESCRIPTION, epilog=mod.EXAMPLES,
                            formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-        if command is None or name == command:
-            mod.add_arguments(p)
-            p.set_defaults(func=mod.run)
+        mod.add_arguments(p)
+        p.set_defaults(func=mod.run)
     return parser
 
 

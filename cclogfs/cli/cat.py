@@ -21,7 +21,6 @@ their stated error bounds; a note on stderr says how many were printed.
 """
 
 
-HELP = "print stored messages as JSON Lines"
 DESCRIPTION = "Print the messages of a store as JSON Lines, in time order."
 
 

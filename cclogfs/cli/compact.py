@@ -45,7 +45,6 @@ first (or let `cclog record --budget` drop old segments while it runs). The summ
 --stream names it.
 """
 
-HELP = "age old windows to lower fidelity and fit a storage budget"
 DESCRIPTION = (
     "Rewrite old windows with every float rounded within stated error bounds (and "
     "optionally fewer messages per second), then drop the oldest segments while the store "

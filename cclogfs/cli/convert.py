@@ -25,7 +25,6 @@ else its log time).
 """
 
 
-HELP = "convert a bag, MCAP or JSONL file to JSON Lines"
 DESCRIPTION = "Read a ROS 1/ROS 2 bag, an MCAP file or JSON Lines and write JSON Lines."
 
 

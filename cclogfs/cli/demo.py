@@ -12,7 +12,6 @@ examples:
 """
 
 
-HELP = "train, smart-log and report on simulated runs"
 DESCRIPTION = (
     "Simulate nominal driving and train on it, smart-log a different "
     "run with labelled anomalies into a store, and report detection "

@@ -13,7 +13,6 @@ examples:
 """
 
 
-HELP = "score a labelled run: Table 1, events recalled, bytes kept"
 DESCRIPTION = (
     "Replay a labelled run through smart logging and report the "
     "paper's per-message Table 1, per-event recall and precision, "

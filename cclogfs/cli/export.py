@@ -32,7 +32,6 @@ Parquet goes to DIR/robot=NAME/stream=STREAM/date=YYYY-MM-DD/part-*.parquet.
 """
 
 
-HELP = "export stored windows to MCAP, a rosbag2 bag or Parquet"
 DESCRIPTION = "Export the windows of a store to an MCAP file, a rosbag2 bag or a Parquet data set."
 
 

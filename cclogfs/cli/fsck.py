@@ -25,7 +25,6 @@ exit status with --repair (as e2fsck): 0 clean, nothing to do; 1 repaired, now c
 """
 
 
-HELP = "verify every record, index and the manifest of a store"
 DESCRIPTION = (
     "Check every record's header CRC and payload hash, sequence "
     "continuity, the manifest's statistics and the time indexes. "

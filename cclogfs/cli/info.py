@@ -16,7 +16,6 @@ EXAMPLES = """examples:
 """
 
 
-HELP = "streams, windows, messages, time span and sizes of a store"
 DESCRIPTION = (
     "Show what a store holds: per stream the windows, messages, time span, "
     "stored bytes, codec and the ratio against the messages' JSON; then the recording runs "

@@ -27,7 +27,6 @@ types can only be played as JSONL). --skip-gaps S plays any stretch without mess
 than S seconds as S seconds: smart-logged stores are mostly gaps between windows.
 """
 
-HELP = "publish a store's messages at their recorded pace (JSONL or ROS 1)"
 DESCRIPTION = "Play a store back: its messages in time order at their recorded pace."
 
 

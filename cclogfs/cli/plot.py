@@ -21,7 +21,6 @@ anomaly score and, from /cclog/summary, the anomalous messages per summary perio
 without poses gets windows.png only.
 """
 
-HELP = "PNG plots of a store: trajectory, speed, windows, anomaly scores"
 DESCRIPTION = "Plot a store: the trajectory, speed and stored windows over time, and anomaly scores."
 
 

@@ -69,7 +69,6 @@ LOST = 4  # the exit status when a live recording knows it lost messages
 OVER_BUDGET = 3  # as `cclog compact`: done, but the store is larger than --budget
 
 
-HELP = "log a bag, MCAP file or JSONL stream into a store"
 DESCRIPTION = (
     "Record messages into a store: all of them, or with --model only "
     "the logging windows around anomalies."

@@ -32,7 +32,6 @@ def _severity(text: str) -> tuple[float, float]:
     return pair
 
 
-HELP = "simulate a robot run with labelled anomalies"
 DESCRIPTION = "Simulate a BWIBot-like robot driving a building, with injected, labelled anomalies."
 
 

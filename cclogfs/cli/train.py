@@ -23,7 +23,6 @@ stamps. With --validate, the paper's Table 1 is printed for the disjoint validat
 """
 
 
-HELP = "learn mode: fit an anomaly model on nominal odometry"
 DESCRIPTION = "Fit a one-class SVM (RBF kernel) on the odometry of nominal runs."
 
 
