@@ -211,8 +211,34 @@ static int stamp(P *pp, P e, long long *out)
     return 1;
 }
 
+/* The last topic decoded, so that a run of lines on one topic shares one str (a
+ * decode and an allocation fewer a line; the dict lookups and compares that follow
+ * find the same object). */
+typedef struct {
+    PyObject *text; /* a reference of its own, released by split_lines */
+    P bytes;        /* its UTF-8 bytes, in the line it came from (the caller's list holds it) */
+    Py_ssize_t size;
+} LastTopic;
+
+/* The topic's str, a new reference, or NULL with the decode's error set. */
+static PyObject *topic_text(P topic, Py_ssize_t size, LastTopic *last)
+{
+    if (last->text != NULL && size == last->size && !memcmp(topic, last->bytes, size)) {
+        Py_INCREF(last->text);
+        return last->text;
+    }
+    PyObject *t = PyUnicode_DecodeUTF8((const char *)topic, size, "strict");
+    if (t != NULL) {
+        Py_INCREF(t);
+        Py_XSETREF(last->text, t);
+        last->bytes = topic;
+        last->size = size;
+    }
+    return t;
+}
+
 /* The message of one line, a new reference: a message_type, or None (not settled here). */
-static PyObject *split_line(P s, P e, PyTypeObject *message_type, PyObject *no_msgtype)
+static PyObject *split_line(P s, P e, PyTypeObject *message_type, PyObject *no_msgtype, LastTopic *last)
 {
     if (e > s && e[-1] == '\n') { /* the line endings lines.py's _FAST_LINE allows */
         e--;
@@ -241,7 +267,7 @@ static PyObject *split_line(P s, P e, PyTypeObject *message_type, PyObject *no_m
     if (msg_end == NULL || msg_end + 1 != e || *msg_end != '}')
         Py_RETURN_NONE;
     /* Strict decodes: a topic that is not UTF-8 leaves the line to Python. */
-    PyObject *t = PyUnicode_DecodeUTF8((const char *)topic, topic_end - topic, "strict");
+    PyObject *t = topic_text(topic, topic_end - topic, last);
     PyObject *m = t ? PyUnicode_DecodeUTF8((const char *)msg, msg_end - msg, "strict") : NULL;
     PyObject *n = m ? PyLong_FromLongLong(stamp_ns) : NULL;
     /* A tuple subclass with no fields of its own (a NamedTuple): allocated as a tuple. */
@@ -274,6 +300,7 @@ static PyObject *split_lines(PyObject *Py_UNUSED(self), PyObject *args)
     PyObject *no_msgtype = PyUnicode_FromString("");
     Py_ssize_t count = PyList_GET_SIZE(lines);
     PyObject *out = no_msgtype ? PyList_New(count) : NULL;
+    LastTopic last = {NULL, NULL, 0};
     for (Py_ssize_t i = 0; out != NULL && i < count; i++) {
         PyObject *line = PyList_GET_ITEM(lines, i);
         if (!PyBytes_Check(line)) {
@@ -282,13 +309,14 @@ static PyObject *split_lines(PyObject *Py_UNUSED(self), PyObject *args)
             break;
         }
         P s = (P)PyBytes_AS_STRING(line);
-        PyObject *message = split_line(s, s + PyBytes_GET_SIZE(line), message_type, no_msgtype);
+        PyObject *message = split_line(s, s + PyBytes_GET_SIZE(line), message_type, no_msgtype, &last);
         if (message == NULL)
             Py_CLEAR(out);
         else
             PyList_SET_ITEM(out, i, message);
     }
     Py_XDECREF(no_msgtype);
+    Py_XDECREF(last.text);
     return out;
 }
 
