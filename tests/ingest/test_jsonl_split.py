@@ -96,6 +96,66 @@ def test_a_line_taken_is_the_message_json_reads(lines):
     jsonl_split(b"".join(line.rstrip(b"\n") + b"\n" for line in lines))
 
 
+SCALARS = st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=6)
+
+
+def new_scalars(draw, value):
+    """`value` with the same objects and arrays, some of its scalars drawn anew (of any kind)."""
+    if isinstance(value, dict):
+        return {key: new_scalars(draw, item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [new_scalars(draw, item) for item in value]
+    return draw(SCALARS) if draw(st.booleans()) else value
+
+
+@st.composite
+def one_layout(draw):
+    """Lines of one topic whose messages share a layout, their scalars varying, some damaged:
+    what the splitter's templates are for (a message matching its topic's last one but at
+    its scalars is checked by comparing the text between them)."""
+    base = draw(st.dictionaries(st.text(max_size=5), VALUES, max_size=4))
+    topic = draw(st.sampled_from(["/a", "/b", "/c"]))
+    dumps = {"ensure_ascii": draw(st.booleans()), "separators": draw(st.sampled_from([None, (",", ":"), (" ,\t", " : ")]))}
+    lines = []
+    for stamp in range(draw(st.integers(1, 10))):
+        line = canonical(topic, stamp, json.dumps(new_scalars(draw, base), **dumps))
+        lines.append(draw(st.just(line) | damaged(line)))
+    return lines
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(one_layout(), min_size=1, max_size=4), st.randoms(use_true_random=False))
+def test_templates_change_no_verdict(runs, random):
+    """A line is taken or left by the splitter alike whether it is read with the lines
+    before it (its topic's template from them) or alone (the grammar check), and a line
+    taken is the message json reads."""
+    lines = [line for run in runs for line in run]
+    if random.random() < 0.5:  # topics interleaved
+        random.shuffle(lines)
+    lines = [line.rstrip(b"\n") + b"\n" for line in lines]
+    together = COMPILED(lines, SourceMessage)
+    assert together == [COMPILED([line], SourceMessage)[0] for line in lines]
+    jsonl_split(b"".join(lines))
+
+
+def test_templates_past_their_limits():
+    """More scalars than a template keeps (1,024), a topic whose layout keeps changing (a
+    template tried only now and then), more topics than templates (8): the same verdicts
+    as line by line."""
+    many = canonical("/m", 1, json.dumps({"v": list(range(1500))}))
+    lines = [many, canonical("/m", 2, json.dumps({"v": list(range(1, 1501))}))]
+    for i in range(60):  # the layout changes at every line, then settles
+        lines.append(canonical("/t", i, json.dumps({"a": [0.5] * (1 + i % 3 if i < 40 else 2), "b": "x" * i})))
+    for i in range(40):  # twenty topics in turn, each of its own layout
+        lines.append(canonical(f"/topic{i % 20}", i, json.dumps({f"k{i % 20}": i, "s": "é" * (i % 3)})))
+    lines.append(canonical("/t", 99, '{"a": [0.5, 0.5], "b": "' + "x" * 39 + '\\u00"}'))  # a bad escape at the end
+    lines.append(canonical("/t", 99, '{"a": [0.5, 0.5], "b": "' + "x" * 39 + '"} '))  # a space after the msg
+    together = COMPILED(lines, SourceMessage)
+    assert together == [COMPILED([line], SourceMessage)[0] for line in lines]
+    assert together[-2:] == [None, None] and None not in together[:-2]
+    jsonl_split(b"".join(line.rstrip(b"\n") + b"\n" for line in lines))
+
+
 def taken(line: bytes) -> bool:
     return COMPILED([line], SourceMessage)[0] is not None
 
