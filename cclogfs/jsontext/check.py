@@ -9,15 +9,11 @@ decided by `json` itself, so the fast path never changes the answer. It accepts 
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 import threading
 import unicodedata
-
-try:
-    import simdjson
-except ImportError:  # the fast path is optional: `json` alone gives the same answers
-    simdjson = None
 
 __all__ = ["NAME_MAX_BYTES", "json_error", "name_error", "object_members", "text_error"]
 
@@ -29,18 +25,33 @@ _decoder = json.JSONDecoder()
 _local = threading.local()  # a simdjson parser is not thread-safe
 
 
+@functools.cache
+def _simdjson():
+    """The simdjson module, or None without it, the fast path being optional (`json` alone
+    gives the same answers). Imported on first use: most commands that import this module
+    check no JSON (`cclog cat`; issue 14). Cached, a missing module too."""
+    try:
+        import simdjson
+    except ImportError:
+        return None
+    return simdjson
+
+
 def _parser():
+    """This thread's simdjson parser; None without simdjson."""
     parser = getattr(_local, "parser", None)
     if parser is None:
+        if (simdjson := _simdjson()) is None:
+            return None
         parser = _local.parser = simdjson.Parser()
     return parser
 
 
 def json_error(text: str) -> str | None:
     """None when `text` is one JSON value (surrounding whitespace allowed), else why not."""
-    if simdjson is not None and not text.startswith("\ufeff"):
+    if not text.startswith("\ufeff") and (parser := _parser()) is not None:
         try:
-            _parser().parse(text.encode("utf-8", "surrogatepass"))
+            parser.parse(text.encode("utf-8", "surrogatepass"))
             return None
         except Exception:  # noqa: BLE001 - any refusal is decided by json below
             pass
@@ -63,13 +74,13 @@ def object_members(data: bytes) -> int | None:
     For a JSONL line: checking its bytes at once costs one parse, not a decode, an
     encode and a parse of the message text (issue 14).
     """
-    if simdjson is None or data.startswith(b"\xef\xbb\xbf"):  # json refuses a BOM
+    if data.startswith(b"\xef\xbb\xbf") or (parser := _parser()) is None:  # json refuses a BOM
         return None
     try:
-        doc = _parser().parse(data)
+        doc = parser.parse(data)
     except Exception:  # noqa: BLE001 - any refusal: not a verdict
         return None
-    return len(doc) if isinstance(doc, simdjson.Object) else None
+    return len(doc) if isinstance(doc, _simdjson().Object) else None
 
 
 # A lone surrogate: a str can hold one, UTF-8 cannot encode it.
