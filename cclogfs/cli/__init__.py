@@ -37,8 +37,9 @@ COMMANDS: dict[str, str] = {
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The whole parser (`command` None), or with `command` that subcommand's parser alone:
     parsing `cclog cat ...` needs no other, and importing every subcommand module was a
-    quarter of a one-second `cat` (issue 14). Without one ("") every subcommand is listed
-    with its help line, which is all `cclog --help` shows of them."""
+    quarter of a one-second `cat` (issue 14). With "" every subcommand is listed with its
+    help line and nothing more (no options, no `func`), which is all `cclog --help` shows
+    of them: no subcommand module is imported."""
     parser = argparse.ArgumentParser(
         prog="cclog",
         description="cclogfs: keep the robot log data that matters, compressed and checksummed.",

@@ -150,8 +150,10 @@ def respell(text: str, values) -> list[str]:
     return (respell_joined(text, values) if orjson_differs(text) else text).split(",")
 
 
-# What orjson_differs looks for; an item holding one is rendered again by float_text.
+# What orjson_differs looks for: an exponent, null, the decade below 1e-4.
 _MARKS = ("e", "n", "0.0000")
+# A column with more items holding a mark than this share is respelled item by item.
+_SPLICE_MAX_SHARE = 1 / 8
 
 
 def respell_joined(text: str, values) -> str:
@@ -163,10 +165,9 @@ def respell_joined(text: str, values) -> str:
     (issue 14). No item holds a comma, so commas count the items before one. A column
     where many items hold a mark is respelled item by item, which is then the cheaper.
     """
-    marks = text.count("e") + text.count("n") + text.count("0.0000")
-    if marks * 8 > len(values):
+    if sum(map(text.count, _MARKS)) > _SPLICE_MAX_SHARE * len(values):
         texts = text.split(",")
-        for i in [i for i, t in enumerate(texts) if "e" in t or "n" in t or "0.0000" in t]:
+        for i in [i for i, t in enumerate(texts) if orjson_differs(t)]:
             texts[i] = float_text(float(values[i]))
         return ",".join(texts)
     starts = set()
@@ -194,8 +195,8 @@ def orjson_text(values) -> str:
 
 
 def orjson_differs(text: str) -> bool:
-    """Whether orjson's text may not be json.dumps' (an exponent, null, the decade below 1e-4)."""
-    return "e" in text or "n" in text or "0.0000" in text
+    """Whether orjson's text may not be json.dumps' (it holds one of _MARKS)."""
+    return any(map(text.__contains__, _MARKS))
 
 
 def render_decimals(values: list[int], d: int) -> list[str]:
