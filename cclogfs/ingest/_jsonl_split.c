@@ -168,21 +168,30 @@ static P scalar(P p, P e)
 }
 
 /* Where the scalars of a message lie, as offsets from its start: what makes a checked
- * message a template (below). count -1: more than MAX_SCALARS, not kept. */
-#define MAX_SCALARS 1024
+ * message a template (below). The arrays grow as scalars are added, up to MAX_SCALARS;
+ * count -1: more, or no memory for them (then no template: it only saves time). */
+#define MAX_SCALARS (1 << 16)
 
 typedef struct {
-    int count;
-    Py_ssize_t *start, *end; /* MAX_SCALARS each */
+    int count, room;
+    Py_ssize_t *start, *end; /* `room` each, one block */
 } Scalars;
 
 static void add_scalar(Scalars *scalars, P msg, P start, P end)
 {
     if (scalars->count < 0)
         return;
-    if (scalars->count == MAX_SCALARS) {
-        scalars->count = -1;
-        return;
+    if (scalars->count == scalars->room) {
+        int room = scalars->room ? 2 * scalars->room : 64;
+        Py_ssize_t *block = room <= MAX_SCALARS ? PyMem_Realloc(scalars->start, 2 * room * sizeof(Py_ssize_t)) : NULL;
+        if (block == NULL) {
+            scalars->count = -1;
+            return;
+        }
+        memmove(block + room, block + scalars->room, scalars->count * sizeof(Py_ssize_t)); /* the ends */
+        scalars->start = block;
+        scalars->end = block + room;
+        scalars->room = room;
     }
     scalars->start[scalars->count] = start - msg;
     scalars->end[scalars->count++] = end - msg;
@@ -241,17 +250,18 @@ static P value(P p, P e, int depth, Scalars *rec, P msg)
  * scalars alone: on odometry, two thirds of the grammar check's work less (issue 14).
  * A message that does not match (another layout) takes the grammar check and becomes
  * its topic's template when it passes; a topic whose messages keep changing layout is
- * tried against its template only now and then. Templates point into the lines of one
- * call of split_lines, which holds them. */
-#define TEMPLATES 8
-#define MISSES 4  /* in a row, after which a template is tried once in RETRY messages */
+ * tried against its template only now and then. A topic has a slot by the hash of its
+ * name (another topic with the same slot takes it over). Templates point into the
+ * lines of one call of split_lines, which holds them. */
+#define TEMPLATES 64
+#define MISSES 4 /* in a row, after which a template is tried once in RETRY messages */
 #define RETRY 16
 
 typedef struct {
     P topic, msg; /* NULL: an empty slot */
     Py_ssize_t topic_size, msg_size;
     Scalars scalars;
-    int misses; /* messages in a row that did not match */
+    int misses; /* messages in a row that took the grammar check (tried and missed, or not tried) */
 } Template;
 
 /* Whether a and b hold the same n bytes: most texts between scalars are a few bytes
@@ -292,23 +302,22 @@ static int matches(const Template *t, P msg, P e)
 
 typedef struct {
     Template slot[TEMPLATES];
-    Scalars spare;    /* what the grammar check records into; swapped into a slot it fills */
-    int next;         /* the slot a new topic takes (round robin) */
-    Py_ssize_t *room; /* the arrays of all the Scalars, one block */
+    Scalars spare; /* what the grammar check records into; swapped into the slot it fills */
 } Templates;
 
 /* Whether the message [msg, msg_end) is JSON (an object: the caller checked its first
  * byte): by its topic's template, else by the grammar check, after which it becomes
- * that topic's template. */
+ * that topic's template. Without templates (ts NULL), by the grammar check alone. */
 static int message_is_json(Templates *ts, P topic, Py_ssize_t topic_size, P msg, P msg_end)
 {
-    Template *t = NULL;
-    for (int i = 0; i < TEMPLATES && t == NULL; i++) {
-        Template *c = &ts->slot[i];
-        if (c->topic != NULL && c->topic_size == topic_size && !memcmp(c->topic, topic, topic_size))
-            t = c;
-    }
-    if (t != NULL && t->scalars.count >= 0 && (t->misses < MISSES || t->misses % RETRY == 0)) {
+    if (ts == NULL)
+        return value(msg, msg_end, 0, NULL, msg) == msg_end;
+    uint32_t hash = 2166136261u; /* FNV-1a */
+    for (Py_ssize_t i = 0; i < topic_size; i++)
+        hash = (hash ^ topic[i]) * 16777619u;
+    Template *t = &ts->slot[hash % TEMPLATES];
+    int mine = t->topic != NULL && t->topic_size == topic_size && !memcmp(t->topic, topic, topic_size);
+    if (mine && t->scalars.count >= 0 && (t->misses < MISSES || t->misses % RETRY == 0)) {
         if (matches(t, msg, msg_end)) {
             t->misses = 0;
             return 1;
@@ -317,15 +326,10 @@ static int message_is_json(Templates *ts, P topic, Py_ssize_t topic_size, P msg,
     ts->spare.count = 0;
     if (value(msg, msg_end, 0, &ts->spare, msg) != msg_end)
         return 0;
-    if (t == NULL) {
-        t = &ts->slot[ts->next];
-        ts->next = (ts->next + 1) % TEMPLATES;
-        t->misses = 0;
-    } else
-        t->misses++;
-    Scalars old = t->scalars;
+    t->misses = mine ? t->misses + 1 : 0;
+    Scalars taken = t->scalars;
     t->scalars = ts->spare;
-    ts->spare = old;
+    ts->spare = taken;
     t->topic = topic;
     t->topic_size = topic_size;
     t->msg = msg;
@@ -333,29 +337,13 @@ static int message_is_json(Templates *ts, P topic, Py_ssize_t topic_size, P msg,
     return 1;
 }
 
-/* Templates with room for their scalars, or NULL with MemoryError set. */
-static Templates *new_templates(void)
-{
-    Templates *ts = PyMem_Calloc(1, sizeof(Templates));
-    Py_ssize_t *room = ts ? PyMem_Malloc(2 * MAX_SCALARS * (TEMPLATES + 1) * sizeof(Py_ssize_t)) : NULL;
-    if (room == NULL) {
-        PyMem_Free(ts);
-        PyErr_NoMemory();
-        return NULL;
-    }
-    ts->room = room;
-    for (int i = 0; i <= TEMPLATES; i++) {
-        Scalars *sc = i < TEMPLATES ? &ts->slot[i].scalars : &ts->spare;
-        sc->start = room + 2 * MAX_SCALARS * i;
-        sc->end = sc->start + MAX_SCALARS;
-    }
-    return ts;
-}
-
 static void free_templates(Templates *ts)
 {
-    if (ts != NULL)
-        PyMem_Free(ts->room);
+    if (ts == NULL)
+        return;
+    for (int i = 0; i < TEMPLATES; i++)
+        PyMem_Free(ts->slot[i].scalars.start);
+    PyMem_Free(ts->spare.start);
     PyMem_Free(ts);
 }
 
@@ -388,7 +376,7 @@ static int stamp(P *pp, P e, long long *out)
  * find the same object). */
 typedef struct {
     PyObject *text; /* a reference of its own, released by split_lines */
-    P bytes;        /* its UTF-8 bytes, in the line it came from (the caller's list holds it) */
+    P bytes;        /* its UTF-8 bytes, in the line it came from (split_lines holds it) */
     Py_ssize_t size;
 } LastTopic;
 
@@ -438,7 +426,7 @@ static PyObject *split_line(P s, P e, PyTypeObject *message_type, PyObject *no_m
         Py_RETURN_NONE;
     /* The line ends with the msg and the layout's closing brace. */
     P msg_end = e - 1;
-    if (msg_end <= msg || *msg_end != '}' || !message_is_json(templates, topic, topic_end - topic, msg, msg_end))
+    if (*msg_end != '}' || !message_is_json(templates, topic, topic_end - topic, msg, msg_end))
         Py_RETURN_NONE;
     /* Strict decodes: a topic that is not UTF-8 leaves the line to Python. */
     PyObject *t = topic_text(topic, topic_end - topic, last);
@@ -471,13 +459,19 @@ static PyObject *split_lines(PyObject *Py_UNUSED(self), PyObject *args)
         return NULL;
     if (!PyType_IsSubtype(message_type, &PyTuple_Type) || message_type->tp_itemsize != sizeof(PyObject *))
         return PyErr_Format(PyExc_TypeError, "split_lines: the message type must be a tuple subclass");
-    PyObject *no_msgtype = PyUnicode_FromString("");
-    Py_ssize_t count = PyList_GET_SIZE(lines);
-    Templates *templates = no_msgtype ? new_templates() : NULL;
-    PyObject *out = templates ? PyList_New(count) : NULL;
+    /* The lines held for the call: the topic cache and the templates point into them,
+     * across allocations that may run code (a finalizer changing the caller's list). */
+    PyObject *held = PyList_AsTuple(lines);
+    PyObject *no_msgtype = held ? PyUnicode_FromString("") : NULL;
+    Py_ssize_t count = held ? PyTuple_GET_SIZE(held) : 0;
+    /* One line alone (a live stream read as it comes) needs no template. */
+    Templates *templates = no_msgtype && count > 1 ? PyMem_Calloc(1, sizeof(Templates)) : NULL;
+    PyObject *out = no_msgtype && (templates || count <= 1) ? PyList_New(count) : NULL;
+    if (no_msgtype != NULL && count > 1 && templates == NULL)
+        PyErr_NoMemory();
     LastTopic last = {NULL, NULL, 0};
     for (Py_ssize_t i = 0; out != NULL && i < count; i++) {
-        PyObject *line = PyList_GET_ITEM(lines, i);
+        PyObject *line = PyTuple_GET_ITEM(held, i);
         if (!PyBytes_Check(line)) {
             PyErr_Format(PyExc_TypeError, "split_lines takes a list of bytes, not %.80s", Py_TYPE(line)->tp_name);
             Py_CLEAR(out);
@@ -493,6 +487,7 @@ static PyObject *split_lines(PyObject *Py_UNUSED(self), PyObject *args)
     Py_XDECREF(no_msgtype);
     Py_XDECREF(last.text);
     free_templates(templates);
+    Py_XDECREF(held);
     return out;
 }
 
