@@ -147,7 +147,13 @@ def render_floats(values) -> list[str]:
 def respell(text: str, values) -> list[str]:
     """`orjson_text(values)` cut into items, each that orjson may spell otherwise than
     json.dumps spelled by float_text (see render_floats)."""
-    return (respell_joined(text, values) if orjson_differs(text) else text).split(",")
+    texts = text.split(",")
+    if orjson_differs(text):  # one scan of the whole column first
+        # A few more items than needed (repr is right for all); the test of
+        # orjson_differs written out, as a call per item took half the column's time.
+        for i in [i for i, t in enumerate(texts) if "e" in t or "n" in t or "0.0000" in t]:
+            texts[i] = float_text(float(values[i]))
+    return texts
 
 
 # What orjson_differs looks for: an exponent, null, the decade below 1e-4.
@@ -157,26 +163,23 @@ _SPLICE_MAX_SHARE = 1 / 8
 
 
 def respell_joined(text: str, values) -> str:
-    """`orjson_text(values)` with every item that holds a mark of orjson_differs spelled
-    by float_text, still joined: a few more items than needed (repr is right for all).
+    """`",".join(respell(text, values))`, for the encoder, which compares joined texts.
 
-    A column with a few such items (a value below 1e-4 among 200) has them found by
-    `str.find` and spliced: 8 us where a test of every item took 28, 2 % of `record`
-    (issue 14). No item holds a comma, so commas count the items before one. A column
-    where many items hold a mark is respelled item by item, which is then the cheaper.
+    A column with a few items to respell (a value below 1e-4 among 200) has them found by
+    `str.find` and spliced: 8 us where `respell`'s test of every item took 28, 2 % of
+    `record` (issue 14). No item holds a comma, so commas count the items before one. A
+    column with many (the search stops past the share) takes `respell`, then the cheaper.
     """
-    if sum(map(text.count, _MARKS)) > _SPLICE_MAX_SHARE * len(values):
-        texts = text.split(",")
-        for i in [i for i, t in enumerate(texts) if orjson_differs(t)]:
-            texts[i] = float_text(float(values[i]))
-        return ",".join(texts)
-    starts = set()
+    most = int(_SPLICE_MAX_SHARE * len(values))
+    starts: set[int] = set()
     for mark in _MARKS:
         at = text.find(mark)
-        while at >= 0:
+        while at >= 0 and len(starts) <= most:
             starts.add(text.rfind(",", 0, at) + 1)
             end = text.find(",", at)
             at = -1 if end < 0 else text.find(mark, end)
+    if len(starts) > most:
+        return ",".join(respell(text, values))
     parts, index, done = [], 0, 0  # index: the item at `done`, the end of the last one spliced
     for start in sorted(starts):
         end = text.find(",", start)
@@ -196,7 +199,7 @@ def orjson_text(values) -> str:
 
 def orjson_differs(text: str) -> bool:
     """Whether orjson's text may not be json.dumps' (it holds one of _MARKS)."""
-    return any(map(text.__contains__, _MARKS))
+    return "e" in text or "n" in text or "0.0000" in text
 
 
 def render_decimals(values: list[int], d: int) -> list[str]:
