@@ -465,10 +465,10 @@ static PyObject *split_lines(PyObject *Py_UNUSED(self), PyObject *args)
     PyObject *no_msgtype = held ? PyUnicode_FromString("") : NULL;
     Py_ssize_t count = held ? PyTuple_GET_SIZE(held) : 0;
     /* One line alone (a live stream read as it comes) needs no template. */
-    Templates *templates = no_msgtype && count > 1 ? PyMem_Calloc(1, sizeof(Templates)) : NULL;
-    PyObject *out = no_msgtype && (templates || count <= 1) ? PyList_New(count) : NULL;
-    if (no_msgtype != NULL && count > 1 && templates == NULL)
+    Templates *templates = NULL;
+    if (no_msgtype != NULL && count > 1 && (templates = PyMem_Calloc(1, sizeof(Templates))) == NULL)
         PyErr_NoMemory();
+    PyObject *out = PyErr_Occurred() ? NULL : PyList_New(count);
     LastTopic last = {NULL, NULL, 0};
     for (Py_ssize_t i = 0; out != NULL && i < count; i++) {
         PyObject *line = PyTuple_GET_ITEM(held, i);
