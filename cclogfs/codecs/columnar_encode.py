@@ -20,8 +20,7 @@ from .columns import (
     _shuffle,
     _write_blob,
     _zigzag_delta,
-    classify,
-    classify_joined,
+    classify_columns,
     float_deltas,
     quaternion_prediction,
     slot_floats,
@@ -63,19 +62,31 @@ def _split_by_label(
     return [(literals, indices, columns)]
 
 
-def _maybe_unit(xyz: list, w: np.ndarray) -> bool:
-    """Whether the first or middle row of x, y, z, w is near unit: a cheap filter.
-
-    A quaternion column has at least 90% unit rows, so it all but always passes; most
-    float columns fail here without the numpy work of the full test.
-    """
-    for row in (0, len(w) // 2):
+def _probe(kind: ColumnKind, vals: object, n: int) -> tuple[float, float] | None:
+    """A slot's values at the rows `_maybe_unit` tests (the first and the middle): a
+    FLOAT column's, a CONST token's float (both rows), else None. Taken once per slot,
+    not once per test of each of the four quaternion slots it belongs to (issue 14)."""
+    if kind is ColumnKind.FLOAT:
+        return float(vals[0]), float(vals[n // 2])
+    if kind is ColumnKind.CONST:
         try:
-            parts = [float(e[row] if isinstance(e, np.ndarray) else e) for e in xyz]
-        except (TypeError, ValueError):
-            return False
-        parts.append(float(w[row]))
-        if abs(sum(c * c for c in parts) - 1.0) < 1e-6:  # c * c overflows to inf, not an error
+            value = float(vals)
+        except ValueError:  # a string or true/false: not a quaternion's part
+            return None
+        return value, value
+    return None
+
+
+def _maybe_unit(probes: list[tuple[float, float] | None]) -> bool:
+    """Whether the first or middle row of the probes of x, y, z, w is near unit: a cheap
+    filter. A quaternion column has at least 90% unit rows, so it all but always passes;
+    most float columns fail here without the numpy work of the full test.
+    """
+    if None in probes:
+        return False
+    for row in (0, 1):
+        # c * c overflows to inf, not an error
+        if abs(sum(probe[row] * probe[row] for probe in probes) - 1.0) < 1e-6:
             return True
     return False
 
@@ -84,19 +95,18 @@ def _encode_group(literals: tuple[str, ...], columns: list[Sequence[str] | str],
     """One group of n texts: header, literals, kinds, then each column's data."""
     kinds, values = [], []
     floats: list[np.ndarray | str | None] = []  # what slot_floats takes, per slot
-    for tokens in columns:
-        if isinstance(tokens, str):  # a number slot's tokens joined (shapes._columns)
-            kind, vals = classify_joined(tokens, n, decimal=version >= 4)
-        else:
-            kind, vals = classify(tokens, decimal=version >= 4)
+    probes: list[tuple[float, float] | None] = []  # what _maybe_unit takes, per slot
+    for kind, vals in classify_columns(columns, n, decimal=version >= 4):
         fl = vals if kind in (ColumnKind.FLOAT, ColumnKind.CONST) else None
-        if kind is ColumnKind.FLOAT and len(floats) >= 3 and _maybe_unit(floats[-3:], vals):
+        probe = _probe(kind, vals, n)
+        if kind is ColumnKind.FLOAT and len(floats) >= 3 and _maybe_unit([*probes[-3:], probe]):
             xyz = [slot_floats(f, n) for f in floats[-3:]]
             if all(f is not None for f in xyz):
                 x, y, z = xyz
                 with np.errstate(all="ignore"):
                     near_unit = np.abs(x * x + y * y + z * z + vals * vals - 1.0) < 1e-6
-                if near_unit.mean() >= _QUATERNION_SHARE:
+                # the share as near_unit.mean() computes it (an exact count over n), in a cheaper call
+                if np.count_nonzero(near_unit) / n >= _QUATERNION_SHARE:
                     kind = ColumnKind.QUAT_W
                     vals = vals.view("<u8") ^ quaternion_prediction(x, y, z).view("<u8")
         if kind is ColumnKind.FLOAT and version >= 3:
@@ -106,9 +116,10 @@ def _encode_group(literals: tuple[str, ...], columns: list[Sequence[str] | str],
         kinds.append(kind)
         values.append(vals)
         floats.append(fl)
+        probes.append(probe)
     deltas = [j for j, kind in enumerate(kinds) if kind is ColumnKind.FLOAT_DELTA]
     if deltas:
-        orders, planes = float_deltas(np.stack([values[j] for j in deltas]).view("<i8"))
+        orders, planes = float_deltas(np.array([values[j] for j in deltas]).view("<i8"))
         for j, order, data in zip(deltas, orders, planes):
             values[j] = (order, data)
     out = bytearray(GROUP_HEADER.pack(n, len(kinds)))

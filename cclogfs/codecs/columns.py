@@ -7,6 +7,7 @@ Every kind is chosen only when re-rendering its values gives each token back exa
 from __future__ import annotations
 
 import base64
+import functools
 import math
 import re
 import threading
@@ -22,7 +23,7 @@ except ImportError:  # the fast float parser is optional: float() gives the same
 
 from ..errors import CodecError
 from .columns_read import Reader, b64_token as _b64_token, read_blob as _read_blob, read_column, read_decimal, read_packed  # noqa: F401 (tests reach _read_blob here)
-from .columns_read import orjson_differs, orjson_text, render_decimals as _render_decimals, render_floats, respell_joined
+from .columns_read import orjson_differs, orjson_rows, orjson_text, render_decimals as _render_decimals, render_floats, respell_joined
 from .columnar_format import (
     DECIMAL_DIGITS,
     DECIMAL_ORDERS,
@@ -39,6 +40,7 @@ __all__ = [
     "read_packed",
     "write_packed",
     "classify",
+    "classify_columns",
     "classify_joined",
     "float_deltas",
     "quaternion_prediction",
@@ -77,7 +79,11 @@ def _render_joined(values: np.ndarray) -> str:
     """`render_floats(values)` joined by ",": the encoder compares it with a column's
     tokens joined, one string compare per column (orjson's text as it is, in the usual
     column)."""
-    text = orjson_text(values)
+    return _respelled(orjson_text(values), values)
+
+
+def _respelled(text: str, values: np.ndarray) -> str:
+    """orjson's text of the values with the items json.dumps spells otherwise respelled."""
     return respell_joined(text, values) if orjson_differs(text) else text
 
 
@@ -174,19 +180,78 @@ def classify_joined(joined: str, n: int, decimal: bool = False) -> tuple[ColumnK
     takes the token path. Issue 14, eighth pass: a token object per number cost more than
     checking it.
     """
+    route = _route(joined, n, decimal)
+    if isinstance(route, tuple):
+        return route
+    if route is not None:
+        parsed = _parse_joined(joined, n, route)
+        if parsed is not None and _rendered(parsed, route) == joined:
+            return _ONE_CALL_KIND[route], parsed
+    return classify(joined.split(","), decimal)
+
+
+# The kind a one-call check of `_route` gives: simdjson's type letter to the column kind.
+_ONE_CALL_KIND = {"i": ColumnKind.INT, "d": ColumnKind.FLOAT}
+
+
+def _route(joined: str, n: int, decimal: bool) -> tuple[ColumnKind, str] | str | None:
+    """How `classify_joined` decides a column: (CONST, its token); "i" or "d", the
+    one-call check as INT or FLOAT; or None, the token path."""
     comma = joined.find(",")
     first = joined if comma < 0 else joined[:comma]
     if comma < 0 or (joined[joined.rfind(",") + 1 :] == first and ",".join([first] * n) == joined):
         return ColumnKind.CONST, first
     if first.isdigit() or (first[:1] == "-" and first[1:].isdigit()):
-        parsed = _parse_joined(joined, n, "i")
-        if parsed is not None and orjson_text(parsed) == joined:
-            return ColumnKind.INT, parsed
-    elif first not in ("true", "false") and not (decimal and _maybe_decimal(joined, first)):
-        parsed = _parse_joined(joined, n)
-        if parsed is not None and _render_joined(parsed) == joined:
-            return ColumnKind.FLOAT, parsed
-    return classify(joined.split(","), decimal)
+        return "i"
+    if first not in ("true", "false") and not (decimal and _maybe_decimal(joined, first)):
+        return "d"
+    return None
+
+
+def _rendered(values: np.ndarray, of_type: str) -> str:
+    """The values joined as the decoder renders them: orjson's text for i64, which it
+    writes as str(int) does; json.dumps' for floats (`_render_joined`)."""
+    return orjson_text(values) if of_type == "i" else _render_joined(values)
+
+
+def classify_columns(columns: Sequence[Sequence[str] | str], n: int, decimal: bool = False) -> list[tuple[ColumnKind, Any]]:
+    """The kind and values of each column of a group of n texts: `classify_joined` of a
+    number slot's joined tokens, `classify` of a list of tokens (`shapes._columns`).
+
+    The same results, in fewer calls: the columns that take the one-call check of a type
+    are parsed by one simdjson call and rendered by one orjson call together (values
+    are read and written one by one, so each column's part is what it would be alone),
+    then compared column by column. For a window of odometry that is 2 calls where it
+    was 18, each costing more than its 200 numbers (issue 14). A group the joint parse
+    refuses (one column of NaN, say) is decided column by column.
+    """
+    out: list[Any] = [None] * len(columns)
+    checks: dict[str, list[int]] = {"i": [], "d": []}
+    for j, column in enumerate(columns):
+        if not isinstance(column, str):
+            out[j] = classify(column, decimal)
+            continue
+        route = _route(column, n, decimal)
+        if isinstance(route, tuple):
+            out[j] = route
+        elif route is None:
+            out[j] = classify(column.split(","), decimal)
+        else:
+            checks[route].append(j)
+    for of_type, members in checks.items():
+        k = len(members)
+        # Columns too short for simdjson take their path alone (see _parse_joined).
+        parsed = _parse_joined(",".join([columns[j] for j in members]), k * n, of_type) if k > 1 and n >= _SIMDJSON_MIN else None
+        if parsed is None:
+            for j in members:
+                out[j] = classify_joined(columns[j], n, decimal)
+            continue
+        rows = parsed.reshape(k, n)
+        for j, row, text in zip(members, rows, orjson_rows(rows)):
+            if of_type == "d":
+                text = _respelled(text, row)
+            out[j] = (_ONE_CALL_KIND[of_type], row) if text == columns[j] else classify(columns[j].split(","), decimal)
+    return out
 
 
 # A DECIMAL column's tokens joined, d digits after each point (render_decimals' text): a
@@ -307,8 +372,16 @@ def slot_floats(entry: np.ndarray | str | None, n: int) -> np.ndarray | None:
     """
     if entry is None or isinstance(entry, np.ndarray):
         return entry
-    arr = _as_floats((entry,))
-    return None if arr is None else np.full(n, arr[0])
+    value = _const_float(entry)
+    return None if value is None else np.full(n, value)
+
+
+@functools.lru_cache(maxsize=256)
+def _const_float(token: str) -> float | None:
+    """A CONST token's float, if rendering it gives the token back. Cached: the same few
+    constants (a quaternion's x and y of 0.0) are asked for in window after window."""
+    arr = _as_floats((token,))
+    return None if arr is None else float(arr[0])
 
 
 def quaternion_prediction(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
@@ -349,15 +422,18 @@ def write_packed(words: np.ndarray, out: bytearray, offset: bool = False) -> Non
         return
     words = words.astype("<i8", copy=False)
     deltas = words[1:] - words[:-1]  # wraps modulo 2**64, as the cumsum that undoes it
-    if n > 1 and deltas.min() > _I64_MIN:  # numpy's gcd takes abs(), which -2**63 overflows
-        step = int(np.gcd.reduce(deltas))
+    smallest = int(deltas.min()) if n > 1 else 0
+    if smallest > _I64_MIN:  # numpy's gcd takes abs(), which -2**63 overflows
+        step = int(np.gcd.reduce(deltas)) if n > 1 else 0
     else:
         step = math.gcd(*deltas.tolist())
     if step > _I64_MAX:  # every delta is 0 or -2**63: keep them whole
         step = 1
-    q = deltas // step if step else np.zeros(n - 1, dtype="<i8")
+    # A step of 1 (nanosecond stamps) leaves the deltas as they are: no division, and
+    # their smallest is already known (issue 14: numpy's calls cost more than its work).
+    q = deltas if step == 1 else deltas // step if step else np.zeros(n - 1, dtype="<i8")
     if offset:
-        base = int(q.min()) if n > 1 else 0
+        base = smallest if step == 1 else int(q.min()) if n > 1 else 0
         z = (q - np.int64(base)).view("<u8")  # wraps: max - min < 2**64 always fits in u64
     else:
         z = ((q << 1) ^ (q >> 63)).view("<u8")
@@ -369,30 +445,38 @@ def write_packed(words: np.ndarray, out: bytearray, offset: bool = False) -> Non
     out += z.view(np.uint8).reshape(n - 1, 8)[:, :width].T.tobytes()
 
 
-def float_deltas(bits: np.ndarray) -> tuple[list[int], list[bytes]]:
+def float_deltas(bits: np.ndarray) -> tuple[list[int], list[memoryview]]:
     """For rows of f64 bits (k x n): each row's delta order and its FLOAT_DELTA planes.
 
     The order is the one in FLOAT_ORDERS leaving the fewest significant bits (sum of
     log2 over a sample of deltas): positions are smooth (second or third order wins),
     velocities are noisy steps (first order wins). All float columns of a group go
     through numpy at once: per column, the calls would cost more than the arithmetic.
+    The levels live in one array, so the sample and the chosen rows are views and one
+    gather, not stacks; each difference is taken over a level's rows end to end, one
+    contiguous subtraction, and the first column, which that gets wrong, is then set
+    (per row, numpy's calls took more time than its arithmetic; issue 14).
     """
     k, n = bits.shape
-    levels = [bits]
-    for _ in FLOAT_ORDERS:  # level r: the r-th repeated difference, first value kept
-        d = levels[-1].copy()
-        np.subtract(levels[-1][:, 1:], levels[-1][:, :-1], out=d[:, 1:])  # wraps modulo 2**64
-        levels.append(d)
-    if n > max(FLOAT_ORDERS):
+    top = FLOAT_ORDERS[-1]  # the orders are 1..top (columnar_format)
+    flat = np.empty((top + 1, k * n), dtype=bits.dtype)
+    flat[0] = bits.ravel()
+    for r in FLOAT_ORDERS:  # level r: the r-th repeated difference, first value kept
+        np.subtract(flat[r - 1, 1:], flat[r - 1, :-1], out=flat[r, 1:])  # wraps modulo 2**64
+        flat[r, ::n] = flat[0, ::n]
+    levels = flat.reshape(top + 1, k, n)
+    if n > top:
         stride = max(1, n // _ORDER_SAMPLES)  # a sample ranks the orders as well as all rows
-        sample = np.stack([levels[r][:, max(FLOAT_ORDERS) :: stride] for r in FLOAT_ORDERS])
+        sample = levels[1:, :, top::stride]
         cost = np.log2(np.abs(sample.astype(np.float64)) + 1.0).sum(axis=2)  # orders x k
-        orders = [FLOAT_ORDERS[i] for i in cost.argmin(axis=0).tolist()]
+        chosen_levels = cost.argmin(axis=0) + 1
+        orders = chosen_levels.tolist()
     else:
         orders = [2] * k
-    chosen = np.stack([levels[r][j] for j, r in enumerate(orders)])
+        chosen_levels = np.full(k, 2)
+    chosen = levels[chosen_levels, np.arange(k)]
     z = ((chosen << 1) ^ (chosen >> 63)).view("<u8")
-    planes = z.view(np.uint8).reshape(k, n, 8).transpose(0, 2, 1).tobytes()
+    planes = memoryview(z.view(np.uint8).reshape(k, n, 8).transpose(0, 2, 1).tobytes())
     return orders, [planes[8 * n * j : 8 * n * (j + 1)] for j in range(k)]
 
 
