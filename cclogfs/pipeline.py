@@ -16,7 +16,7 @@ from collections import Counter
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from itertools import groupby, repeat
-from operator import eq, itemgetter
+from operator import eq, itemgetter, le
 from typing import Any, Protocol
 
 from ._signals import signals_deferred as _signals_deferred
@@ -60,6 +60,10 @@ class WindowPolicy(Protocol):
     def flush(self) -> list[PendingWindow]: ...
 
 
+# A message's (stamp_ns, text): what a window holds of it.
+_STAMP_TEXT = itemgetter(1, 2)
+
+
 class KeepAll:
     """Every message kept, cut per topic into windows of `chunk` messages or `chunk_s` seconds."""
 
@@ -89,7 +93,7 @@ class KeepAll:
         out = []
         open_, chunk = self.open, self.chunk
         for topic, run in groupby(messages, itemgetter(0)):  # a run of one topic: slices of it
-            pairs = [(m[1], m[2]) for m in run]
+            pairs = list(map(_STAMP_TEXT, run))
             start = 0
             while start < len(pairs):
                 buf = open_.get(topic)
@@ -116,6 +120,10 @@ class KeepAll:
 def monotonic_runs(messages: list[tuple[int, str]]) -> Iterator[list[tuple[int, str]]]:
     """Split where a stamp goes backwards (header stamps of some topics do): the store keeps
     each window's messages in time order, and a split keeps every message, in put order."""
+    stamps = list(map(itemgetter(0), messages))
+    if all(map(le, stamps, stamps[1:])):  # the usual window, checked in C, not a step a message
+        yield messages
+        return
     start = 0
     for i in range(1, len(messages)):
         if messages[i][0] < messages[i - 1][0]:
@@ -180,7 +188,7 @@ def first_bad_text(texts: list[Any], *, check_json: bool = True) -> int | None:
     for many texts at once, the cheap checks over their join (every text a str, all ASCII)."""
     if not check_json:
         try:
-            if "".join(texts).isascii():
+            if all(map(str.isascii, texts)):  # no copy of the texts, as a join made
                 return None
         except TypeError:  # not all str: the loop below names the first
             pass

@@ -10,6 +10,7 @@ import os
 import select
 import sys
 from collections.abc import Callable, Iterable, Iterator
+from operator import itemgetter
 from pathlib import Path
 from typing import BinaryIO
 
@@ -181,7 +182,7 @@ class JsonlSource:
         """Topics of the fast path's messages the store would refuse as stream names (a
         C1 control character, over 1024 bytes), or that are reserved (`TypeCheck`): the
         fast layout already keeps out escapes and C0 controls. Each name is checked once per source."""
-        new = {m.topic for m in messages if m is not None}.difference(self._names_ok)
+        new = set(map(itemgetter(0), filter(None, messages))).difference(self._names_ok)  # each message's topic
         reserved = self._types.reserved
         bad = {name for name in new if name in reserved or name_error(name) is not None}
         self._names_ok.update(new - bad)
