@@ -29,20 +29,21 @@ def shared_data():
     return shared_data_file
 
 
-# The columnar encoder's two ways to find a shape's value rows: the compiled helper
-# (cclogfs/codecs/_rows.c, built by setup.py where a C compiler is) and the re module.
-# Modules that use this fixture (pytest.mark.usefixtures) run once per way.
+# The columnar codec's two ways to find a shape's value rows and to join them back: the
+# compiled helper (cclogfs/codecs/_rows.c, built by setup.py where a C compiler is), and
+# the re module and a % template. Modules that use this fixture (pytest.mark.usefixtures)
+# run once per way.
 @pytest.fixture(scope="module", params=["compiled", "python"])
 def row_path(request):
-    from cclogfs.codecs import shapes
+    from cclogfs.codecs import columnar, shapes
 
-    compiled = shapes._match_rows_c, shapes._match_columns_c
+    compiled = shapes._match_rows_c, shapes._match_columns_c, columnar._join_rows_c
     if request.param == "compiled" and None in compiled:
         pytest.skip("the compiled helper cclogfs.codecs._rows is not built (no C compiler at install)")
     if request.param == "python":
-        shapes._match_rows_c = shapes._match_columns_c = None
+        shapes._match_rows_c = shapes._match_columns_c = columnar._join_rows_c = None
     yield request.param
-    shapes._match_rows_c, shapes._match_columns_c = compiled
+    shapes._match_rows_c, shapes._match_columns_c, columnar._join_rows_c = compiled
 
 
 # The JSONL source's two ways to split lines: the compiled splitter

@@ -1,5 +1,6 @@
 """The compiled row finder (cclogfs/codecs/_rows.c) gives exactly the re module's rows
-and columns, and so the columnar encoder writes the same bytes with it as without it."""
+and columns, and so the columnar encoder writes the same bytes with it as without it; its
+row join gives exactly the texts of the decoder's % template."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cclogfs.codecs import shapes
+from cclogfs.codecs import columnar, shapes
 from cclogfs.codecs.columnar import ColumnarCodec
 from cclogfs.codecs.shapes import _kinds, _regex, split_text
 
@@ -120,3 +121,31 @@ def test_real_windows_encode_the_same_either_way(shared_data, name):
         windows = [texts[i : i + 200] for i in range(0, len(texts), 200)]
         compiled, python = _encode_both(windows)
         assert compiled == python, topic
+
+
+# Characters of one byte (ASCII, Latin-1), wider ones (the join says NotImplemented), and %.
+CHARS = st.sampled_from(["a", "0", '"', "%", "%s", "%%", "\\", "\n", "\x00", "\x7f", "\x80", "é", "\xff", "\u20ac", "\U0001f600"])
+strings = st.lists(CHARS, max_size=5).map("".join)
+
+
+@settings(max_examples=500)
+@given(st.integers(1, 4), st.integers(0, 5), st.data())
+def test_join_rows_gives_the_template_s_texts(k, n, data):
+    literals = data.draw(st.lists(strings, min_size=k + 1, max_size=k + 1))
+    columns = [data.draw(st.lists(strings, min_size=n, max_size=n)) for _ in range(k)]
+    fmt = "%s".join(literal.replace("%", "%%") for literal in literals)
+    want = [fmt % row for row in zip(*columns)]
+    got = COMPILED.join_rows(tuple(literals), tuple(columns))
+    if got is NotImplemented:
+        assert any(max(map(ord, s), default=0) > 255 for s in [*literals, *(v for c in columns for v in c)])
+        return
+    assert got == want
+    # An ASCII text must be made as one: str.isascii and the UTF-8 encoder trust the flag.
+    assert [t.isascii() for t in got] == [t.isascii() for t in want]
+    assert columnar.join_rows(literals, columns, n) == want
+
+
+@pytest.mark.parametrize("literals, columns", [(("a",), ()), (("a", "b"), (["1"], ["2"])), (("a", "b", "c"), (["1"], ["2", "3"])), (("a", "b"), ("1",))])
+def test_join_rows_refuses_a_misfit(literals, columns):
+    with pytest.raises(ValueError):
+        COMPILED.join_rows(literals, columns)
