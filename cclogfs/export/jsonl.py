@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import heapq
 from collections.abc import Iterable, Iterator
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 from ..jsontext.lines import format_lines
-from .base import Progress, StoredWindow
+
+if TYPE_CHECKING:  # types only: `cclog cat` need not import the exporters' module (dataclasses, shutil)
+    from .base import Progress, StoredWindow
 
 
 def merged_messages(
