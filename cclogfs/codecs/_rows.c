@@ -102,17 +102,21 @@ static void shape_free(struct shape *sh)
     PyMem_Free(sh->starts);
 }
 
-/* Parse (literals, kinds, texts) into sh and *texts: 1 done, 0 a string of wider
- * characters (the caller returns NotImplemented), -1 an error (set). */
+/* Parse (literals, kinds, texts) into sh and *texts, a new tuple of the texts (the
+ * caller releases it): 1 done, 0 a string of wider characters (the caller returns
+ * NotImplemented), -1 an error (set). The texts are read from that tuple, not from the
+ * list: making an object may run the garbage collector, and a finalizer, or a kind's
+ * __bool__, could change the list while it is read. */
 static int shape_init(PyObject *args, const char *name, struct shape *sh, PyObject **texts)
 {
-    PyObject *literals, *kinds_obj;
+    PyObject *literals, *kinds_obj, *list;
     char format[64];
     memset(sh, 0, sizeof *sh);
+    *texts = NULL;
     PyOS_snprintf(format, sizeof format, "O!O!O!:%s", name);
-    if (!PyArg_ParseTuple(args, format, &PyTuple_Type, &literals, &PyTuple_Type, &kinds_obj, &PyList_Type, texts))
+    if (!PyArg_ParseTuple(args, format, &PyTuple_Type, &literals, &PyTuple_Type, &kinds_obj, &PyList_Type, &list))
         return -1;
-    Py_ssize_t k = sh->k = PyTuple_GET_SIZE(kinds_obj), count = PyList_GET_SIZE(*texts);
+    Py_ssize_t k = sh->k = PyTuple_GET_SIZE(kinds_obj);
     if (PyTuple_GET_SIZE(literals) != k + 1) {
         PyErr_Format(PyExc_ValueError, "%s needs one literal more than kinds", name);
         return -1;
@@ -120,15 +124,21 @@ static int shape_init(PyObject *args, const char *name, struct shape *sh, PyObje
     for (Py_ssize_t j = 0; j <= k; j++)
         if (!one_byte(PyTuple_GET_ITEM(literals, j)))
             return 0;
+    if ((*texts = PyList_AsTuple(list)) == NULL)
+        return -1;
+    Py_ssize_t count = PyTuple_GET_SIZE(*texts);
     for (Py_ssize_t i = 0; i < count; i++)
-        if (!one_byte(PyList_GET_ITEM(*texts, i)))
+        if (!one_byte(PyTuple_GET_ITEM(*texts, i))) {
+            Py_CLEAR(*texts);
             return 0;
+        }
     sh->lit = PyMem_Malloc((k + 1) * sizeof *sh->lit);
     sh->lit_len = PyMem_Malloc((k + 1) * sizeof *sh->lit_len);
     sh->kinds = PyMem_Malloc((k + 1) * sizeof *sh->kinds);
     sh->starts = PyMem_Malloc(2 * (k + 1) * sizeof *sh->starts);  /* each value's start, then end */
     if (sh->lit == NULL || sh->lit_len == NULL || sh->kinds == NULL || sh->starts == NULL) {
         shape_free(sh);
+        Py_CLEAR(*texts);
         PyErr_NoMemory();
         return -1;
     }
@@ -139,6 +149,7 @@ static int shape_init(PyObject *args, const char *name, struct shape *sh, PyObje
         sh->lit_len[j] = PyUnicode_GET_LENGTH(l);
         if (j < k && (sh->kinds[j] = PyObject_IsTrue(PyTuple_GET_ITEM(kinds_obj, j))) < 0) {
             shape_free(sh);
+            Py_CLEAR(*texts);
             return -1;
         }
     }
@@ -169,10 +180,10 @@ static PyObject *match_rows(PyObject *Py_UNUSED(self), PyObject *args)
     int ready = shape_init(args, "match_rows", &sh, &texts);
     if (ready <= 0)
         return ready < 0 ? NULL : Py_NewRef(Py_NotImplemented);
-    Py_ssize_t count = PyList_GET_SIZE(texts);
+    Py_ssize_t count = PyTuple_GET_SIZE(texts);
     PyObject *out = PyList_New(count);
     for (Py_ssize_t i = 0; out != NULL && i < count; i++) {
-        PyObject *text = PyList_GET_ITEM(texts, i);
+        PyObject *text = PyTuple_GET_ITEM(texts, i);
         PyObject *row = find_values(text, &sh) ? row_of(text, &sh) : Py_NewRef(Py_None);
         if (row == NULL)
             Py_CLEAR(out);
@@ -180,6 +191,7 @@ static PyObject *match_rows(PyObject *Py_UNUSED(self), PyObject *args)
             PyList_SET_ITEM(out, i, row);
     }
     shape_free(&sh);
+    Py_DECREF(texts);
     return out;
 }
 
@@ -187,7 +199,7 @@ static PyObject *match_rows(PyObject *Py_UNUSED(self), PyObject *args)
  * ",": a new ASCII str (number tokens are [-+.0-9A-Za-z] only). */
 static PyObject *joined_tokens(PyObject *texts, const Py_ssize_t *spans, Py_ssize_t k, Py_ssize_t j)
 {
-    Py_ssize_t count = PyList_GET_SIZE(texts), size = count > 0 ? count - 1 : 0;
+    Py_ssize_t count = PyTuple_GET_SIZE(texts), size = count > 0 ? count - 1 : 0;
     for (Py_ssize_t i = 0; i < count; i++)
         size += spans[2 * (i * k + j) + 1] - spans[2 * (i * k + j)];
     PyObject *out = PyUnicode_New(size, 127);
@@ -198,7 +210,7 @@ static PyObject *joined_tokens(PyObject *texts, const Py_ssize_t *spans, Py_ssiz
         Py_ssize_t start = spans[2 * (i * k + j)], len = spans[2 * (i * k + j) + 1] - start;
         if (i > 0)
             *at++ = ',';
-        memcpy(at, PyUnicode_1BYTE_DATA(PyList_GET_ITEM(texts, i)) + start, len);
+        memcpy(at, PyUnicode_1BYTE_DATA(PyTuple_GET_ITEM(texts, i)) + start, len);
         at += len;
     }
     return out;
@@ -212,12 +224,12 @@ static PyObject *joined_tokens(PyObject *texts, const Py_ssize_t *spans, Py_ssiz
  * was most of what such a run costs more per message (issue 14, ninth pass). */
 static int same_tokens(PyObject *texts, const Py_ssize_t *spans, Py_ssize_t k, Py_ssize_t j)
 {
-    Py_ssize_t count = PyList_GET_SIZE(texts), start = spans[2 * j], len = spans[2 * j + 1] - start;
-    const Py_UCS1 *first = PyUnicode_1BYTE_DATA(PyList_GET_ITEM(texts, 0)) + start;
+    Py_ssize_t count = PyTuple_GET_SIZE(texts), start = spans[2 * j], len = spans[2 * j + 1] - start;
+    const Py_UCS1 *first = PyUnicode_1BYTE_DATA(PyTuple_GET_ITEM(texts, 0)) + start;
     for (Py_ssize_t i = 1; i < count; i++) {
         Py_ssize_t at = spans[2 * (i * k + j)];
         if (spans[2 * (i * k + j) + 1] - at != len ||
-            memcmp(PyUnicode_1BYTE_DATA(PyList_GET_ITEM(texts, i)) + at, first, len) != 0)
+            memcmp(PyUnicode_1BYTE_DATA(PyTuple_GET_ITEM(texts, i)) + at, first, len) != 0)
             return 0;
     }
     return 1;
@@ -230,12 +242,12 @@ static PyObject *match_columns(PyObject *Py_UNUSED(self), PyObject *args)
     int ready = shape_init(args, "match_columns", &sh, &texts);
     if (ready <= 0)
         return ready < 0 ? NULL : Py_NewRef(Py_NotImplemented);
-    Py_ssize_t count = PyList_GET_SIZE(texts), k = sh.k;
+    Py_ssize_t count = PyTuple_GET_SIZE(texts), k = sh.k;
     /* Every text's value spans first: a joined column's size is known only after the last. */
     Py_ssize_t *spans = PyMem_Malloc(2 * (count * k + 1) * sizeof *spans);
     PyObject *out = spans == NULL ? PyErr_NoMemory() : PyList_New(k);
     for (Py_ssize_t i = 0; out != NULL && i < count; i++) {
-        if (!find_values(PyList_GET_ITEM(texts, i), &sh)) {
+        if (!find_values(PyTuple_GET_ITEM(texts, i), &sh)) {
             Py_SETREF(out, Py_NewRef(Py_None));
             break;
         }
@@ -250,14 +262,14 @@ static PyObject *match_columns(PyObject *Py_UNUSED(self), PyObject *args)
             column = PyList_New(count);
             for (Py_ssize_t i = 0; column != NULL && i < count; i++) {
                 Py_ssize_t at = 2 * (i * k + j);
-                PyObject *token = PyUnicode_Substring(PyList_GET_ITEM(texts, i), spans[at], spans[at + 1]);
+                PyObject *token = PyUnicode_Substring(PyTuple_GET_ITEM(texts, i), spans[at], spans[at + 1]);
                 if (token == NULL)
                     Py_CLEAR(column);
                 else
                     PyList_SET_ITEM(column, i, token);
             }
         } else if (count > 0 && same_tokens(texts, spans, k, j)) {
-            column = PyUnicode_Substring(PyList_GET_ITEM(texts, 0), spans[2 * j], spans[2 * j + 1]);
+            column = PyUnicode_Substring(PyTuple_GET_ITEM(texts, 0), spans[2 * j], spans[2 * j + 1]);
         } else {
             column = joined_tokens(texts, spans, k, j);
         }
@@ -268,6 +280,7 @@ static PyObject *match_columns(PyObject *Py_UNUSED(self), PyObject *args)
     }
     PyMem_Free(spans);
     shape_free(&sh);
+    Py_DECREF(texts);
     return out;
 }
 
@@ -296,18 +309,26 @@ static PyObject *join_rows(PyObject *Py_UNUSED(self), PyObject *args)
         fixed += PyUnicode_GET_LENGTH(l);
         fixed_ascii &= PyUnicode_IS_ASCII(l);
     }
+    if (PyList_Check(PyTuple_GET_ITEM(columns, 0)))
+        n = PyList_GET_SIZE(PyTuple_GET_ITEM(columns, 0));
+    /* The list first: making it may run the garbage collector, and a finalizer could change
+     * the columns; after the checks below, nothing runs Python code (a str is not tracked). */
+    PyObject *out = PyList_New(n);
+    if (out == NULL)
+        return NULL;
     for (Py_ssize_t j = 0; j < k; j++) {
         PyObject *column = PyTuple_GET_ITEM(columns, j);
-        if (!PyList_Check(column) || (j > 0 && PyList_GET_SIZE(column) != n)) {
+        if (!PyList_Check(column) || PyList_GET_SIZE(column) != n) {
+            Py_DECREF(out);
             PyErr_SetString(PyExc_ValueError, "join_rows needs lists of one length");
             return NULL;
         }
-        n = PyList_GET_SIZE(column);
         for (Py_ssize_t i = 0; i < n; i++)
-            if (!one_byte(PyList_GET_ITEM(column, i)))
+            if (!one_byte(PyList_GET_ITEM(column, i))) {
+                Py_DECREF(out);
                 return Py_NewRef(Py_NotImplemented);
+            }
     }
-    PyObject *out = PyList_New(n);
     for (Py_ssize_t i = 0; out != NULL && i < n; i++) {
         Py_ssize_t size = fixed;
         int ascii = fixed_ascii;
