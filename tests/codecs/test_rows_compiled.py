@@ -145,6 +145,14 @@ def test_join_rows_gives_the_template_s_texts(k, n, data):
     assert columnar.join_rows(literals, columns, n) == want
 
 
+def test_join_rows_gives_a_text_of_one_piece_as_that_piece():
+    # As % does: a window of a million bare numbers holds each once (test_codec_bombs.py).
+    values = [str(10 + i) for i in range(5)]
+    got = COMPILED.join_rows(("", ""), (values,))
+    assert all(t is v for t, v in zip(got, values))
+    assert COMPILED.join_rows(("", "x", ""), (["", ""], ["", ""])) == ["x", "x"]
+
+
 @pytest.mark.parametrize("literals, columns", [(("a",), ()), (("a", "b"), (["1"], ["2"])), (("a", "b", "c"), (["1"], ["2", "3"])), (("a", "b"), ("1",))])
 def test_join_rows_refuses_a_misfit(literals, columns):
     with pytest.raises(ValueError):
