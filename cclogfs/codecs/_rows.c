@@ -350,7 +350,7 @@ static PyObject *join_rows(PyObject *Py_UNUSED(self), PyObject *args)
         }
         /* A text that is one piece (a bare value, "" when all are empty) is that piece, as %
          * gives it: a window of a million bare numbers would otherwise hold each twice, a
-         * third more memory than a read may take (tests/store/test_codec_bombs.py). */
+         * third more memory, past what FORMAT.md lets a read take (test_codec_bombs.py). */
         if (pieces <= 1) {
             PyList_SET_ITEM(out, i, Py_NewRef(piece));
             continue;
