@@ -124,9 +124,19 @@ static int shape_init(PyObject *args, const char *name, struct shape *sh, PyObje
     for (Py_ssize_t j = 0; j <= k; j++)
         if (!one_byte(PyTuple_GET_ITEM(literals, j)))
             return 0;
-    if ((*texts = PyList_AsTuple(list)) == NULL)
+    /* Not PyList_AsTuple: on 3.11 it reads the list's items, then makes the tuple (which
+     * may run the collector, and a finalizer), then copies from what it read. Here the
+     * tuple is made first, and the list's size checked after it. */
+    Py_ssize_t count = PyList_GET_SIZE(list);
+    if ((*texts = PyTuple_New(count)) == NULL)
         return -1;
-    Py_ssize_t count = PyTuple_GET_SIZE(*texts);
+    if (PyList_GET_SIZE(list) != count) {
+        Py_CLEAR(*texts);
+        PyErr_Format(PyExc_RuntimeError, "%s: the texts changed while being read", name);
+        return -1;
+    }
+    for (Py_ssize_t i = 0; i < count; i++)
+        PyTuple_SET_ITEM(*texts, i, Py_NewRef(PyList_GET_ITEM(list, i)));
     for (Py_ssize_t i = 0; i < count; i++)
         if (!one_byte(PyTuple_GET_ITEM(*texts, i))) {
             Py_CLEAR(*texts);
