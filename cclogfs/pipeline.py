@@ -185,7 +185,8 @@ def check_message(topic: str, stamp_ns: Any, text: Any, *, check_json: bool = Tr
 
 def first_bad_text(texts: list[Any], *, check_json: bool = True) -> int | None:
     """The index of the first text `check_message` refuses, None when it takes them all:
-    for many texts at once, the cheap checks over their join (every text a str, all ASCII)."""
+    for many texts at once, without JSON checks, first the cheap one of each text (a str,
+    all ASCII: a flag each)."""
     if not check_json:
         try:
             if all(map(str.isascii, texts)):  # no copy of the texts, as a join made
