@@ -54,9 +54,10 @@ def topic_messages(path: Path, topic: str, *, stamp: str = "header") -> list[tup
     return out
 
 
-def load_topic(file: str, topic: str) -> list[tuple[int, bytes]]:
-    """(log time ns, rosbridge JSON bytes) of every message of one topic of a shared file."""
-    return [(t, text.encode()) for t, text in topic_messages(SHARED / file, topic, stamp="log")]
+def load_topic(file: str, topic: str) -> list[tuple[int, str]]:
+    """(log time ns, rosbridge JSON text) of every message of one topic of a shared file:
+    str, as the codecs take texts."""
+    return topic_messages(SHARED / file, topic, stamp="log")
 
 
 def odom_messages() -> list[tuple[int, str]]:

@@ -36,16 +36,16 @@ def bench_topic(file: str, topic: str, window: int, runs: int) -> dict:
     windows = [messages[i : i + window] for i in range(0, len(messages), window)]
     windows = [([s for s, _ in w], [t for _, t in w]) for w in windows]
     codec = codec_from_config("columnar")
-    json_bytes = sum(len(t) for _, texts in windows for t in texts)
+    json_bytes = sum(len(t.encode()) for _, texts in windows for t in texts)
 
     encoded = [codec.encode(s, t) for s, t in windows]
     for (s, t), data in zip(windows, encoded):  # the benchmark only counts exact round trips
         assert codec.decode(data, count=len(t), raw_len=raw_size(s, t)) == (s, t)
-    lz = [lzma.compress(b"".join(t), preset=6) for _, t in windows]
-    whole_lz = len(lzma.compress(b"".join(t for _, ts in windows for t in ts), preset=6))
+    lz = [lzma.compress("".join(t).encode(), preset=6) for _, t in windows]
+    whole_lz = len(lzma.compress("".join(t for _, ts in windows for t in ts).encode(), preset=6))
 
     enc_s = median_time(lambda: [codec.encode(s, t) for s, t in windows], runs)
-    lz_s = median_time(lambda: [lzma.compress(b"".join(t), preset=6) for _, t in windows], runs)
+    lz_s = median_time(lambda: [lzma.compress("".join(t).encode(), preset=6) for _, t in windows], runs)
     dec_s = median_time(
         lambda: [
             codec.decode(d, count=len(t), raw_len=raw_size(s, t))
@@ -76,7 +76,7 @@ def bench_topic(file: str, topic: str, window: int, runs: int) -> dict:
 _TOKEN = re.compile(r'"(?:[^"\\]|\\.)*"|-?\d+(?:\.\d+)?(?:[eE][+-]?\d+)?')
 
 
-def age_text(text: bytes, digits: int) -> bytes:
+def age_text(text: str, digits: int) -> str:
     """Every float token (one with '.' or an exponent) rounded to `digits` places, fixed-point."""
     quantum = decimal.Decimal(1).scaleb(-digits)
 
@@ -88,7 +88,7 @@ def age_text(text: bytes, digits: int) -> bytes:
             value = decimal.Decimal(token).quantize(quantum)
         return format(value.copy_abs() if value.is_zero() else value, "f")  # never -0.000
 
-    return _TOKEN.sub(rounded, text.decode()).encode()
+    return _TOKEN.sub(rounded, text)
 
 
 def _encoded_size(version: int, windows: list) -> int:
@@ -113,10 +113,10 @@ def bench_aged(file: str, topic: str, window: int, digits: int) -> dict:
         "digits": digits,
         "original_v3": _encoded_size(3, windows),
         "original_v4": _encoded_size(4, windows),
-        "aged_json": sum(len(t) for _, texts in aged for t in texts),
+        "aged_json": sum(len(t.encode()) for _, texts in aged for t in texts),
         "aged_v3": _encoded_size(3, aged),
         "aged_v4": _encoded_size(4, aged),
-        "aged_lzma6_windows": sum(len(lzma.compress(b"".join(t), preset=6)) for _, t in aged),
+        "aged_lzma6_windows": sum(len(lzma.compress("".join(t).encode(), preset=6)) for _, t in aged),
     }
 
 
