@@ -29,21 +29,24 @@ def shared_data():
     return shared_data_file
 
 
-# The columnar codec's two ways to find a shape's value rows and to join them back: the
-# compiled helper (cclogfs/codecs/_rows.c, built by setup.py where a C compiler is), and
-# the re module and a % template. Modules that use this fixture (pytest.mark.usefixtures)
-# run once per way.
+# The columnar codec's two ways to find a shape's value rows, to write their byte planes
+# and to join the rows back: the compiled helpers (cclogfs/codecs/_rows.c and _planes.c,
+# built by setup.py where a C compiler is), and the re module, numpy and a % template.
+# Modules that use this fixture (pytest.mark.usefixtures) run once per way.
 @pytest.fixture(scope="module", params=["compiled", "python"])
 def row_path(request):
-    from cclogfs.codecs import columnar, shapes
+    from cclogfs.codecs import columnar, columns, shapes
 
-    compiled = shapes._match_rows_c, shapes._match_columns_c, columnar._join_rows_c
+    compiled = (shapes._match_rows_c, shapes._match_columns_c, columnar._join_rows_c,
+                columns._pack_ints_c, columns._float_planes_c)  # fmt: skip
     if request.param == "compiled" and None in compiled:
-        pytest.skip("the compiled helper cclogfs.codecs._rows is not built (no C compiler at install)")
+        pytest.skip("the compiled helpers cclogfs.codecs._rows and _planes are not built (no C compiler at install)")
     if request.param == "python":
         shapes._match_rows_c = shapes._match_columns_c = columnar._join_rows_c = None
+        columns._pack_ints_c = columns._float_planes_c = None
     yield request.param
-    shapes._match_rows_c, shapes._match_columns_c, columnar._join_rows_c = compiled
+    (shapes._match_rows_c, shapes._match_columns_c, columnar._join_rows_c,
+     columns._pack_ints_c, columns._float_planes_c) = compiled  # fmt: skip
 
 
 # The JSONL source's two ways to split lines: the compiled splitter

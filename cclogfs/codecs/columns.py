@@ -21,6 +21,14 @@ try:
 except ImportError:  # the fast float parser is optional: float() gives the same values
     simdjson = None
 
+# The compiled byte planes (cclogfs/codecs/_planes.c, where setup.py could build it):
+# write_packed and float_deltas in one call each, the same bytes as the numpy paths
+# below, which took a dozen calls each (issue 14). Without it, those paths.
+try:
+    from ._planes import float_planes as _float_planes_c, pack_ints as _pack_ints_c
+except ImportError:  # no C compiler at install
+    _float_planes_c = _pack_ints_c = None
+
 from ..errors import CodecError
 from .columns_read import Reader, b64_token as _b64_token, read_blob as _read_blob, read_column, read_decimal, read_packed  # noqa: F401 (tests reach _read_blob here)
 from .columns_read import orjson_differs, orjson_rows, orjson_text, render_decimals as _render_decimals, render_floats, respell_joined
@@ -422,6 +430,9 @@ def write_packed(words: np.ndarray, out: bytearray, offset: bool = False) -> Non
     if n == 0:
         return
     words = words.astype("<i8", copy=False)
+    if _pack_ints_c is not None:
+        out += _pack_ints_c(np.ascontiguousarray(words), offset)
+        return
     deltas = words[1:] - words[:-1]  # wraps modulo 2**64, as the cumsum that undoes it
     smallest = int(deltas.min()) if n > 1 else 0
     if smallest > _I64_MIN:  # numpy's gcd takes abs(), which -2**63 overflows
@@ -449,8 +460,9 @@ def write_packed(words: np.ndarray, out: bytearray, offset: bool = False) -> Non
 def float_deltas(bits: np.ndarray) -> tuple[list[int], list[memoryview]]:
     """For rows of f64 bits (k x n): each row's delta order and its FLOAT_DELTA planes.
 
-    The order is the one in FLOAT_ORDERS leaving the fewest significant bits (sum of
-    log2 over a sample of deltas): positions are smooth (second or third order wins),
+    The order is the one in FLOAT_ORDERS leaving the fewest significant bits (the sum,
+    over a sample of deltas, of frexp's exponent of each as a double, an exact integer;
+    ties: the lowest order): positions are smooth (second or third order wins),
     velocities are noisy steps (first order wins). All float columns of a group go
     through numpy at once: per column, the calls would cost more than the arithmetic.
     The levels live in one array, so the sample and the chosen rows are views and one
@@ -459,6 +471,10 @@ def float_deltas(bits: np.ndarray) -> tuple[list[int], list[memoryview]]:
     (per row, numpy's calls took more time than its arithmetic; issue 14).
     """
     k, n = bits.shape
+    if _float_planes_c is not None:
+        orders, data = _float_planes_c(np.ascontiguousarray(bits, dtype="<i8"), k, n)
+        planes = memoryview(data)
+        return orders, [planes[8 * n * j : 8 * n * (j + 1)] for j in range(k)]
     top = FLOAT_ORDERS[-1]  # the orders are 1..top (columnar_format)
     flat = np.empty((top + 1, k * n), dtype=bits.dtype)
     flat[0] = bits.ravel()
@@ -469,7 +485,7 @@ def float_deltas(bits: np.ndarray) -> tuple[list[int], list[memoryview]]:
     if n > top:
         stride = max(1, n // _ORDER_SAMPLES)  # a sample ranks the orders as well as all rows
         sample = levels[1:, :, top::stride]
-        cost = np.log2(np.abs(sample.astype(np.float64)) + 1.0).sum(axis=2)  # orders x k
+        cost = np.frexp(np.abs(sample.astype(np.float64)))[1].sum(axis=2)  # orders x k
         chosen_levels = cost.argmin(axis=0) + 1
         orders = chosen_levels.tolist()
     else:
