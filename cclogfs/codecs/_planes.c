@@ -189,7 +189,8 @@ static PyObject *float_planes(PyObject *self, PyObject *args)
     Py_ssize_t count;
     if (get_words(obj, &view, &count) < 0)
         return NULL;
-    if ((n > 0 && k > PY_SSIZE_T_MAX / 8 / n) || count != k * n) {
+    /* n bounded too: the four levels of a row take 32 * n bytes, even when k is 0 */
+    if (n > PY_SSIZE_T_MAX / 32 || (n > 0 && k > PY_SSIZE_T_MAX / 8 / n) || count != k * n) {
         PyBuffer_Release(&view);
         PyErr_SetString(PyExc_ValueError, "float_planes needs a buffer of k * n i64 values");
         return NULL;

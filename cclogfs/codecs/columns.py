@@ -470,9 +470,12 @@ def float_deltas(bits: np.ndarray) -> tuple[list[int], list[memoryview]]:
     contiguous subtraction, and the first column, which that gets wrong, is then set
     (per row, numpy's calls took more time than its arithmetic; issue 14).
     """
+    if bits.dtype.kind not in "iu" or bits.dtype.itemsize != 8:  # the bits, not the floats
+        raise TypeError(f"float_deltas takes 64-bit words (a float64 array's .view('<i8')), not {bits.dtype}")
+    bits = bits.astype("<i8", copy=False)  # u8 words as i8: the same bits, signed shifts
     k, n = bits.shape
     if _float_planes_c is not None:
-        orders, data = _float_planes_c(np.ascontiguousarray(bits, dtype="<i8"), k, n)
+        orders, data = _float_planes_c(np.ascontiguousarray(bits), k, n)
         planes = memoryview(data)
         return orders, [planes[8 * n * j : 8 * n * (j + 1)] for j in range(k)]
     top = FLOAT_ORDERS[-1]  # the orders are 1..top (columnar_format)

@@ -115,3 +115,19 @@ def test_misfit_arguments_raise():
         COMPILED.pack_ints(np.zeros((4, 4), dtype="<i8")[:, 1], True)
     with pytest.raises(ValueError, match="k \\* n"):
         COMPILED.float_planes(np.zeros(2, dtype="<i8"), 3, 0)
+    with pytest.raises(ValueError, match="k \\* n"):
+        COMPILED.float_planes(b"", 0, 2**62)  # no rows, but levels of 2^67 bytes
+
+
+@pytest.mark.parametrize("path", ["compiled", "python"])
+def test_float_deltas_take_only_64_bit_words(path):
+    values = np.array([[1.5, 2.5, 3.25, 4.0, 5.0, 6.5]])
+    if path == "python":
+        with pytest.raises(TypeError, match="64-bit words"):
+            python_path(columns.float_deltas, values)
+        assert python_path(columns.float_deltas, values.view("<u8")) == python_path(columns.float_deltas, values.view("<i8"))
+        return
+    for wrong in (values, values.astype(np.int32)):
+        with pytest.raises(TypeError, match="64-bit words"):
+            columns.float_deltas(wrong)
+    assert columns.float_deltas(values.view("<u8")) == columns.float_deltas(values.view("<i8"))
