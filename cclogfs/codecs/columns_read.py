@@ -158,42 +158,6 @@ def respell(text: str, values) -> list[str]:
 
 # What orjson_differs looks for: an exponent, null, the decade below 1e-4.
 _MARKS = ("e", "n", "0.0000")
-# A column with more items holding a mark than this share is respelled item by item.
-_SPLICE_MAX_SHARE = 1 / 8
-
-
-def respell_joined(text: str, values) -> str:
-    """`",".join(respell(text, values))`, for the encoder, which compares joined texts.
-
-    A column with a few items to respell (a value below 1e-4 among 200) has them found by
-    `str.find` and spliced: 8 us where `respell`'s test of every item took 28, 2 % of
-    `record` (issue 14). No item holds a comma, so commas count the items before one. A
-    column with many (the search stops past the share) takes `respell`, then the cheaper.
-    """
-    most = int(_SPLICE_MAX_SHARE * len(values))
-    # The marks counted first, three scans in C: a column with more than the share goes to
-    # `respell` before any item is looked for (each item to respell holds a mark or more;
-    # a column sent there by a count above its items gives the same text, a little slower).
-    if sum(map(text.count, _MARKS)) > most:
-        return ",".join(respell(text, values))
-    starts: set[int] = set()
-    for mark in _MARKS:
-        at = text.find(mark)
-        while at >= 0 and len(starts) <= most:
-            starts.add(text.rfind(",", 0, at) + 1)
-            end = text.find(",", at)
-            at = -1 if end < 0 else text.find(mark, end)
-    if len(starts) > most:
-        return ",".join(respell(text, values))
-    parts, index, done = [], 0, 0  # index: the item at `done`, the end of the last one spliced
-    for start in sorted(starts):
-        end = text.find(",", start)
-        end = len(text) if end < 0 else end
-        index += text.count(",", done, start)
-        parts += (text[done:start], float_text(float(values[index])))
-        done = end
-    parts.append(text[done:])
-    return "".join(parts)
 
 
 def orjson_text(values) -> str:

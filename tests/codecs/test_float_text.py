@@ -83,5 +83,8 @@ def test_long_columns_take_the_same_path(values):
 @settings(max_examples=1000, deadline=None)
 @example(_EDGES)
 @example([1e-5, 10.00001, 0.0, 1e-300, math.nan])
+# around the bound below which the encoder respells orjson's items (columns._RESPELL_BELOW)
+@example([math.nextafter(1e-4, 0), 1e-4, math.nextafter(1e-4, 1), -9.9999e-5, 1.0001e-4,
+          math.nextafter(1.0001e-4, 0), -0.0, 5e-324, 1e16, math.nextafter(1e16, 0), -math.inf])
 def test_the_encoder_s_joined_rendering_is_json_dumps(values):
     assert _render_joined(np.array(values, dtype=np.float64)) == ",".join(reference_texts(values))
