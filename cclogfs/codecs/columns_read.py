@@ -168,8 +168,17 @@ def orjson_text(values) -> str:
 
 def orjson_rows(rows) -> list[str]:
     """`orjson_text` of each row of a 2-D numpy array, from one call: orjson writes the
-    rows one after another as it writes each alone, and no item holds a bracket."""
-    return orjson.dumps(rows, option=orjson.OPT_SERIALIZE_NUMPY)[2:-2].decode().split("],[")
+    rows one after another as it writes each alone, and no item holds a bracket.
+
+    Cut at each "]" found by str.find (memchr), not by split("],["): splitting on three
+    characters took 26 us for 7 rows of 200 floats, the cuts take 6 (issue 14)."""
+    text = orjson.dumps(rows, option=orjson.OPT_SERIALIZE_NUMPY)[2:-2].decode()
+    out, at, find = [], 0, text.find
+    while (end := find("]", at)) >= 0:  # "],[" between rows
+        out.append(text[at:end])
+        at = end + 3
+    out.append(text[at:])
+    return out
 
 
 def orjson_differs(text: str) -> bool:

@@ -277,3 +277,16 @@ def test_a_group_s_number_columns_are_parsed_in_one_call_per_type(monkeypatch):
     got = columns.classify_columns([*ints, *floats, "0.0"], 200, decimal=True)
     assert [kind for kind, _ in got] == [ColumnKind.INT] * 2 + [ColumnKind.FLOAT] * 7 + [ColumnKind.CONST]
     assert sorted(calls) == [("d",), ("i",)]
+
+
+@given(st.integers(0, 6), st.integers(0, 40), st.sampled_from(["<f8", "<i8"]), st.integers(0, 2**32 - 1))
+@settings(max_examples=300, deadline=None)
+def test_orjson_rows_are_each_row_rendered_alone(k, n, dtype, seed):
+    from cclogfs.codecs.columns_read import orjson_rows, orjson_text
+
+    rng = np.random.default_rng(seed)
+    if dtype == "<f8":
+        rows = rng.normal(size=(k, n)) * 10.0 ** rng.integers(-8, 20, size=(k, n))
+    else:
+        rows = rng.integers(-(2**63), 2**63 - 1, size=(k, n), dtype=np.int64)
+    assert orjson_rows(rows) == ([orjson_text(row) for row in rows] if k else [""])
