@@ -9,6 +9,11 @@ The report gives medians, min and max of each, and the A/B ratios taken pair by 
 pairing keeps the ratio meaningful when a shared machine's speed drifts during the call,
 which is why the CPU ratio, not an absolute figure, is what to quote from a loaded host.
 
+To compare two trees of cclogfs, run each with PYTHONPATH set to it from a directory that
+holds no `cclogfs` package (`cd /tmp`): `python -c` puts the working directory first on
+sys.path, so from a checkout both commands would import the checkout's package and the
+ratio would read 1.0 whatever the trees hold (issue 14, thirteenth pass: it did).
+
 Public tools only (the standard library), so that anyone can rerun a figure quoted in
 docs/MEASURED.md.
 """
