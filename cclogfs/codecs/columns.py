@@ -94,7 +94,8 @@ def _render_joined(values: np.ndarray) -> str:
 # "1e-07" are orjson's "0.00001" and "1e-7". So are NaN and the infinities (orjson: null).
 # At 1e-4 and above the two agree (8.6M random doubles compared, issue 14; and
 # tests/codecs/test_float_text.py). The bound is a little above 1e-4: respelling an item
-# both spell alike gives the same text, so the boundary needs no exact argument.
+# both spell alike gives the same text, so the boundary needs no exact argument. (The
+# decoder, which imports no numpy, finds the same items by their text: columns_read.respell.)
 _RESPELL_BELOW = 1.0001e-4
 
 
