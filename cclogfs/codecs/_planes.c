@@ -238,18 +238,12 @@ static PyObject *float_planes(PyObject *self, PyObject *args)
         for (Py_ssize_t i = 0; i < n; i++)
             z[i] = zigzag(level[order * n + i]);
         write_planes(out + 8 * n * j, z, n, 8);
+        /* 1..3 are CPython's cached small ints: PyLong_FromLong allocates nothing, cannot fail */
         PyList_SET_ITEM(orders, j, PyLong_FromLong(order));
     }
     PyBuffer_Release(&view);
     PyMem_Free(level);
     PyMem_Free(z);
-    for (Py_ssize_t j = 0; j < k; j++) {
-        if (PyList_GET_ITEM(orders, j) == NULL) { /* PyLong_FromLong of 1..3 is a cached object */
-            Py_DECREF(orders);
-            Py_DECREF(planes);
-            return NULL;
-        }
-    }
     PyObject *result = PyTuple_Pack(2, orders, planes);
     Py_DECREF(orders);
     Py_DECREF(planes);
